@@ -1,0 +1,272 @@
+//! Thin adapters for `rgbd-geom`: validate, borrow, run without the GIL, return without copies.
+
+use numpy::ndarray::{Array2, Array3};
+use numpy::prelude::*;
+use numpy::{
+    IntoPyArray, PyArray2, PyArray3, PyArrayDyn, PyReadonlyArray2, PyReadonlyArray3,
+    PyReadonlyArrayDyn,
+};
+use pyo3::prelude::*;
+use rgbd_geom::{
+    reproject::MAX_SPLAT_RADIUS, Camera, Distortion, Interpolation, Intrinsics, Pose,
+    ReprojectOptions,
+};
+
+use crate::errors::{contiguous, run, to_py, InvalidArgumentError};
+
+/// `(fx, fy, cx, cy, width, height, [k1, k2, p1, p2, k3, k4, k5, k6])`, as `PinholeCamera._native()`.
+type CameraArgs = (f64, f64, f64, f64, usize, usize, [f64; 8]);
+/// `(row-major rotation, translation)`, as `Pose._native()`.
+type PoseArgs = ([f64; 9], [f64; 3]);
+
+fn camera(c: CameraArgs) -> PyResult<Camera> {
+    let k = Intrinsics::new(c.0, c.1, c.2, c.3, c.4, c.5).map_err(to_py)?;
+    Ok(Camera::new(
+        k,
+        Distortion::from_opencv(&c.6).map_err(to_py)?,
+    ))
+}
+
+fn pose(p: PoseArgs) -> PyResult<Pose> {
+    Pose::new(p.0, p.1).map_err(to_py)
+}
+
+fn shape_err(msg: String) -> PyErr {
+    InvalidArgumentError::new_err(msg)
+}
+
+/// Projects `N x 3` points through `pose` into `camera`; returns `N x 2` pixels (NaN behind).
+#[pyfunction]
+pub fn project_points<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    cam: CameraArgs,
+    pose_args: PoseArgs,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let n = points.shape()[0];
+    let (cam, pose) = (camera(cam)?, pose(pose_args)?);
+    let pts = contiguous("points", points.as_slice())?;
+    let out = run(py, || cam.project_points(pts, &pose))?;
+    Ok(Array2::from_shape_vec((n, 2), out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+/// Undistorts `N x 2` pixels (to ideal pixels, or normalised coordinates).
+#[pyfunction]
+pub fn undistort_pixels<'py>(
+    py: Python<'py>,
+    pixels: PyReadonlyArray2<'py, f64>,
+    cam: CameraArgs,
+    normalized: bool,
+    max_iter: usize,
+    tol: f64,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let n = pixels.shape()[0];
+    let cam = camera(cam)?;
+    let px = contiguous("pixels", pixels.as_slice())?;
+    let out = run(py, || cam.undistort_pixels(px, normalized, max_iter, tol))?;
+    Ok(Array2::from_shape_vec((n, 2), out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+/// Distorts `N x 2` ideal pixels.
+#[pyfunction]
+pub fn distort_pixels<'py>(
+    py: Python<'py>,
+    pixels: PyReadonlyArray2<'py, f64>,
+    cam: CameraArgs,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let n = pixels.shape()[0];
+    let cam = camera(cam)?;
+    let px = contiguous("pixels", pixels.as_slice())?;
+    let out = run(py, || cam.distort_pixels(px))?;
+    Ok(Array2::from_shape_vec((n, 2), out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+/// Back-projects an `H x W` depth map to an `H x W x 3` point cloud.
+#[pyfunction]
+pub fn depth_to_points<'py>(
+    py: Python<'py>,
+    depth: PyReadonlyArray2<'py, f32>,
+    cam: CameraArgs,
+    max_iter: usize,
+    tol: f64,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let cam = camera(cam)?;
+    let (h, w) = (cam.intrinsics.height, cam.intrinsics.width);
+    let d = contiguous("depth", depth.as_slice())?;
+    let out = run(py, || cam.depth_to_points(d, max_iter, tol))?;
+    Ok(Array3::from_shape_vec((h, w, 3), out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+/// Source-pixel map (`H_dst x W_dst x 2`) for undistorting/rectifying `src` onto `dst`.
+#[pyfunction]
+#[pyo3(signature = (src, dst, rotation=None))]
+pub fn undistort_map<'py>(
+    py: Python<'py>,
+    src: CameraArgs,
+    dst: CameraArgs,
+    rotation: Option<[f64; 9]>,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let (src, dst) = (camera(src)?, camera(dst)?.intrinsics);
+    let rot = match rotation {
+        Some(r) => Some(pose((r, [0.0; 3]))?.rotation),
+        None => None,
+    };
+    let map = run(py, || {
+        Ok(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
+    })?;
+    let flat: Vec<f32> = map.into_iter().flatten().collect();
+    Ok(Array3::from_shape_vec((dst.height, dst.width, 2), flat)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+/// Samples an `H x W x C` image at an `H' x W' x 2` map with `"nearest"` or `"linear"`.
+#[pyfunction]
+pub fn remap<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArray3<'py, f32>,
+    map: PyReadonlyArray3<'py, f32>,
+    interpolation: &str,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let interp = match interpolation {
+        "nearest" => Interpolation::Nearest,
+        "linear" => Interpolation::Linear,
+        other => {
+            return Err(InvalidArgumentError::new_err(format!(
+                "interpolation: got {other:?}, expected 'nearest' or 'linear'"
+            )))
+        }
+    };
+    let &[h, w, c] = image.shape() else {
+        unreachable!("3-D array")
+    };
+    let &[mh, mw, two] = map.shape() else {
+        unreachable!("3-D array")
+    };
+    if two != 2 {
+        return Err(shape_err(format!(
+            "map: got shape ({mh}, {mw}, {two}), expected (H, W, 2)"
+        )));
+    }
+    let img = contiguous("image", image.as_slice())?;
+    let m = contiguous("map", map.as_slice())?;
+    let pairs: &[[f32; 2]] = bytemuck_pairs(m);
+    let out = run(py, || rgbd_geom::remap(img, w, h, c, pairs, mw, interp))?;
+    Ok(Array3::from_shape_vec((mh, mw, c), out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+/// Views a flat `[x0, y0, x1, y1, ...]` slice as pairs without copying.
+fn bytemuck_pairs(m: &[f32]) -> &[[f32; 2]] {
+    let (pairs, rest) = m.as_chunks::<2>();
+    debug_assert!(rest.is_empty());
+    pairs
+}
+
+/// `baseline * focal / values`, elementwise, NaN for invalid (depth <-> disparity, eq. 2.15).
+#[pyfunction]
+pub fn depth_disparity<'py>(
+    py: Python<'py>,
+    values: PyReadonlyArrayDyn<'py, f32>,
+    baseline: f64,
+    focal: f64,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let shape = values.shape().to_vec();
+    let v = contiguous("values", values.as_slice())?;
+    let out = run(py, || rgbd_geom::depth_disparity(v, baseline, focal))?;
+    Ok(numpy::ndarray::ArrayD::from_shape_vec(shape, out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+type Reprojected<'py> = (
+    Bound<'py, PyArray2<f32>>,
+    Option<Bound<'py, PyArray3<f32>>>,
+    Bound<'py, PyArray2<i64>>,
+);
+
+/// Z-buffered forward splatting of a depth map (and carried channels) into another camera.
+#[pyfunction]
+#[pyo3(signature = (depth, src, dst, pose_args, channels=None, splat_radius=0, max_iter=20, tol=1e-12))]
+#[allow(clippy::too_many_arguments)]
+pub fn reproject_depth<'py>(
+    py: Python<'py>,
+    depth: PyReadonlyArray2<'py, f32>,
+    src: CameraArgs,
+    dst: CameraArgs,
+    pose_args: PoseArgs,
+    channels: Option<PyReadonlyArray3<'py, f32>>,
+    splat_radius: usize,
+    max_iter: usize,
+    tol: f64,
+) -> PyResult<Reprojected<'py>> {
+    let (src, dst, pose) = (camera(src)?, camera(dst)?, pose(pose_args)?);
+    if splat_radius > MAX_SPLAT_RADIUS {
+        return Err(InvalidArgumentError::new_err(format!(
+            "splat_radius: got {splat_radius}, expected 0..={MAX_SPLAT_RADIUS}"
+        )));
+    }
+    let d = contiguous("depth", depth.as_slice())?;
+    let ch = match &channels {
+        Some(c) => Some((contiguous("channels", c.as_slice())?, c.shape()[2])),
+        None => None,
+    };
+    let opts = ReprojectOptions {
+        splat_radius,
+        max_iter,
+        tol,
+    };
+    let out = run(py, || {
+        rgbd_geom::reproject_depth(d, &src, &dst, &pose, ch, opts)
+    })?;
+    let (h, w) = (dst.intrinsics.height, dst.intrinsics.width);
+    let err = |e: numpy::ndarray::ShapeError| shape_err(e.to_string());
+    let depth = Array2::from_shape_vec((h, w), out.depth)
+        .map_err(err)?
+        .into_pyarray(py);
+    let chans = match ch {
+        Some((_, n)) => Some(
+            Array3::from_shape_vec((h, w, n), out.channels)
+                .map_err(err)?
+                .into_pyarray(py),
+        ),
+        None => None,
+    };
+    let idx = Array2::from_shape_vec((h, w), out.source_index)
+        .map_err(err)?
+        .into_pyarray(py);
+    Ok((depth, chans, idx))
+}
+
+/// Unit normals (towards the camera) of an organised `H x W x 3` point cloud.
+#[pyfunction]
+pub fn normals_from_points<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray3<'py, f32>,
+    max_depth_jump: f32,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let &[h, w, c] = points.shape() else {
+        unreachable!("3-D array")
+    };
+    if c != 3 {
+        return Err(shape_err(format!(
+            "points: got shape ({h}, {w}, {c}), expected (H, W, 3)"
+        )));
+    }
+    let p = contiguous("points", points.as_slice())?;
+    let out = run(py, || {
+        rgbd_geom::normals_from_points(p, w, h, max_depth_jump)
+    })?;
+    Ok(Array3::from_shape_vec((h, w, 3), out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}

@@ -1,0 +1,50 @@
+//! `rgbd_rs._rgbd_rs`: the private native module. Public Python modules wrap these functions;
+//! this crate only adapts numpy buffers to the core crates and maps their errors.
+
+use pyo3::prelude::*;
+
+mod errors;
+mod geom;
+
+/// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import).
+#[pyfunction]
+fn num_threads() -> usize {
+    rayon_threads()
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(
+            std::env::var("RAYON_NUM_THREADS")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .filter(|&n: &usize| n > 0)
+                .unwrap_or(usize::MAX),
+        )
+}
+
+#[pymodule]
+fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("RgbdError", py.get_type::<errors::RgbdError>())?;
+    m.add(
+        "InvalidArgumentError",
+        py.get_type::<errors::InvalidArgumentError>(),
+    )?;
+    m.add(
+        "ShapeMismatchError",
+        py.get_type::<errors::ShapeMismatchError>(),
+    )?;
+    m.add_function(wrap_pyfunction!(num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::project_points, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::undistort_pixels, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::distort_pixels, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::depth_to_points, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::undistort_map, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::remap, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::depth_disparity, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::reproject_depth, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::normals_from_points, m)?)?;
+    Ok(())
+}
