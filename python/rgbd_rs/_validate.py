@@ -1,0 +1,111 @@
+"""Input validation shared by every public function (private).
+
+Each helper raises an :class:`~rgbd_rs.errors.RgbdError` subclass whose message names the
+argument, what it got and what it expected, and returns a C-contiguous array of the working dtype
+(copying once only when the input is not already one).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
+
+
+def _describe_shape(shape: Sequence[int | None]) -> str:
+    return "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+
+
+def array(
+    name: str,
+    value: object,
+    *,
+    shape: Sequence[int | None],
+    dtype: npt.DTypeLike = np.float32,
+    finite: bool = False,
+    allow_empty: bool = False,
+) -> np.ndarray:
+    """Validate ``value`` as a real numeric array of ``shape`` (None = any length).
+
+    Returns it as a C-contiguous array of ``dtype``. ``finite`` rejects NaN/inf.
+    """
+    if not isinstance(value, np.ndarray):
+        try:
+            value = np.asarray(value)
+        except (TypeError, ValueError) as exc:  # ragged lists and the like
+            raise InvalidArgumentError(
+                f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
+                "expected a numpy array"
+            ) from None
+    assert isinstance(value, np.ndarray)
+    if value.dtype.kind not in "iuf":
+        raise InvalidArgumentError(
+            f"{name}: got dtype {value.dtype}, expected a real numeric array (int/uint/float)"
+        )
+    if value.ndim != len(shape) or any(
+        want is not None and got != want for got, want in zip(value.shape, shape, strict=False)
+    ):
+        raise ShapeMismatchError(
+            f"{name}: got shape {tuple(value.shape)}, expected {_describe_shape(shape)}"
+        )
+    if value.size == 0 and not allow_empty:
+        raise ShapeMismatchError(
+            f"{name}: got an empty array of shape {tuple(value.shape)}, expected at least one element"
+        )
+    out = np.ascontiguousarray(value, dtype=dtype)
+    if finite and out.size and not np.isfinite(out).all():
+        bad = int(np.size(out) - np.count_nonzero(np.isfinite(out)))
+        raise InvalidArgumentError(f"{name}: got {bad} non-finite values, expected finite values")
+    return out
+
+
+def real(name: str, value: object, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """Validate a finite real scalar (optionally > 0 or >= 0)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected a real number")
+    v = float(value)
+    if not math.isfinite(v):
+        raise InvalidArgumentError(f"{name}: got {v}, expected a finite number")
+    if positive and v <= 0:
+        raise InvalidArgumentError(f"{name}: got {v}, expected a number > 0")
+    if nonnegative and v < 0:
+        raise InvalidArgumentError(f"{name}: got {v}, expected a number >= 0")
+    return v
+
+
+def integer(name: str, value: object, *, minimum: int = 0, maximum: int | None = None) -> int:
+    """Validate an integer in ``[minimum, maximum]``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected an integer")
+    v = int(value)
+    if v < minimum or (maximum is not None and v > maximum):
+        hi = "" if maximum is None else f" and <= {maximum}"
+        raise InvalidArgumentError(f"{name}: got {v}, expected an integer >= {minimum}{hi}")
+    return v
+
+
+def choice(name: str, value: object, options: Sequence[str]) -> str:
+    """Validate a string option."""
+    if not isinstance(value, str) or value not in options:
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected one of {list(options)}")
+    return value
+
+
+def image(name: str, value: object) -> tuple[np.ndarray, bool]:
+    """Validate an ``H x W`` or ``H x W x C`` image; return it as ``H x W x C`` float32.
+
+    The flag says whether the input was 2-D (so callers can squeeze the result back).
+    """
+    if not isinstance(value, np.ndarray):
+        value = np.asarray(value)
+    if value.ndim == 2:
+        return array(name, value[:, :, None], shape=(None, None, None)), True
+    if value.ndim == 3:
+        return array(name, value, shape=(None, None, None)), False
+    raise ShapeMismatchError(
+        f"{name}: got shape {tuple(value.shape)}, expected (H, W) or (H, W, C)"
+    )

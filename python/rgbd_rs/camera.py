@@ -1,0 +1,379 @@
+"""Camera models (thesis §2.2): pinhole intrinsics, Heikkila / Brown-Conrady distortion with the
+rational extension, rigid poses, and the stereo and ToF-stereo rigs built from them.
+
+Conventions: x right, y down, z forward (OpenCV); pixel centres at integer coordinates; depth is
+z along the optical axis in metres; NaN marks a missing measurement.
+
+Example:
+    >>> import numpy as np
+    >>> from rgbd_rs.camera import Distortion, PinholeCamera
+    >>> cam = PinholeCamera(500.0, 500.0, 319.5, 239.5, 640, 480, Distortion(k1=-0.1))
+    >>> px = cam.project(np.array([[0.1, 0.0, 1.0]]))
+    >>> bool(np.allclose(cam.undistort_points(px), [[369.5, 239.5]]))
+    True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs.errors import InvalidArgumentError
+
+F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
+Interpolation = Literal["nearest", "linear"]
+
+#: Newton iterations and residual tolerance (normalised units) used to invert the lens model.
+UNDISTORT_MAX_ITER = 20
+UNDISTORT_TOL = 1e-12
+#: Tolerance on ``|R^T R - I|`` accepted for rotations (factory calibrations store f32).
+ROTATION_TOL = 1e-5
+
+
+@dataclass(frozen=True)
+class Distortion:
+    """Lens distortion of eq. 2.8 (Heikkila) plus the rational terms k4..k6.
+
+    ``k1, k2, k3`` radial numerator, ``k4, k5, k6`` radial denominator, ``p1, p2`` tangential
+    (the thesis' d1, d2). All zero means an ideal pinhole.
+    """
+
+    k1: float = 0.0
+    k2: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    k3: float = 0.0
+    k4: float = 0.0
+    k5: float = 0.0
+    k6: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"):
+            _validate.real(f"distortion.{name}", getattr(self, name))
+
+    @classmethod
+    def from_opencv(cls, coeffs: npt.ArrayLike) -> Distortion:
+        """From OpenCV's order ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])`` (4, 5 or 8 values)."""
+        c = _validate.array("coeffs", np.ravel(np.asarray(coeffs)), shape=(None,), dtype=np.float64,
+                            finite=True, allow_empty=True)
+        if c.size not in (0, 4, 5, 8):
+            raise InvalidArgumentError(
+                f"coeffs: got {c.size} coefficients, expected 0, 4, 5 or 8 "
+                "(k1, k2, p1, p2[, k3[, k4, k5, k6]])"
+            )
+        full = np.zeros(8)
+        full[: c.size] = c
+        return cls(*(float(v) for v in full))
+
+    def to_opencv(self) -> F64:
+        """The 8 coefficients in OpenCV's rational-model order."""
+        return np.array(
+            [self.k1, self.k2, self.p1, self.p2, self.k3, self.k4, self.k5, self.k6]
+        )
+
+    @property
+    def is_identity(self) -> bool:
+        """True when there is no distortion at all."""
+        return not self.to_opencv().any()
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Rigid transform ``X_b = R X_a + t`` taking points of frame *a* into frame *b* (metres)."""
+
+    rotation: F64 = field(default_factory=lambda: np.eye(3))
+    translation: F64 = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        r = _validate.array("rotation", self.rotation, shape=(3, 3), dtype=np.float64, finite=True)
+        t = _validate.array("translation", np.ravel(np.asarray(self.translation)), shape=(3,),
+                            dtype=np.float64, finite=True)
+        err = float(np.abs(r.T @ r - np.eye(3)).max())
+        if err > ROTATION_TOL or np.linalg.det(r) <= 0:
+            raise InvalidArgumentError(
+                f"rotation: got a matrix with |R^T R - I| = {err:.2e} and det = "
+                f"{np.linalg.det(r):.4f}, expected a rotation (orthonormal, det = +1)"
+            )
+        r.flags.writeable = False
+        t.flags.writeable = False
+        object.__setattr__(self, "rotation", r)
+        object.__setattr__(self, "translation", t)
+
+    @classmethod
+    def identity(cls) -> Pose:
+        """The identity transform."""
+        return cls()
+
+    @classmethod
+    def from_matrix(cls, matrix: npt.ArrayLike) -> Pose:
+        """From a 4x4 (or 3x4) homogeneous matrix ``[R | t]``."""
+        m = _validate.array("matrix", matrix, shape=(None, 4), dtype=np.float64, finite=True)
+        if m.shape[0] not in (3, 4):
+            raise InvalidArgumentError(f"matrix: got shape {m.shape}, expected (3, 4) or (4, 4)")
+        return cls(m[:3, :3], m[:3, 3])
+
+    def as_matrix(self) -> F64:
+        """The 4x4 homogeneous matrix."""
+        m = np.eye(4)
+        m[:3, :3] = self.rotation
+        m[:3, 3] = self.translation
+        return m
+
+    def inverse(self) -> Pose:
+        """The transform from *b* back to *a*."""
+        return Pose(self.rotation.T, -self.rotation.T @ self.translation)
+
+    def compose(self, first: Pose) -> Pose:
+        """``self ∘ first``: apply ``first`` then ``self``."""
+        return Pose(self.rotation @ first.rotation, self.rotation @ first.translation + self.translation)
+
+    def apply(self, points: npt.ArrayLike) -> F64:
+        """Transform ``N x 3`` points."""
+        p = _validate.array("points", points, shape=(None, 3), dtype=np.float64, allow_empty=True)
+        return np.asarray(p @ self.rotation.T + self.translation, dtype=np.float64)
+
+    def _native(self) -> tuple[list[float], list[float]]:
+        return [float(v) for v in self.rotation.ravel()], [float(v) for v in self.translation]
+
+
+@dataclass(frozen=True)
+class PinholeCamera:
+    """Pinhole intrinsics (eq. 2.5-2.6) of a ``width x height`` image, with lens distortion.
+
+    Args:
+        fx, fy: focal lengths in pixels (> 0).
+        cx, cy: principal point in pixels (pixel centres are integers).
+        width, height: image size in pixels.
+        distortion: the lens model; default none.
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    distortion: Distortion = field(default_factory=Distortion)
+
+    def __post_init__(self) -> None:
+        _validate.real("fx", self.fx, positive=True)
+        _validate.real("fy", self.fy, positive=True)
+        _validate.real("cx", self.cx)
+        _validate.real("cy", self.cy)
+        _validate.integer("width", self.width, minimum=1)
+        _validate.integer("height", self.height, minimum=1)
+        if not isinstance(self.distortion, Distortion):
+            raise InvalidArgumentError(
+                f"distortion: got {type(self.distortion).__name__}, expected a Distortion"
+            )
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_matrix(
+        cls, K: npt.ArrayLike, width: int, height: int, distortion: Distortion | None = None
+    ) -> PinholeCamera:
+        """From a 3x3 intrinsic matrix ``K`` (zero skew)."""
+        k = _validate.array("K", K, shape=(3, 3), dtype=np.float64, finite=True)
+        if k[0, 1] != 0 or k[1, 0] != 0 or not np.allclose(k[2], [0, 0, 1]):
+            raise InvalidArgumentError(f"K: got {k.tolist()}, expected [[fx,0,cx],[0,fy,cy],[0,0,1]]")
+        return cls(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]), width, height,
+                   distortion or Distortion())
+
+    @property
+    def K(self) -> F64:  # noqa: N802 - the standard name of the intrinsic matrix
+        """The 3x3 intrinsic matrix (eq. 2.6)."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """``(width, height)``."""
+        return self.width, self.height
+
+    @property
+    def hfov(self) -> float:
+        """Horizontal field of view of the ideal pinhole, radians."""
+        return 2.0 * math.atan(self.width / (2.0 * self.fx))
+
+    def scaled(self, sx: float, sy: float | None = None) -> PinholeCamera:
+        """The same camera imaging at a resolution scaled by ``sx`` (and ``sy``, default ``sx``).
+
+        Uses the pixel-centre convention: ``c' = (c + 0.5) s - 0.5``.
+        """
+        sx = _validate.real("sx", sx, positive=True)
+        sy = sx if sy is None else _validate.real("sy", sy, positive=True)
+        return replace(
+            self, fx=self.fx * sx, fy=self.fy * sy, cx=(self.cx + 0.5) * sx - 0.5,
+            cy=(self.cy + 0.5) * sy - 0.5, width=max(1, round(self.width * sx)),
+            height=max(1, round(self.height * sy)),
+        )
+
+    def cropped(self, x0: int, y0: int, width: int, height: int) -> PinholeCamera:
+        """The camera of the sub-image ``[y0:y0+height, x0:x0+width]``."""
+        x0 = _validate.integer("x0", x0)
+        y0 = _validate.integer("y0", y0)
+        width = _validate.integer("width", width, minimum=1, maximum=self.width - x0)
+        height = _validate.integer("height", height, minimum=1, maximum=self.height - y0)
+        return replace(self, cx=self.cx - x0, cy=self.cy - y0, width=width, height=height)
+
+    def without_distortion(self) -> PinholeCamera:
+        """The ideal pinhole with the same intrinsics."""
+        return replace(self, distortion=Distortion())
+
+    def _native(self) -> tuple[float, float, float, float, int, int, list[float]]:
+        return (float(self.fx), float(self.fy), float(self.cx), float(self.cy), int(self.width),
+                int(self.height), [float(v) for v in self.distortion.to_opencv()])
+
+    # -- points -------------------------------------------------------------------------------
+    def project(self, points: npt.ArrayLike, pose: Pose | None = None) -> F64:
+        """Project ``N x 3`` points (eq. 2.7 with distortion) to ``N x 2`` distorted pixels.
+
+        ``pose`` maps the points' frame into this camera's frame (default: already in it).
+        Points with ``z <= 0`` after the transform give NaN.
+        """
+        p = _validate.array("points", points, shape=(None, 3), dtype=np.float64, allow_empty=True)
+        pose = pose or Pose.identity()
+        return _rgbd_rs.project_points(p, self._native(), pose._native())
+
+    def undistort_points(
+        self,
+        pixels: npt.ArrayLike,
+        *,
+        normalized: bool = False,
+        max_iter: int = UNDISTORT_MAX_ITER,
+        tol: float = UNDISTORT_TOL,
+    ) -> F64:
+        """Remove the lens distortion from ``N x 2`` pixels (Newton's method).
+
+        Returns ideal pixels of the same intrinsics, or normalised image-plane coordinates when
+        ``normalized``. Points where the iteration does not reach ``tol`` within ``max_iter``
+        steps give NaN.
+        """
+        px = _validate.array("pixels", pixels, shape=(None, 2), dtype=np.float64, allow_empty=True)
+        max_iter = _validate.integer("max_iter", max_iter, minimum=1, maximum=1000)
+        tol = _validate.real("tol", tol, positive=True)
+        return _rgbd_rs.undistort_pixels(px, self._native(), bool(normalized), max_iter, tol)
+
+    def distort_points(self, pixels: npt.ArrayLike) -> F64:
+        """Apply the lens distortion to ``N x 2`` ideal pixels."""
+        px = _validate.array("pixels", pixels, shape=(None, 2), dtype=np.float64, allow_empty=True)
+        return _rgbd_rs.distort_pixels(px, self._native())
+
+    def backproject(self, pixels: npt.ArrayLike, depth: npt.ArrayLike) -> F64:
+        """3-D points (camera frame) of ``N x 2`` distorted pixels at depths ``z`` (``N``)."""
+        px = _validate.array("pixels", pixels, shape=(None, 2), dtype=np.float64, allow_empty=True)
+        z = _validate.array("depth", depth, shape=(px.shape[0],), dtype=np.float64, allow_empty=True)
+        xy = self.undistort_points(px, normalized=True)
+        z = np.where(z > 0, z, np.nan)
+        return np.column_stack([xy * z[:, None], z])
+
+    # -- images -------------------------------------------------------------------------------
+    def depth_to_points(self, depth: npt.ArrayLike) -> F32:
+        """Back-project an ``H x W`` depth map (z, metres) to an ``H x W x 3`` point cloud.
+
+        Invalid depth (NaN, <= 0) gives NaN points.
+        """
+        d = _validate.array("depth", depth, shape=(self.height, self.width))
+        return _rgbd_rs.depth_to_points(d, self._native(), UNDISTORT_MAX_ITER, UNDISTORT_TOL)
+
+    def undistort_map(
+        self, target: PinholeCamera | None = None, rotation: npt.ArrayLike | None = None
+    ) -> F32:
+        """For each pixel of the ideal ``target`` camera (default: this camera without
+        distortion), the ``(x, y)`` pixel of this camera that sees the same ray: ``H x W x 2``.
+
+        ``rotation`` (3x3) rectifies: target rays are rotated by ``R^T`` into this camera, as in
+        OpenCV's ``initUndistortRectifyMap``.
+        """
+        target = target or self.without_distortion()
+        if not isinstance(target, PinholeCamera):
+            raise InvalidArgumentError(
+                f"target: got {type(target).__name__}, expected a PinholeCamera"
+            )
+        rot = None
+        if rotation is not None:
+            rot = [float(v) for v in Pose(np.asarray(rotation, dtype=np.float64)).rotation.ravel()]
+        return _rgbd_rs.undistort_map(self._native(), target._native(), rot)
+
+    def undistort_image(
+        self,
+        image: npt.ArrayLike,
+        *,
+        interpolation: Interpolation = "linear",
+        target: PinholeCamera | None = None,
+    ) -> np.ndarray:
+        """Resample an ``H x W`` or ``H x W x C`` image/depth map onto the ideal ``target``.
+
+        Use ``interpolation="nearest"`` for depth (no mixed depths across edges). Float input
+        gives float32 with NaN where the source has no sample; integer input keeps its dtype with
+        0 there.
+        """
+        src = np.asarray(image)
+        img, was_2d = _validate.image("image", src)
+        if img.shape[:2] != (self.height, self.width):
+            raise InvalidArgumentError(
+                f"image: got size {img.shape[1]}x{img.shape[0]}, expected the camera's "
+                f"{self.width}x{self.height}"
+            )
+        interpolation = _validate.choice("interpolation", interpolation, ("nearest", "linear"))  # type: ignore[assignment]
+        out = _rgbd_rs.remap(img, self.undistort_map(target), interpolation)
+        if src.dtype.kind in "iu":
+            info = np.iinfo(src.dtype)
+            out = np.clip(np.nan_to_num(np.rint(out), nan=0.0), info.min, info.max).astype(src.dtype)
+        return out[:, :, 0] if was_2d else out
+
+
+@dataclass(frozen=True)
+class StereoRig:
+    """A rectified stereo pair: identical ideal intrinsics, the right camera ``baseline`` metres
+    along +x of the left one. Disparity ``d = u_left - u_right = baseline * fx / z`` (eq. 2.15).
+    """
+
+    left: PinholeCamera
+    right: PinholeCamera
+    baseline: float
+
+    def __post_init__(self) -> None:
+        _validate.real("baseline", self.baseline, positive=True)
+        if self.left.size != self.right.size or not math.isclose(self.left.fx, self.right.fx):
+            raise InvalidArgumentError(
+                f"right: got {self.right.size} fx={self.right.fx}, expected a rectified pair with "
+                f"the left camera's size {self.left.size} and fx={self.left.fx}"
+            )
+
+    @property
+    def focal(self) -> float:
+        """The common horizontal focal length in pixels."""
+        return self.left.fx
+
+    @property
+    def left_to_right(self) -> Pose:
+        """Pose taking left-camera points into the right camera's frame."""
+        return Pose(np.eye(3), np.array([-self.baseline, 0.0, 0.0]))
+
+
+@dataclass(frozen=True)
+class ToFStereoRig:
+    """A ToF camera beside a rectified stereo pair (thesis §3.2).
+
+    ``tof_to_reference`` maps ToF-frame points into the reference camera's frame; the reference
+    is the right camera as in the thesis (``reference="right"``) or the left one.
+    """
+
+    tof: PinholeCamera
+    stereo: StereoRig
+    tof_to_reference: Pose
+    reference: Literal["left", "right"] = "right"
+
+    def __post_init__(self) -> None:
+        _validate.choice("reference", self.reference, ("left", "right"))
+
+    @property
+    def reference_camera(self) -> PinholeCamera:
+        """The camera the fused disparity is expressed on."""
+        return self.stereo.right if self.reference == "right" else self.stereo.left

@@ -1,0 +1,127 @@
+"""The real Azure Kinect ToF frame and its factory calibration (``../shared/data/tof``).
+
+The calibration JSON stores, per camera, 14 ``ModelParameters`` (cx, cy, fx, fy, k1..k6, codx,
+cody, p2, p1) with cx, cy, fx, fy normalised by the full sensor size and (0, 0) at the corner of
+the top-left pixel, plus ``Rt`` relative to the depth camera (metres). A capture mode is a
+binning + crop of the sensor; this module applies the same mode tables as the Azure Kinect SDK
+(``transformation_get_mode_specific_camera_calibration``) and shifts to pixel-centred
+coordinates (-0.5), giving OpenCV-convention cameras.
+
+``Rt`` of the colour camera maps depth-camera points into the colour frame (checked on the real
+frame: with it, depth edges land on colour edges; with its inverse they do not; see
+tests/test_azure_kinect.py).
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs.camera import Distortion, PinholeCamera, Pose
+from rgbd_rs.errors import InvalidArgumentError
+
+# mode -> (binned resolution, crop offset, output resolution), from the SDK's mode tables.
+DEPTH_MODES: dict[str, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]] = {
+    "NFOV_2X2BINNED": ((512, 512), (96, 90), (320, 288)),
+    "NFOV_UNBINNED": ((1024, 1024), (192, 180), (640, 576)),
+    "WFOV_2X2BINNED": ((512, 512), (0, 0), (512, 512)),
+    "WFOV_UNBINNED": ((1024, 1024), (0, 0), (1024, 1024)),
+}
+COLOR_MODES: dict[str, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]] = {
+    "720P": ((1280, 960), (0, 120), (1280, 720)),
+    "1080P": ((1920, 1440), (0, 180), (1920, 1080)),
+    "1440P": ((2560, 1920), (0, 240), (2560, 1440)),
+    "1536P": ((2048, 1536), (0, 0), (2048, 1536)),
+    "2160P": ((3840, 2880), (0, 360), (3840, 2160)),
+    "3072P": ((4096, 3072), (0, 0), (4096, 3072)),
+}
+
+
+@dataclass(frozen=True)
+class AzureKinectCalibration:
+    """Mode-specific depth and colour cameras and the depth -> colour pose."""
+
+    depth: PinholeCamera
+    color: PinholeCamera
+    depth_to_color: Pose
+    depth_metric_radius: float
+
+
+@dataclass(frozen=True)
+class AzureKinectFrame:
+    """One capture: depth (metres, NaN invalid), IR amplitude, and the colour image (RGB)."""
+
+    depth: npt.NDArray[np.float32]
+    amplitude: npt.NDArray[np.float32]
+    color: npt.NDArray[np.uint8]
+
+
+def _mode_camera(
+    params: list[float], mode: tuple[tuple[int, int], tuple[int, int], tuple[int, int]]
+) -> PinholeCamera:
+    (bw, bh), (ox, oy), (w, h) = mode
+    cx, cy, fx, fy, k1, k2, k3, k4, k5, k6, _codx, _cody, p2, p1 = params
+    return PinholeCamera(
+        fx=fx * bw, fy=fy * bh, cx=cx * bw - ox - 0.5, cy=cy * bh - oy - 0.5, width=w, height=h,
+        distortion=Distortion(k1=k1, k2=k2, p1=p1, p2=p2, k3=k3, k4=k4, k5=k5, k6=k6),
+    )
+
+
+def load_azure_kinect_calibration(
+    path: str | Path, depth_mode: str = "NFOV_UNBINNED", color_resolution: str = "720P"
+) -> AzureKinectCalibration:
+    """Read an Azure Kinect factory calibration JSON for one depth mode and colour resolution."""
+    if depth_mode not in DEPTH_MODES:
+        raise InvalidArgumentError(f"depth_mode: got {depth_mode!r}, expected one of {list(DEPTH_MODES)}")
+    if color_resolution not in COLOR_MODES:
+        raise InvalidArgumentError(
+            f"color_resolution: got {color_resolution!r}, expected one of {list(COLOR_MODES)}"
+        )
+    path = Path(path)
+    try:
+        cams = json.loads(path.read_text())["CalibrationInformation"]["Cameras"]
+        by_loc = {c["Location"]: c for c in cams}
+        d, c = by_loc["CALIBRATION_CameraLocationD0"], by_loc["CALIBRATION_CameraLocationPV0"]
+        dp, cp = d["Intrinsics"]["ModelParameters"], c["Intrinsics"]["ModelParameters"]
+        if len(dp) != 14 or len(cp) != 14:
+            raise ValueError("expected 14 ModelParameters per camera")
+        if c["SensorWidth"] * 3 != c["SensorHeight"] * 4:
+            raise ValueError("only 4:3 colour calibrations are supported")
+        rt = c["Rt"]
+        pose = Pose(np.reshape(rt["Rotation"], (3, 3)), np.asarray(rt["Translation"]))
+        radius = float(d.get("MetricRadius", 0.0))
+    except (OSError, KeyError, TypeError, ValueError, json.JSONDecodeError) as exc:
+        raise InvalidArgumentError(
+            f"path: could not read an Azure Kinect calibration from {path} ({exc!r}), expected the "
+            "device's calibration JSON with D0 and PV0 cameras"
+        ) from None
+    return AzureKinectCalibration(
+        _mode_camera(dp, DEPTH_MODES[depth_mode]), _mode_camera(cp, COLOR_MODES[color_resolution]),
+        pose, radius,
+    )
+
+
+def load_azure_kinect_frame(path: str | Path) -> AzureKinectFrame:
+    """Read ``azure_kinect_frame.npz`` (``depth_mm``, ``ir``, ``color``); 0 mm becomes NaN."""
+    path = Path(path)
+    try:
+        with np.load(path) as z:
+            depth_mm, ir, color = z["depth_mm"], z["ir"], z["color"]
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise InvalidArgumentError(
+            f"path: could not read an Azure Kinect frame from {path} ({exc!r}), expected an npz "
+            "with depth_mm, ir and color"
+        ) from None
+    if depth_mm.shape != ir.shape or depth_mm.ndim != 2 or color.ndim != 3:
+        raise InvalidArgumentError(
+            f"path: {path} holds depth {depth_mm.shape}, ir {ir.shape}, color {color.shape}, "
+            "expected equal 2-D depth/ir and an H x W x 3 colour image"
+        )
+    depth = depth_mm.astype(np.float32) / 1000.0
+    depth[depth_mm == 0] = np.nan
+    return AzureKinectFrame(depth, ir.astype(np.float32), np.ascontiguousarray(color[:, :, :3]))

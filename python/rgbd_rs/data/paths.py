@@ -1,0 +1,28 @@
+"""Where the shared real datasets live: ``$RGBD_DATA`` or ``../shared/data`` beside the repo."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from rgbd_rs.errors import InvalidArgumentError
+
+
+def data_root(required: bool = False) -> Path | None:
+    """The dataset directory: ``$RGBD_DATA`` if set, else ``<repo>/../shared/data``.
+
+    Returns None when it does not exist, or raises when ``required``.
+    """
+    env = os.environ.get("RGBD_DATA")
+    candidates = [Path(env)] if env else []
+    here = Path(__file__).resolve()
+    candidates += [p / "shared" / "data" for p in here.parents[3:5]]
+    for c in candidates:
+        if c.is_dir():
+            return c
+    if required:
+        raise InvalidArgumentError(
+            f"RGBD_DATA: got {env!r} and no ../shared/data beside the repository, expected the "
+            "directory of the shared datasets (set RGBD_DATA)"
+        )
+    return None
