@@ -5,8 +5,9 @@ environment can be created without building the package first.
 """
 
 import sys
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 data = tomllib.loads(Path(sys.argv[1] if len(sys.argv) > 1 else "pyproject.toml").read_text())
 project = data["project"]

@@ -2,6 +2,22 @@
 import numpy as np
 import numpy.typing as npt
 
+__all__ = [
+    "InvalidArgumentError",
+    "RgbdError",
+    "ShapeMismatchError",
+    "depth_disparity",
+    "depth_to_points",
+    "distort_pixels",
+    "normals_from_points",
+    "num_threads",
+    "project_points",
+    "remap",
+    "reproject_depth",
+    "undistort_map",
+    "undistort_pixels",
+]
+
 _CameraArgs = tuple[float, float, float, float, int, int, list[float]]
 _PoseArgs = tuple[list[float], list[float]]
 
@@ -16,7 +32,9 @@ def project_points(
 def undistort_pixels(
     pixels: npt.NDArray[np.float64], cam: _CameraArgs, normalized: bool, max_iter: int, tol: float
 ) -> npt.NDArray[np.float64]: ...
-def distort_pixels(pixels: npt.NDArray[np.float64], cam: _CameraArgs) -> npt.NDArray[np.float64]: ...
+def distort_pixels(
+    pixels: npt.NDArray[np.float64], cam: _CameraArgs
+) -> npt.NDArray[np.float64]: ...
 def depth_to_points(
     depth: npt.NDArray[np.float32], cam: _CameraArgs, max_iter: int, tol: float
 ) -> npt.NDArray[np.float32]: ...
@@ -38,9 +56,7 @@ def reproject_depth(
     splat_radius: int = 0,
     max_iter: int = 20,
     tol: float = 1e-12,
-) -> tuple[
-    npt.NDArray[np.float32], npt.NDArray[np.float32] | None, npt.NDArray[np.int64]
-]: ...
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32] | None, npt.NDArray[np.int64]]: ...
 def normals_from_points(
     points: npt.NDArray[np.float32], max_depth_jump: float
 ) -> npt.NDArray[np.float32]: ...

@@ -54,7 +54,8 @@ def array(
         )
     if value.size == 0 and not allow_empty:
         raise ShapeMismatchError(
-            f"{name}: got an empty array of shape {tuple(value.shape)}, expected at least one element"
+            f"{name}: got an empty array of shape {tuple(value.shape)}, "
+            "expected at least one element"
         )
     out = np.ascontiguousarray(value, dtype=dtype)
     if finite and out.size and not np.isfinite(out).all():

@@ -60,8 +60,14 @@ class Distortion:
     @classmethod
     def from_opencv(cls, coeffs: npt.ArrayLike) -> Distortion:
         """From OpenCV's order ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])`` (4, 5 or 8 values)."""
-        c = _validate.array("coeffs", np.ravel(np.asarray(coeffs)), shape=(None,), dtype=np.float64,
-                            finite=True, allow_empty=True)
+        c = _validate.array(
+            "coeffs",
+            np.ravel(np.asarray(coeffs)),
+            shape=(None,),
+            dtype=np.float64,
+            finite=True,
+            allow_empty=True,
+        )
         if c.size not in (0, 4, 5, 8):
             raise InvalidArgumentError(
                 f"coeffs: got {c.size} coefficients, expected 0, 4, 5 or 8 "
@@ -73,9 +79,7 @@ class Distortion:
 
     def to_opencv(self) -> F64:
         """The 8 coefficients in OpenCV's rational-model order."""
-        return np.array(
-            [self.k1, self.k2, self.p1, self.p2, self.k3, self.k4, self.k5, self.k6]
-        )
+        return np.array([self.k1, self.k2, self.p1, self.p2, self.k3, self.k4, self.k5, self.k6])
 
     @property
     def is_identity(self) -> bool:
@@ -92,8 +96,13 @@ class Pose:
 
     def __post_init__(self) -> None:
         r = _validate.array("rotation", self.rotation, shape=(3, 3), dtype=np.float64, finite=True)
-        t = _validate.array("translation", np.ravel(np.asarray(self.translation)), shape=(3,),
-                            dtype=np.float64, finite=True)
+        t = _validate.array(
+            "translation",
+            np.ravel(np.asarray(self.translation)),
+            shape=(3,),
+            dtype=np.float64,
+            finite=True,
+        )
         err = float(np.abs(r.T @ r - np.eye(3)).max())
         if err > ROTATION_TOL or np.linalg.det(r) <= 0:
             raise InvalidArgumentError(
@@ -131,7 +140,9 @@ class Pose:
 
     def compose(self, first: Pose) -> Pose:
         """``self ∘ first``: apply ``first`` then ``self``."""
-        return Pose(self.rotation @ first.rotation, self.rotation @ first.translation + self.translation)
+        return Pose(
+            self.rotation @ first.rotation, self.rotation @ first.translation + self.translation
+        )
 
     def apply(self, points: npt.ArrayLike) -> F64:
         """Transform ``N x 3`` points."""
@@ -181,12 +192,21 @@ class PinholeCamera:
         """From a 3x3 intrinsic matrix ``K`` (zero skew)."""
         k = _validate.array("K", K, shape=(3, 3), dtype=np.float64, finite=True)
         if k[0, 1] != 0 or k[1, 0] != 0 or not np.allclose(k[2], [0, 0, 1]):
-            raise InvalidArgumentError(f"K: got {k.tolist()}, expected [[fx,0,cx],[0,fy,cy],[0,0,1]]")
-        return cls(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]), width, height,
-                   distortion or Distortion())
+            raise InvalidArgumentError(
+                f"K: got {k.tolist()}, expected [[fx,0,cx],[0,fy,cy],[0,0,1]]"
+            )
+        return cls(
+            float(k[0, 0]),
+            float(k[1, 1]),
+            float(k[0, 2]),
+            float(k[1, 2]),
+            width,
+            height,
+            distortion or Distortion(),
+        )
 
     @property
-    def K(self) -> F64:  # noqa: N802 - the standard name of the intrinsic matrix
+    def K(self) -> F64:
         """The 3x3 intrinsic matrix (eq. 2.6)."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
@@ -208,8 +228,12 @@ class PinholeCamera:
         sx = _validate.real("sx", sx, positive=True)
         sy = sx if sy is None else _validate.real("sy", sy, positive=True)
         return replace(
-            self, fx=self.fx * sx, fy=self.fy * sy, cx=(self.cx + 0.5) * sx - 0.5,
-            cy=(self.cy + 0.5) * sy - 0.5, width=max(1, round(self.width * sx)),
+            self,
+            fx=self.fx * sx,
+            fy=self.fy * sy,
+            cx=(self.cx + 0.5) * sx - 0.5,
+            cy=(self.cy + 0.5) * sy - 0.5,
+            width=max(1, round(self.width * sx)),
             height=max(1, round(self.height * sy)),
         )
 
@@ -226,8 +250,15 @@ class PinholeCamera:
         return replace(self, distortion=Distortion())
 
     def _native(self) -> tuple[float, float, float, float, int, int, list[float]]:
-        return (float(self.fx), float(self.fy), float(self.cx), float(self.cy), int(self.width),
-                int(self.height), [float(v) for v in self.distortion.to_opencv()])
+        return (
+            float(self.fx),
+            float(self.fy),
+            float(self.cx),
+            float(self.cy),
+            int(self.width),
+            int(self.height),
+            [float(v) for v in self.distortion.to_opencv()],
+        )
 
     # -- points -------------------------------------------------------------------------------
     def project(self, points: npt.ArrayLike, pose: Pose | None = None) -> F64:
@@ -267,7 +298,9 @@ class PinholeCamera:
     def backproject(self, pixels: npt.ArrayLike, depth: npt.ArrayLike) -> F64:
         """3-D points (camera frame) of ``N x 2`` distorted pixels at depths ``z`` (``N``)."""
         px = _validate.array("pixels", pixels, shape=(None, 2), dtype=np.float64, allow_empty=True)
-        z = _validate.array("depth", depth, shape=(px.shape[0],), dtype=np.float64, allow_empty=True)
+        z = _validate.array(
+            "depth", depth, shape=(px.shape[0],), dtype=np.float64, allow_empty=True
+        )
         xy = self.undistort_points(px, normalized=True)
         z = np.where(z > 0, z, np.nan)
         return np.column_stack([xy * z[:, None], z])
@@ -324,7 +357,9 @@ class PinholeCamera:
         out = _rgbd_rs.remap(img, self.undistort_map(target), interpolation)
         if src.dtype.kind in "iu":
             info = np.iinfo(src.dtype)
-            out = np.clip(np.nan_to_num(np.rint(out), nan=0.0), info.min, info.max).astype(src.dtype)
+            out = np.clip(np.nan_to_num(np.rint(out), nan=0.0), info.min, info.max).astype(
+                src.dtype
+            )
         return out[:, :, 0] if was_2d else out
 
 

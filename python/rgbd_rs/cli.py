@@ -20,17 +20,23 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"rgbd_rs {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    demo = sub.add_parser("demo", help="run the demo on synthetic and real data",
-                          description="Camera geometry on an analytic scene and on the real Azure "
-                          "Kinect frame; prints measurements and writes PNGs.")
+    demo = sub.add_parser(
+        "demo",
+        help="run the demo on synthetic and real data",
+        description="Camera geometry on an analytic scene and on the real Azure "
+        "Kinect frame; prints measurements and writes PNGs.",
+    )
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="folder for the pictures")
     demo.add_argument("--no-pictures", action="store_true", help="print only")
     demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
-    rep = sub.add_parser("reproject", help="reproject a ToF depth map onto a colour camera",
-                         description="Reproject an Azure Kinect depth frame (npz with depth_mm, "
-                         "ir, color) onto its colour camera using the device calibration JSON; "
-                         "writes depth.npz, a 16-bit PNG (mm) and a preview.")
+    rep = sub.add_parser(
+        "reproject",
+        help="reproject a ToF depth map onto a colour camera",
+        description="Reproject an Azure Kinect depth frame (npz with depth_mm, "
+        "ir, color) onto its colour camera using the device calibration JSON; "
+        "writes depth.npz, a 16-bit PNG (mm) and a preview.",
+    )
     rep.add_argument("--frame", type=Path, required=True, help="npz with depth_mm, ir, color")
     rep.add_argument("--calib", type=Path, required=True, help="Azure Kinect calibration JSON")
     rep.add_argument("--out", type=Path, required=True, help="output folder")
@@ -47,16 +53,27 @@ def _reproject(args: argparse.Namespace) -> int:
 
     cal = load_azure_kinect_calibration(args.calib)
     frame = load_azure_kinect_frame(args.frame)
-    rep = reproject_depth(frame.depth, cal.depth, cal.color, cal.depth_to_color,
-                          channels=frame.amplitude, splat_radius=args.splat_radius)
+    rep = reproject_depth(
+        frame.depth,
+        cal.depth,
+        cal.color,
+        cal.depth_to_color,
+        channels=frame.amplitude,
+        splat_radius=args.splat_radius,
+    )
     args.out.mkdir(parents=True, exist_ok=True)
     tmp = args.out / "depth.npz.tmp.npz"
+    assert rep.channels is not None  # amplitude was passed as a channel
     np.savez_compressed(tmp, depth=rep.depth, amplitude=rep.channels)
     tmp.replace(args.out / "depth.npz")
     mm = np.clip(np.nan_to_num(rep.depth * 1000.0, nan=0.0), 0, 65535).astype(np.uint16)
     save_png(args.out / "depth_mm.png", mm)
-    save_png(args.out / "preview.png", tile([as_bgr(frame.color), colorize(rep.depth)],
-                                            ["colour", "ToF depth on colour"], columns=2))
+    save_png(
+        args.out / "preview.png",
+        tile(
+            [as_bgr(frame.color), colorize(rep.depth)], ["colour", "ToF depth on colour"], columns=2
+        ),
+    )
     print(f"coverage {rep.coverage:.1%}; wrote {args.out}/depth.npz, depth_mm.png, preview.png")
     return 0
 

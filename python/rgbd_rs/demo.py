@@ -46,7 +46,9 @@ def _cast(origin: F64, dirs: F64) -> F64:
 
 def analytic_depth(cam: PinholeCamera, world_to_cam: Pose) -> npt.NDArray[np.float32]:
     """Ground-truth depth (z in ``cam``) of the analytic scene, scene frame = camera A's."""
-    u, v = np.meshgrid(np.arange(cam.width, dtype=np.float64), np.arange(cam.height, dtype=np.float64))
+    u, v = np.meshgrid(
+        np.arange(cam.width, dtype=np.float64), np.arange(cam.height, dtype=np.float64)
+    )
     xy = cam.undistort_points(np.column_stack([u.ravel(), v.ravel()]), normalized=True)
     d_cam = np.column_stack([xy, np.ones(len(xy))])
     inv = world_to_cam.inverse()
@@ -65,8 +67,12 @@ class SyntheticResult:
 def run_synthetic(out: Path | None, seed: int = 0) -> SyntheticResult:
     """The synthetic part of the demo; returns its measurements."""
     rng = np.random.default_rng(seed)
-    cam_a = PinholeCamera(420.0, 420.0, 319.5, 239.5, 640, 480, Distortion(k1=-0.25, k2=0.08, p1=1e-3, p2=-5e-4))
-    cam_b = PinholeCamera(600.0, 600.0, 479.5, 269.5, 960, 540, Distortion(k1=0.1, k2=-0.02, k3=0.005))
+    cam_a = PinholeCamera(
+        420.0, 420.0, 319.5, 239.5, 640, 480, Distortion(k1=-0.25, k2=0.08, p1=1e-3, p2=-5e-4)
+    )
+    cam_b = PinholeCamera(
+        600.0, 600.0, 479.5, 269.5, 960, 540, Distortion(k1=0.1, k2=-0.02, k3=0.005)
+    )
     a_to_b = Pose(_rot_y(np.deg2rad(3.0)), np.array([-0.12, 0.01, 0.0]))
 
     # Points: project -> undistort -> back-project with their true depth.
@@ -82,11 +88,24 @@ def run_synthetic(out: Path | None, seed: int = 0) -> SyntheticResult:
     err = np.abs(rep.depth - depth_b)
     med = float(np.median(err[both]))
     if out is not None:
-        save_png(out / "synthetic_reprojection.png", tile(
-            [colorize(depth_a, 1.5, 3.5), colorize(rep.depth, 1.5, 3.5), colorize(depth_b, 1.5, 3.5),
-             colorize(np.where(both, err, np.nan), 0.0, 0.05)],
-            ["depth, camera A (distorted)", "A reprojected into B", "analytic depth, camera B",
-             "|error| 0..5 cm"], columns=2))
+        save_png(
+            out / "synthetic_reprojection.png",
+            tile(
+                [
+                    colorize(depth_a, 1.5, 3.5),
+                    colorize(rep.depth, 1.5, 3.5),
+                    colorize(depth_b, 1.5, 3.5),
+                    colorize(np.where(both, err, np.nan), 0.0, 0.05),
+                ],
+                [
+                    "depth, camera A (distorted)",
+                    "A reprojected into B",
+                    "analytic depth, camera B",
+                    "|error| 0..5 cm",
+                ],
+                columns=2,
+            ),
+        )
     return SyntheticResult(round_trip, med, rep.coverage, int(both.sum()))
 
 
@@ -102,9 +121,17 @@ def run_kinect(out: Path | None) -> dict[str, float] | None:
         return None
     cal = load_azure_kinect_calibration(root / "tof" / "azure_kinect_calibration.json")
     frame = load_azure_kinect_frame(root / "tof" / "azure_kinect_frame.npz")
-    rep = reproject_depth(frame.depth, cal.depth, cal.color, cal.depth_to_color,
-                          channels=frame.amplitude, splat_radius=1)
-    wrong = reproject_depth(frame.depth, cal.depth, cal.color, cal.depth_to_color.inverse(), splat_radius=1)
+    rep = reproject_depth(
+        frame.depth,
+        cal.depth,
+        cal.color,
+        cal.depth_to_color,
+        channels=frame.amplitude,
+        splat_radius=1,
+    )
+    wrong = reproject_depth(
+        frame.depth, cal.depth, cal.color, cal.depth_to_color.inverse(), splat_radius=1
+    )
     stats = {
         "coverage": rep.coverage,
         "source_valid": float(np.isfinite(frame.depth).mean()),
@@ -117,10 +144,26 @@ def run_kinect(out: Path | None) -> dict[str, float] | None:
         color = as_bgr(frame.color)
         over = (0.5 * color + 0.5 * colorize(rep.depth)).astype(np.uint8)
         assert rep.channels is not None
-        save_png(out / "kinect_depth_to_color.png", tile(
-            [color, colorize(frame.depth), colorize(rep.depth), colorize(np.log1p(rep.channels)), over],
-            ["colour 1280x720", "ToF depth 640x576", "ToF depth on colour", "ToF amplitude on colour",
-             "overlay"], columns=3))
+        save_png(
+            out / "kinect_depth_to_color.png",
+            tile(
+                [
+                    color,
+                    colorize(frame.depth),
+                    colorize(rep.depth),
+                    colorize(np.log1p(rep.channels)),
+                    over,
+                ],
+                [
+                    "colour 1280x720",
+                    "ToF depth 640x576",
+                    "ToF depth on colour",
+                    "ToF amplitude on colour",
+                    "overlay",
+                ],
+                columns=3,
+            ),
+        )
     return stats
 
 
@@ -128,18 +171,29 @@ def main(out: Path | None, seed: int = 0) -> int:
     """Run both parts and print their results."""
     syn = run_synthetic(out, seed)
     print("Synthetic scene (tilted wall + sphere), two distorted cameras")
-    print(f"  project -> undistort -> back-project, 100k points: max error {syn.point_round_trip_m:.2e} m")
-    print(f"  depth A -> B reprojection: median |z - z_true| = {syn.reprojection_median_abs_m * 1e3:.3f} mm "
-          f"over {syn.compared_pixels} px (coverage {syn.reprojection_coverage:.1%})")
+    print(
+        "  project -> undistort -> back-project, 100k points: "
+        f"max error {syn.point_round_trip_m:.2e} m"
+    )
+    print(
+        "  depth A -> B reprojection: median |z - z_true| = "
+        f"{syn.reprojection_median_abs_m * 1e3:.3f} mm "
+        f"over {syn.compared_pixels} px (coverage {syn.reprojection_coverage:.1%})"
+    )
     ak = run_kinect(out)
     if ak is None:
         print("Azure Kinect frame: shared data not found (set RGBD_DATA) - skipped")
     else:
         print("Azure Kinect ToF frame -> colour camera (real data)")
-        print(f"  coverage of the colour lattice {ak['coverage']:.1%} (source valid {ak['source_valid']:.1%}); "
-              f"median depth {ak['depth_p50_source']:.3f} m -> {ak['depth_p50_target']:.3f} m")
-        print(f"  depth edges on colour edges (<= 2 px): {ak['edge_alignment']:.1%} "
-              f"(inverse pose, a wrong registration: {ak['edge_alignment_inverse_pose']:.1%})")
+        print(
+            f"  coverage of the colour lattice {ak['coverage']:.1%} "
+            f"(source valid {ak['source_valid']:.1%}); "
+            f"median depth {ak['depth_p50_source']:.3f} m -> {ak['depth_p50_target']:.3f} m"
+        )
+        print(
+            f"  depth edges on colour edges (<= 2 px): {ak['edge_alignment']:.1%} "
+            f"(inverse pose, a wrong registration: {ak['edge_alignment_inverse_pose']:.1%})"
+        )
     if out is not None:
         print(f"Pictures in {out}/")
     return 0

@@ -105,7 +105,9 @@ def reproject_depth(
     """
     for name, cam in (("source", source), ("target", target)):
         if not isinstance(cam, PinholeCamera):
-            raise InvalidArgumentError(f"{name}: got {type(cam).__name__}, expected a PinholeCamera")
+            raise InvalidArgumentError(
+                f"{name}: got {type(cam).__name__}, expected a PinholeCamera"
+            )
     if not isinstance(pose, Pose):
         raise InvalidArgumentError(f"pose: got {type(pose).__name__}, expected a Pose")
     d = _validate.array("depth", depth, shape=(source.height, source.width))
@@ -120,8 +122,14 @@ def reproject_depth(
             )
     r = _validate.integer("splat_radius", splat_radius, maximum=MAX_SPLAT_RADIUS)
     z, carried, idx = _rgbd_rs.reproject_depth(
-        d, source._native(), target._native(), pose._native(), ch, r,
-        UNDISTORT_MAX_ITER, UNDISTORT_TOL,
+        d,
+        source._native(),
+        target._native(),
+        pose._native(),
+        ch,
+        r,
+        UNDISTORT_MAX_ITER,
+        UNDISTORT_TOL,
     )
     if carried is not None and squeeze:
         carried = carried[:, :, 0]

@@ -13,7 +13,9 @@ from rgbd_rs.errors import InvalidArgumentError
 DEPTH_EDGE_REL_STEP = 0.05
 
 
-def depth_edges(depth: npt.ArrayLike, rel_step: float = DEPTH_EDGE_REL_STEP) -> npt.NDArray[np.bool_]:
+def depth_edges(
+    depth: npt.ArrayLike, rel_step: float = DEPTH_EDGE_REL_STEP
+) -> npt.NDArray[np.bool_]:
     """Pixels whose right or lower neighbour differs in depth by more than ``rel_step`` (relative),
     marked on the nearer side (the occluding contour). Needs both samples valid."""
     d = _validate.array("depth", depth, shape=(None, None))
@@ -40,7 +42,11 @@ def edge_alignment(depth: npt.ArrayLike, image: npt.ArrayLike, max_distance: flo
     img = np.asarray(image)
     if img.shape[:2] != d.shape:
         raise InvalidArgumentError(f"image: got shape {img.shape}, expected size {d.shape}")
-    gray = img if img.ndim == 2 else cv2.cvtColor(np.ascontiguousarray(img[:, :, :3]), cv2.COLOR_RGB2GRAY)
+    gray = (
+        img
+        if img.ndim == 2
+        else cv2.cvtColor(np.ascontiguousarray(img[:, :, :3]), cv2.COLOR_RGB2GRAY)
+    )
     canny = cv2.Canny(gray.astype(np.uint8), 50, 150)
     dist = cv2.distanceTransform((canny == 0).astype(np.uint8), cv2.DIST_L2, 3)
     edges = depth_edges(d)

@@ -15,7 +15,9 @@ U8 = npt.NDArray[np.uint8]
 
 
 def colorize(
-    values: npt.ArrayLike, vmin: float | None = None, vmax: float | None = None,
+    values: npt.ArrayLike,
+    vmin: float | None = None,
+    vmax: float | None = None,
     colormap: int = cv2.COLORMAP_TURBO,
 ) -> U8:
     """Map an ``H x W`` float map to a BGR image (NaN -> black). Range defaults to the 1st-99th

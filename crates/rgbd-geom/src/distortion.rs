@@ -66,11 +66,30 @@ impl Distortion {
         *self == Self::NONE
     }
 
+    /// True when the rational denominator terms k4..k6 are in use.
+    #[inline]
+    pub fn is_rational(&self) -> bool {
+        self.k[3..] != [0.0; 3]
+    }
+
     /// Distorts an ideal normalised point (eq. 2.8 applied forward, as OpenCV's projectPoints).
     #[inline]
     pub fn distort(&self, x: f64, y: f64) -> [f64; 2] {
+        self.distort_with::<true>(x, y)
+    }
+
+    /// [`Self::distort`] with the rational denominator compiled in or out (`RATIONAL = false`
+    /// is exact only when [`Self::is_rational`] is false); lets pixel loops drop a division.
+    #[inline(always)]
+    pub fn distort_with<const RATIONAL: bool>(&self, x: f64, y: f64) -> [f64; 2] {
+        let k = &self.k;
         let r2 = x * x + y * y;
-        let (s, _) = radial(&self.k, r2);
+        let num = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[2]));
+        let s = if RATIONAL {
+            num / (1.0 + r2 * (k[3] + r2 * (k[4] + r2 * k[5])))
+        } else {
+            num
+        };
         let [p1, p2] = self.p;
         let xy = x * y;
         [

@@ -17,42 +17,76 @@ pub enum Interpolation {
 }
 
 /// For every pixel of the ideal destination lattice `dst` (no distortion), the source pixel of
-/// `src` that sees the same ray, as `(x, y)` pairs row-major. `rotation` rotates destination rays
+/// `src` that sees the same ray, as interleaved `x, y` values row-major (`2 * dst.len()`). `rotation` rotates destination rays
 /// into the source frame's orientation (`R` of OpenCV's `initUndistortRectifyMap`: source ray =
 /// `R^T` · destination ray); `None` means identity.
-pub fn undistort_map(
-    src: &Camera,
-    dst: &Intrinsics,
-    rotation: Option<&Matrix3<f64>>,
-) -> Vec<[f32; 2]> {
-    let mut map = vec![[0.0f32; 2]; dst.len()];
+pub fn undistort_map(src: &Camera, dst: &Intrinsics, rotation: Option<&Matrix3<f64>>) -> Vec<f32> {
+    let mut map = vec![0.0f32; 2 * dst.len()];
+    // x depends only on the column and y only on the row: hoist both out of the pixel loop.
+    let xs: Vec<f64> = (0..dst.width)
+        .map(|u| (u as f64 - dst.cx) / dst.fx)
+        .collect();
     let rinv = rotation.map(|r| r.transpose());
-    map.par_chunks_mut(dst.width)
+    let rational = src.distortion.is_rational();
+    map.par_chunks_mut(2 * dst.width)
         .enumerate()
         .for_each(|(v, row)| {
-            for (u, m) in row.iter_mut().enumerate() {
-                let [mut x, mut y] = dst.to_normalized(u as f64, v as f64);
-                if let Some(ri) = &rinv {
-                    let q = ri * Vector3::new(x, y, 1.0);
-                    x = q.x / q.z;
-                    y = q.y / q.z;
+            let y = (v as f64 - dst.cy) / dst.fy;
+            match (&rinv, rational) {
+                (Some(ri), _) => {
+                    for (m, &x) in row.chunks_exact_mut(2).zip(&xs) {
+                        let q = ri * Vector3::new(x, y, 1.0);
+                        m.copy_from_slice(&source_pixel::<true>(src, q.x / q.z, q.y / q.z));
+                    }
                 }
-                let [xd, yd] = src.distortion.distort(x, y);
-                let [su, sv] = src.intrinsics.to_pixel(xd, yd);
-                *m = [su as f32, sv as f32];
+                (None, true) => map_row::<true>(src, &xs, y, row),
+                (None, false) => map_row::<false>(src, &xs, y, row),
             }
         });
     map
 }
 
-/// Samples `img` (`h x w x channels`, row-major) at `map` positions, producing a
-/// `map.len() x channels` image. Samples outside the source give NaN.
+/// One row of an undistortion map. On x86-64 CPUs with AVX2 + FMA the same code is compiled a
+/// second time for them and chosen at run time (4 f64 lanes instead of SSE2's 2); the wheel
+/// itself stays baseline x86-64.
+fn map_row<const RATIONAL: bool>(src: &Camera, xs: &[f64], y: f64, row: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the running CPU supports AVX2 and FMA, checked just above.
+        unsafe { map_row_avx2::<RATIONAL>(src, xs, y, row) };
+        return;
+    }
+    map_row_generic::<RATIONAL>(src, xs, y, row);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn map_row_avx2<const RATIONAL: bool>(src: &Camera, xs: &[f64], y: f64, row: &mut [f32]) {
+    map_row_generic::<RATIONAL>(src, xs, y, row);
+}
+
+#[inline(always)]
+fn map_row_generic<const RATIONAL: bool>(src: &Camera, xs: &[f64], y: f64, row: &mut [f32]) {
+    for (m, &x) in row.chunks_exact_mut(2).zip(xs) {
+        m.copy_from_slice(&source_pixel::<RATIONAL>(src, x, y));
+    }
+}
+
+#[inline(always)]
+fn source_pixel<const RATIONAL: bool>(src: &Camera, x: f64, y: f64) -> [f32; 2] {
+    let [xd, yd] = src.distortion.distort_with::<RATIONAL>(x, y);
+    let [su, sv] = src.intrinsics.to_pixel(xd, yd);
+    [su as f32, sv as f32]
+}
+
+/// Samples `img` (`h x w x channels`, row-major) at the interleaved `x, y` positions of `map`,
+/// producing a `map.len() / 2 x channels` image. Samples outside the source give NaN.
 pub fn remap(
     img: &[f32],
     width: usize,
     height: usize,
     channels: usize,
-    map: &[[f32; 2]],
+    map: &[f32],
     out_width: usize,
     interp: Interpolation,
 ) -> Result<Vec<f32>> {
@@ -69,36 +103,78 @@ pub fn remap(
         width * height * channels,
         "height * width * channels",
     )?;
-    if out_width == 0 || !map.len().is_multiple_of(out_width) {
+    if out_width == 0 || !map.len().is_multiple_of(2 * out_width) {
         return Err(invalid(
             "map",
             map.len(),
-            format!("a multiple of the output width {out_width}"),
+            format!("a multiple of 2 x the output width {out_width}"),
         ));
     }
-    let mut out = vec![f32::NAN; map.len() * channels];
-    let (wf, hf) = (width as f32, height as f32);
+    let mut out = vec![f32::NAN; map.len() / 2 * channels];
+    let src = Source { img, width, height };
     out.par_chunks_mut(out_width * channels)
-        .zip(map.par_chunks(out_width))
-        .for_each(|(orow, mrow)| {
-            for (o, &[x, y]) in orow.chunks_exact_mut(channels).zip(mrow) {
-                match interp {
-                    Interpolation::Nearest => {
-                        let (xr, yr) = (x.round(), y.round());
-                        if xr >= 0.0 && yr >= 0.0 && xr < wf && yr < hf {
-                            let i = (yr as usize * width + xr as usize) * channels;
-                            o.copy_from_slice(&img[i..i + channels]);
-                        }
-                    }
-                    Interpolation::Linear => bilinear(img, width, height, channels, x, y, o),
-                }
-            }
+        .zip(map.par_chunks(2 * out_width))
+        .for_each(|(orow, mrow)| match channels {
+            // Constant channel counts let the compiler unroll the per-channel loops.
+            1 => remap_row(&src, 1, mrow, orow, interp),
+            3 => remap_row(&src, 3, mrow, orow, interp),
+            4 => remap_row(&src, 4, mrow, orow, interp),
+            c => remap_row(&src, c, mrow, orow, interp),
         });
     Ok(out)
 }
 
-#[inline]
+struct Source<'a> {
+    img: &'a [f32],
+    width: usize,
+    height: usize,
+}
+
+#[inline(always)]
+fn remap_row(src: &Source<'_>, c: usize, mrow: &[f32], orow: &mut [f32], interp: Interpolation) {
+    let (w, h) = (src.width, src.height);
+    let (wf, hf) = (w as f32, h as f32);
+    for (o, xy) in orow.chunks_exact_mut(c).zip(mrow.chunks_exact(2)) {
+        let (x, y) = (xy[0], xy[1]);
+        match interp {
+            Interpolation::Nearest => {
+                let (xr, yr) = (x.round(), y.round());
+                if xr >= 0.0 && yr >= 0.0 && xr < wf && yr < hf {
+                    let i = (yr as usize * w + xr as usize) * c;
+                    o.copy_from_slice(&src.img[i..i + c]);
+                }
+            }
+            Interpolation::Linear => bilinear(src.img, w, h, c, x, y, o),
+        }
+    }
+}
+
+/// Bilinear sample. Interior samples take a branch-free lerp; the rare NaN result and the last
+/// row/column go through [`bilinear_careful`], which skips zero-weight taps.
+#[inline(always)]
 fn bilinear(img: &[f32], w: usize, h: usize, c: usize, x: f32, y: f32, o: &mut [f32]) {
+    if x >= 0.0 && y >= 0.0 && x < (w - 1) as f32 && y < (h - 1) as f32 {
+        let (x0, y0) = (x as usize, y as usize);
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let i = (y0 * w + x0) * c;
+        let j = i + w * c;
+        let (top, bot) = (&img[i..i + 2 * c], &img[j..j + 2 * c]);
+        let mut finite = true;
+        for (ch, oc) in o.iter_mut().enumerate() {
+            let t = top[ch] + fx * (top[c + ch] - top[ch]);
+            let b = bot[ch] + fx * (bot[c + ch] - bot[ch]);
+            *oc = t + fy * (b - t);
+            finite &= oc.is_finite();
+        }
+        if finite {
+            return;
+        }
+    }
+    bilinear_careful(img, w, h, c, x, y, o);
+}
+
+#[inline(never)]
+fn bilinear_careful(img: &[f32], w: usize, h: usize, c: usize, x: f32, y: f32, o: &mut [f32]) {
     // Valid only inside [0, w-1] x [0, h-1]; NaN x/y fail these comparisons too.
     if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f32 && y <= (h - 1) as f32) {
         return;
@@ -148,7 +224,7 @@ mod tests {
         let mut img: Vec<f32> = (0..w * h)
             .map(|i| (i % w) as f32 * 2.0 + (i / w) as f32)
             .collect();
-        let map = vec![[2.25f32, 3.5f32], [7.0, 5.0], [-0.1, 1.0]];
+        let map = vec![2.25f32, 3.5, 7.0, 5.0, -0.1, 1.0];
         let out = remap(&img, w, h, 1, &map, 1, Interpolation::Linear).unwrap();
         assert!((out[0] - (4.5 + 3.5)).abs() < 1e-5);
         assert!((out[1] - 19.0).abs() < 1e-5);
@@ -159,7 +235,7 @@ mod tests {
             w,
             h,
             1,
-            &[[2.0, 3.0], [2.5, 3.0]],
+            &[2.0, 3.0, 2.5, 3.0],
             1,
             Interpolation::Linear,
         )

@@ -122,8 +122,7 @@ pub fn undistort_map<'py>(
     let map = run(py, || {
         Ok(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
     })?;
-    let flat: Vec<f32> = map.into_iter().flatten().collect();
-    Ok(Array3::from_shape_vec((dst.height, dst.width, 2), flat)
+    Ok(Array3::from_shape_vec((dst.height, dst.width, 2), map)
         .map_err(|e| shape_err(e.to_string()))?
         .into_pyarray(py))
 }
@@ -158,18 +157,10 @@ pub fn remap<'py>(
     }
     let img = contiguous("image", image.as_slice())?;
     let m = contiguous("map", map.as_slice())?;
-    let pairs: &[[f32; 2]] = bytemuck_pairs(m);
-    let out = run(py, || rgbd_geom::remap(img, w, h, c, pairs, mw, interp))?;
+    let out = run(py, || rgbd_geom::remap(img, w, h, c, m, mw, interp))?;
     Ok(Array3::from_shape_vec((mh, mw, c), out)
         .map_err(|e| shape_err(e.to_string()))?
         .into_pyarray(py))
-}
-
-/// Views a flat `[x0, y0, x1, y1, ...]` slice as pairs without copying.
-fn bytemuck_pairs(m: &[f32]) -> &[[f32; 2]] {
-    let (pairs, rest) = m.as_chunks::<2>();
-    debug_assert!(rest.is_empty());
-    pairs
 }
 
 /// `baseline * focal / values`, elementwise, NaN for invalid (depth <-> disparity, eq. 2.15).

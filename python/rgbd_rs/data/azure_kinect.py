@@ -67,7 +67,12 @@ def _mode_camera(
     (bw, bh), (ox, oy), (w, h) = mode
     cx, cy, fx, fy, k1, k2, k3, k4, k5, k6, _codx, _cody, p2, p1 = params
     return PinholeCamera(
-        fx=fx * bw, fy=fy * bh, cx=cx * bw - ox - 0.5, cy=cy * bh - oy - 0.5, width=w, height=h,
+        fx=fx * bw,
+        fy=fy * bh,
+        cx=cx * bw - ox - 0.5,
+        cy=cy * bh - oy - 0.5,
+        width=w,
+        height=h,
         distortion=Distortion(k1=k1, k2=k2, p1=p1, p2=p2, k3=k3, k4=k4, k5=k5, k6=k6),
     )
 
@@ -77,7 +82,9 @@ def load_azure_kinect_calibration(
 ) -> AzureKinectCalibration:
     """Read an Azure Kinect factory calibration JSON for one depth mode and colour resolution."""
     if depth_mode not in DEPTH_MODES:
-        raise InvalidArgumentError(f"depth_mode: got {depth_mode!r}, expected one of {list(DEPTH_MODES)}")
+        raise InvalidArgumentError(
+            f"depth_mode: got {depth_mode!r}, expected one of {list(DEPTH_MODES)}"
+        )
     if color_resolution not in COLOR_MODES:
         raise InvalidArgumentError(
             f"color_resolution: got {color_resolution!r}, expected one of {list(COLOR_MODES)}"
@@ -101,8 +108,10 @@ def load_azure_kinect_calibration(
             "device's calibration JSON with D0 and PV0 cameras"
         ) from None
     return AzureKinectCalibration(
-        _mode_camera(dp, DEPTH_MODES[depth_mode]), _mode_camera(cp, COLOR_MODES[color_resolution]),
-        pose, radius,
+        _mode_camera(dp, DEPTH_MODES[depth_mode]),
+        _mode_camera(cp, COLOR_MODES[color_resolution]),
+        pose,
+        radius,
     )
 
 
@@ -110,7 +119,7 @@ def load_azure_kinect_frame(path: str | Path) -> AzureKinectFrame:
     """Read ``azure_kinect_frame.npz`` (``depth_mm``, ``ir``, ``color``); 0 mm becomes NaN."""
     path = Path(path)
     try:
-        with np.load(path) as z:
+        with path.open("rb") as fh, np.load(fh) as z:
             depth_mm, ir, color = z["depth_mm"], z["ir"], z["color"]
     except (OSError, KeyError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise InvalidArgumentError(
