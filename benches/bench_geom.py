@@ -40,61 +40,64 @@ def timeit(fn: Callable[[], object]) -> float:
     return statistics.median(times) * 1e3
 
 
+def bench_model(
+    model: str, coeffs: list[float], rng: np.random.Generator
+) -> list[dict[str, object]]:
+    """Time the four operations for one lens model."""
+    import cv2
+
+    from rgbd_rs import Distortion, PinholeCamera, Pose
+
+    w, h = SIZE
+    cam = PinholeCamera(1400.0, 1400.0, 959.5, 539.5, w, h, Distortion.from_opencv(coeffs))
+    k, d = cam.K, cam.distortion.to_opencv()[: len(coeffs)]
+    u = rng.uniform(0, w - 1, N_POINTS)
+    v = rng.uniform(0, h - 1, N_POINTS)
+    z = rng.uniform(0.5, 5, N_POINTS)
+    pts = np.column_stack([(u - cam.cx) / cam.fx * z, (v - cam.cy) / cam.fy * z, z])
+    rvec = np.array([0.01, -0.02, 0.005])
+    tvec = np.array([0.05, 0.0, 0.01])
+    pose = Pose(cv2.Rodrigues(rvec)[0], tvec)
+    px = cam.project(pts)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
+    img = rng.uniform(0, 255, (h, w, 3)).astype(np.float32)
+    cases: list[tuple[str, Callable[[], object], Callable[[], object]]] = [
+        (
+            "project 1M points",
+            lambda: cam.project(pts, pose),
+            lambda: cv2.projectPoints(pts, rvec, tvec, k, d),
+        ),
+        (
+            "undistort 1M points to 1e-12",
+            lambda: cam.undistort_points(px),
+            lambda: cv2.undistortPoints(px.reshape(-1, 1, 2), k, d, P=k, criteria=crit),
+        ),
+        (
+            "undistort map 1920x1080",
+            lambda: cam.undistort_map(),
+            lambda: cv2.initUndistortRectifyMap(k, d, None, k, SIZE, cv2.CV_32FC1),
+        ),
+        (
+            "undistort image 1920x1080x3 f32",
+            lambda: cam.undistort_image(img),
+            lambda: cv2.undistort(img, k, d),
+        ),
+    ]
+    return [
+        {"op": f"{name} ({model})", "rgbd_ms": timeit(ours), "opencv_ms": timeit(theirs)}
+        for name, ours, theirs in cases
+    ]
+
+
 def worker(threads: int) -> list[dict[str, object]]:
     import cv2
 
-    from rgbd_rs import Distortion, PinholeCamera, Pose, _rgbd_rs
+    from rgbd_rs import _rgbd_rs
 
     cv2.setNumThreads(threads)
     assert _rgbd_rs.num_threads() == threads, _rgbd_rs.num_threads()
     rng = np.random.default_rng(0)
-    rows: list[dict[str, object]] = []
-    w, h = SIZE
-    for model, coeffs in COEFFS.items():
-        cam = PinholeCamera(1400.0, 1400.0, 959.5, 539.5, w, h, Distortion.from_opencv(coeffs))
-        k, d = cam.K, cam.distortion.to_opencv()[: len(coeffs)]
-        u = rng.uniform(0, w - 1, N_POINTS)
-        v = rng.uniform(0, h - 1, N_POINTS)
-        z = rng.uniform(0.5, 5, N_POINTS)
-        pts = np.column_stack([(u - cam.cx) / cam.fx * z, (v - cam.cy) / cam.fy * z, z])
-        rvec = np.array([0.01, -0.02, 0.005])
-        tvec = np.array([0.05, 0.0, 0.01])
-        pose = Pose(cv2.Rodrigues(rvec)[0], tvec)
-        rows.append(
-            {
-                "op": f"project 1M points ({model})",
-                "rgbd_ms": timeit(lambda: cam.project(pts, pose)),
-                "opencv_ms": timeit(lambda: cv2.projectPoints(pts, rvec, tvec, k, d)),
-            }
-        )
-        px = cam.project(pts)
-        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
-        rows.append(
-            {
-                "op": f"undistort 1M points to 1e-12 ({model})",
-                "rgbd_ms": timeit(lambda: cam.undistort_points(px)),
-                "opencv_ms": timeit(
-                    lambda: cv2.undistortPoints(px.reshape(-1, 1, 2), k, d, P=k, criteria=crit)
-                ),
-            }
-        )
-        rows.append(
-            {
-                "op": f"undistort map 1920x1080 ({model})",
-                "rgbd_ms": timeit(lambda: cam.undistort_map()),
-                "opencv_ms": timeit(
-                    lambda: cv2.initUndistortRectifyMap(k, d, None, k, SIZE, cv2.CV_32FC1)
-                ),
-            }
-        )
-        img = rng.uniform(0, 255, (h, w, 3)).astype(np.float32)
-        rows.append(
-            {
-                "op": f"undistort image 1920x1080x3 f32 ({model})",
-                "rgbd_ms": timeit(lambda: cam.undistort_image(img)),
-                "opencv_ms": timeit(lambda: cv2.undistort(img, k, d)),
-            }
-        )
+    rows = [r for model, coeffs in COEFFS.items() for r in bench_model(model, coeffs, rng)]
     for r in rows:
         r["threads"] = threads
     return rows
