@@ -14,6 +14,7 @@ __all__ = [
     "project_points",
     "remap",
     "reproject_depth",
+    "undistort_image",
     "undistort_map",
     "undistort_pixels",
 ]
@@ -43,6 +44,13 @@ def undistort_map(
 ) -> npt.NDArray[np.float32]: ...
 def remap(
     image: npt.NDArray[np.float32], map: npt.NDArray[np.float32], interpolation: str
+) -> npt.NDArray[np.float32]: ...
+def undistort_image(
+    image: npt.NDArray[np.float32],
+    src: _CameraArgs,
+    dst: _CameraArgs,
+    interpolation: str,
+    rotation: list[float] | None = None,
 ) -> npt.NDArray[np.float32]: ...
 def depth_disparity(
     values: npt.NDArray[np.float32], baseline: float, focal: float

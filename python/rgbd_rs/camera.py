@@ -354,7 +354,12 @@ class PinholeCamera:
                 f"{self.width}x{self.height}"
             )
         interpolation = _validate.choice("interpolation", interpolation, ("nearest", "linear"))  # type: ignore[assignment]
-        out = _rgbd_rs.remap(img, self.undistort_map(target), interpolation)
+        target = target or self.without_distortion()
+        if not isinstance(target, PinholeCamera):
+            raise InvalidArgumentError(
+                f"target: got {type(target).__name__}, expected a PinholeCamera"
+            )
+        out = _rgbd_rs.undistort_image(img, self._native(), target._native(), interpolation)
         if src.dtype.kind in "iu":
             info = np.iinfo(src.dtype)
             out = np.clip(np.nan_to_num(np.rint(out), nan=0.0), info.min, info.max).astype(

@@ -3,8 +3,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rgbd_geom::{
-    reproject_depth, undistort_map, Camera, Distortion, Interpolation, Intrinsics, Pose,
-    ReprojectOptions, UNDISTORT_MAX_ITER, UNDISTORT_TOL,
+    reproject_depth, undistort_image, undistort_map, Camera, Distortion, ImageRef, Interpolation,
+    Intrinsics, Pose, ReprojectOptions, UNDISTORT_MAX_ITER, UNDISTORT_TOL,
 };
 use std::hint::black_box;
 
@@ -42,18 +42,13 @@ fn bench_undistort(c: &mut Criterion) {
     });
     let map = undistort_map(&cam, &ideal, None);
     let img: Vec<f32> = (0..ideal.len() * 3).map(|i| (i % 251) as f32).collect();
+    let view = ImageRef::new(&img, 1920, 1080, 3).unwrap();
     c.bench_function("remap_linear_1920x1080x3", |b| {
+        b.iter(|| rgbd_geom::remap(black_box(view), &map, 1920, Interpolation::Linear).unwrap())
+    });
+    c.bench_function("undistort_image_linear_1920x1080x3", |b| {
         b.iter(|| {
-            rgbd_geom::remap(
-                black_box(&img),
-                1920,
-                1080,
-                3,
-                &map,
-                1920,
-                Interpolation::Linear,
-            )
-            .unwrap()
+            undistort_image(black_box(view), &cam, &ideal, None, Interpolation::Linear).unwrap()
         })
     });
 }

@@ -21,6 +21,6 @@ pub use distortion::{Distortion, UNDISTORT_MAX_ITER, UNDISTORT_TOL};
 pub use error::{GeomError, Result};
 pub use normals::normals_from_points;
 pub use projection::Camera;
-pub use remap::{remap, undistort_map, Interpolation};
+pub use remap::{remap, undistort_image, undistort_map, ImageRef, Interpolation};
 pub use reproject::{reproject_depth, ReprojectOptions, Reprojected};
 pub use stereo::depth_disparity;

@@ -8,7 +8,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 use rgbd_geom::{
-    reproject::MAX_SPLAT_RADIUS, Camera, Distortion, Interpolation, Intrinsics, Pose,
+    reproject::MAX_SPLAT_RADIUS, Camera, Distortion, ImageRef, Interpolation, Intrinsics, Pose,
     ReprojectOptions,
 };
 
@@ -135,15 +135,7 @@ pub fn remap<'py>(
     map: PyReadonlyArray3<'py, f32>,
     interpolation: &str,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-    let interp = match interpolation {
-        "nearest" => Interpolation::Nearest,
-        "linear" => Interpolation::Linear,
-        other => {
-            return Err(InvalidArgumentError::new_err(format!(
-                "interpolation: got {other:?}, expected 'nearest' or 'linear'"
-            )))
-        }
-    };
+    let interp = interpolation_arg(interpolation)?;
     let &[h, w, c] = image.shape() else {
         unreachable!("3-D array")
     };
@@ -157,8 +149,55 @@ pub fn remap<'py>(
     }
     let img = contiguous("image", image.as_slice())?;
     let m = contiguous("map", map.as_slice())?;
-    let out = run(py, || rgbd_geom::remap(img, w, h, c, m, mw, interp))?;
+    let out = run(py, || {
+        rgbd_geom::remap(ImageRef::new(img, w, h, c)?, m, mw, interp)
+    })?;
     Ok(Array3::from_shape_vec((mh, mw, c), out)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+fn interpolation_arg(name: &str) -> PyResult<Interpolation> {
+    match name {
+        "nearest" => Ok(Interpolation::Nearest),
+        "linear" => Ok(Interpolation::Linear),
+        other => Err(InvalidArgumentError::new_err(format!(
+            "interpolation: got {other:?}, expected 'nearest' or 'linear'"
+        ))),
+    }
+}
+
+/// Undistorts (optionally rectifies) an `H x W x C` image of `src` onto the ideal camera `dst`.
+#[pyfunction]
+#[pyo3(signature = (image, src, dst, interpolation, rotation=None))]
+pub fn undistort_image<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArray3<'py, f32>,
+    src: CameraArgs,
+    dst: CameraArgs,
+    interpolation: &str,
+    rotation: Option<[f64; 9]>,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let interp = interpolation_arg(interpolation)?;
+    let (src, dst) = (camera(src)?, camera(dst)?.intrinsics);
+    let rot = match rotation {
+        Some(r) => Some(pose((r, [0.0; 3]))?.rotation),
+        None => None,
+    };
+    let &[h, w, c] = image.shape() else {
+        unreachable!("3-D array")
+    };
+    let img = contiguous("image", image.as_slice())?;
+    let out = run(py, || {
+        rgbd_geom::undistort_image(
+            ImageRef::new(img, w, h, c)?,
+            &src,
+            &dst,
+            rot.as_ref(),
+            interp,
+        )
+    })?;
+    Ok(Array3::from_shape_vec((dst.height, dst.width, c), out)
         .map_err(|e| shape_err(e.to_string()))?
         .into_pyarray(py))
 }

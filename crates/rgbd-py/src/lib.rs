@@ -43,6 +43,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(geom::depth_to_points, m)?)?;
     m.add_function(wrap_pyfunction!(geom::undistort_map, m)?)?;
     m.add_function(wrap_pyfunction!(geom::remap, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::undistort_image, m)?)?;
     m.add_function(wrap_pyfunction!(geom::depth_disparity, m)?)?;
     m.add_function(wrap_pyfunction!(geom::reproject_depth, m)?)?;
     m.add_function(wrap_pyfunction!(geom::normals_from_points, m)?)?;
