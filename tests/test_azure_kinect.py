@@ -14,8 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rgbd_rs import InvalidArgumentError, reproject_depth
-from rgbd_rs.data import load_azure_kinect_calibration, load_azure_kinect_frame
+from rgbd_rs import InvalidArgumentError
+from rgbd_rs.data import (
+    load_azure_kinect_calibration,
+    load_azure_kinect_frame,
+    reproject_to_color,
+)
 from rgbd_rs.metrics import edge_alignment
 
 
@@ -44,14 +48,7 @@ def test_mode_specific_intrinsics(kinect) -> None:  # type: ignore[no-untyped-de
 
 def test_reprojection_onto_colour_is_plausible(kinect) -> None:  # type: ignore[no-untyped-def]
     cal, frame = kinect
-    rep = reproject_depth(
-        frame.depth,
-        cal.depth,
-        cal.color,
-        cal.depth_to_color,
-        channels=frame.amplitude,
-        splat_radius=1,
-    )
+    rep = reproject_to_color(frame, cal)
     assert rep.depth.shape == (720, 1280)
     assert 0.45 < rep.coverage < 0.75  # the NFOV cone covers the centre of the wider colour view
     src = np.nanpercentile(frame.depth, [5, 50, 95])
@@ -62,9 +59,7 @@ def test_reprojection_onto_colour_is_plausible(kinect) -> None:  # type: ignore[
     )
     good = edge_alignment(rep.depth, frame.color)
     wrong = edge_alignment(
-        reproject_depth(
-            frame.depth, cal.depth, cal.color, cal.depth_to_color.inverse(), splat_radius=1
-        ).depth,
+        reproject_to_color(frame, cal, pose=cal.depth_to_color.inverse()).depth,
         frame.color,
     )
     assert good > 0.5 and good > 4 * wrong, (good, wrong)

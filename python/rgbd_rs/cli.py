@@ -47,20 +47,16 @@ def _parser() -> argparse.ArgumentParser:
 def _reproject(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from rgbd_rs.data import load_azure_kinect_calibration, load_azure_kinect_frame
-    from rgbd_rs.geometry import reproject_depth
+    from rgbd_rs.data import (
+        load_azure_kinect_calibration,
+        load_azure_kinect_frame,
+        reproject_to_color,
+    )
     from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
     cal = load_azure_kinect_calibration(args.calib)
     frame = load_azure_kinect_frame(args.frame)
-    rep = reproject_depth(
-        frame.depth,
-        cal.depth,
-        cal.color,
-        cal.depth_to_color,
-        channels=frame.amplitude,
-        splat_radius=args.splat_radius,
-    )
+    rep = reproject_to_color(frame, cal, splat_radius=args.splat_radius)
     args.out.mkdir(parents=True, exist_ok=True)
     tmp = args.out / "depth.npz.tmp.npz"
     assert rep.channels is not None  # amplitude was passed as a channel

@@ -17,7 +17,12 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose
-from rgbd_rs.data import data_root, load_azure_kinect_calibration, load_azure_kinect_frame
+from rgbd_rs.data import (
+    data_root,
+    load_azure_kinect_calibration,
+    load_azure_kinect_frame,
+    reproject_to_color,
+)
 from rgbd_rs.geometry import reproject_depth
 from rgbd_rs.metrics import edge_alignment
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
@@ -121,17 +126,8 @@ def run_kinect(out: Path | None) -> dict[str, float] | None:
         return None
     cal = load_azure_kinect_calibration(root / "tof" / "azure_kinect_calibration.json")
     frame = load_azure_kinect_frame(root / "tof" / "azure_kinect_frame.npz")
-    rep = reproject_depth(
-        frame.depth,
-        cal.depth,
-        cal.color,
-        cal.depth_to_color,
-        channels=frame.amplitude,
-        splat_radius=1,
-    )
-    wrong = reproject_depth(
-        frame.depth, cal.depth, cal.color, cal.depth_to_color.inverse(), splat_radius=1
-    )
+    rep = reproject_to_color(frame, cal)
+    wrong = reproject_to_color(frame, cal, pose=cal.depth_to_color.inverse())
     stats = {
         "coverage": rep.coverage,
         "source_valid": float(np.isfinite(frame.depth).mean()),

@@ -70,43 +70,25 @@ impl Camera {
         max_iter: usize,
         tol: f64,
     ) -> Result<Vec<f64>> {
-        check_even("pixels", px)?;
         let k = &self.intrinsics;
-        let mut out = vec![0.0; px.len()];
-        out.par_chunks_mut(2 * POINT_CHUNK)
-            .zip(px.par_chunks(2 * POINT_CHUNK))
-            .for_each(|(o, p)| {
-                for (o, p) in o.chunks_exact_mut(2).zip(p.chunks_exact(2)) {
-                    let [xd, yd] = k.to_normalized(p[0], p[1]);
-                    let r = self.distortion.undistort(xd, yd, max_iter, tol);
-                    let r = r.map_or([f64::NAN; 2], |[x, y]| {
-                        if normalized {
-                            [x, y]
-                        } else {
-                            k.to_pixel(x, y)
-                        }
-                    });
-                    o.copy_from_slice(&r);
-                }
-            });
-        Ok(out)
+        map_pixels(px, |u, v| {
+            let [xd, yd] = k.to_normalized(u, v);
+            match self.distortion.undistort(xd, yd, max_iter, tol) {
+                None => [f64::NAN; 2],
+                Some([x, y]) if normalized => [x, y],
+                Some([x, y]) => k.to_pixel(x, y),
+            }
+        })
     }
 
     /// Maps ideal pixels to the distorted pixels where the lens actually images them.
     pub fn distort_pixels(&self, px: &[f64]) -> Result<Vec<f64>> {
-        check_even("pixels", px)?;
         let k = &self.intrinsics;
-        let mut out = vec![0.0; px.len()];
-        out.par_chunks_mut(2 * POINT_CHUNK)
-            .zip(px.par_chunks(2 * POINT_CHUNK))
-            .for_each(|(o, p)| {
-                for (o, p) in o.chunks_exact_mut(2).zip(p.chunks_exact(2)) {
-                    let [x, y] = k.to_normalized(p[0], p[1]);
-                    let [xd, yd] = self.distortion.distort(x, y);
-                    o.copy_from_slice(&k.to_pixel(xd, yd));
-                }
-            });
-        Ok(out)
+        map_pixels(px, |u, v| {
+            let [x, y] = k.to_normalized(u, v);
+            let [xd, yd] = self.distortion.distort(x, y);
+            k.to_pixel(xd, yd)
+        })
     }
 
     /// The normalised, undistorted ray `(x, y)` (with z = 1) of every pixel of the lattice,
@@ -153,16 +135,24 @@ impl Camera {
     }
 }
 
-fn check_even(arg: &'static str, px: &[f64]) -> Result<()> {
-    if px.len().is_multiple_of(2) {
-        Ok(())
-    } else {
-        Err(invalid(
-            arg,
+/// Applies `f` to every `(u, v)` pair of an `N x 2` buffer, in parallel chunks.
+fn map_pixels(px: &[f64], f: impl Fn(f64, f64) -> [f64; 2] + Sync) -> Result<Vec<f64>> {
+    if !px.len().is_multiple_of(2) {
+        return Err(invalid(
+            "pixels",
             format!("{} values", px.len()),
             "a multiple of 2 (N x 2)",
-        ))
+        ));
     }
+    let mut out = vec![0.0; px.len()];
+    out.par_chunks_mut(2 * POINT_CHUNK)
+        .zip(px.par_chunks(2 * POINT_CHUNK))
+        .for_each(|(o, p)| {
+            for (o, p) in o.chunks_exact_mut(2).zip(p.chunks_exact(2)) {
+                o.copy_from_slice(&f(p[0], p[1]));
+            }
+        });
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -1,9 +1,9 @@
 //! Thin adapters for `rgbd-geom`: validate, borrow, run without the GIL, return without copies.
 
-use numpy::ndarray::{Array2, Array3};
+use numpy::ndarray::{Array, Dimension, ShapeBuilder};
 use numpy::prelude::*;
 use numpy::{
-    IntoPyArray, PyArray2, PyArray3, PyArrayDyn, PyReadonlyArray2, PyReadonlyArray3,
+    Element, PyArray, PyArray2, PyArray3, PyArrayDyn, PyReadonlyArray2, PyReadonlyArray3,
     PyReadonlyArrayDyn,
 };
 use pyo3::prelude::*;
@@ -31,6 +31,17 @@ fn pose(p: PoseArgs) -> PyResult<Pose> {
     Pose::new(p.0, p.1).map_err(to_py)
 }
 
+/// Hands a result buffer to numpy as an array of `shape`, without copying it.
+fn to_numpy<'py, T: Element, D: Dimension>(
+    py: Python<'py>,
+    shape: impl ShapeBuilder<Dim = D>,
+    values: Vec<T>,
+) -> PyResult<Bound<'py, PyArray<T, D>>> {
+    Ok(Array::from_shape_vec(shape, values)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
 fn shape_err(msg: String) -> PyErr {
     InvalidArgumentError::new_err(msg)
 }
@@ -47,9 +58,7 @@ pub fn project_points<'py>(
     let (cam, pose) = (camera(cam)?, pose(pose_args)?);
     let pts = contiguous("points", points.as_slice())?;
     let out = run(py, || cam.project_points(pts, &pose))?;
-    Ok(Array2::from_shape_vec((n, 2), out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (n, 2), out)
 }
 
 /// Undistorts `N x 2` pixels (to ideal pixels, or normalised coordinates).
@@ -66,9 +75,7 @@ pub fn undistort_pixels<'py>(
     let cam = camera(cam)?;
     let px = contiguous("pixels", pixels.as_slice())?;
     let out = run(py, || cam.undistort_pixels(px, normalized, max_iter, tol))?;
-    Ok(Array2::from_shape_vec((n, 2), out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (n, 2), out)
 }
 
 /// Distorts `N x 2` ideal pixels.
@@ -82,9 +89,7 @@ pub fn distort_pixels<'py>(
     let cam = camera(cam)?;
     let px = contiguous("pixels", pixels.as_slice())?;
     let out = run(py, || cam.distort_pixels(px))?;
-    Ok(Array2::from_shape_vec((n, 2), out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (n, 2), out)
 }
 
 /// Back-projects an `H x W` depth map to an `H x W x 3` point cloud.
@@ -100,9 +105,7 @@ pub fn depth_to_points<'py>(
     let (h, w) = (cam.intrinsics.height, cam.intrinsics.width);
     let d = contiguous("depth", depth.as_slice())?;
     let out = run(py, || cam.depth_to_points(d, max_iter, tol))?;
-    Ok(Array3::from_shape_vec((h, w, 3), out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (h, w, 3), out)
 }
 
 /// Source-pixel map (`H_dst x W_dst x 2`) for undistorting/rectifying `src` onto `dst`.
@@ -122,9 +125,7 @@ pub fn undistort_map<'py>(
     let map = run(py, || {
         Ok(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
     })?;
-    Ok(Array3::from_shape_vec((dst.height, dst.width, 2), map)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (dst.height, dst.width, 2), map)
 }
 
 /// Samples an `H x W x C` image at an `H' x W' x 2` map with `"nearest"` or `"linear"`.
@@ -152,9 +153,7 @@ pub fn remap<'py>(
     let out = run(py, || {
         rgbd_geom::remap(ImageRef::new(img, w, h, c)?, m, mw, interp)
     })?;
-    Ok(Array3::from_shape_vec((mh, mw, c), out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (mh, mw, c), out)
 }
 
 fn interpolation_arg(name: &str) -> PyResult<Interpolation> {
@@ -197,9 +196,7 @@ pub fn undistort_image<'py>(
             interp,
         )
     })?;
-    Ok(Array3::from_shape_vec((dst.height, dst.width, c), out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (dst.height, dst.width, c), out)
 }
 
 /// `baseline * focal / values`, elementwise, NaN for invalid (depth <-> disparity, eq. 2.15).
@@ -213,9 +210,7 @@ pub fn depth_disparity<'py>(
     let shape = values.shape().to_vec();
     let v = contiguous("values", values.as_slice())?;
     let out = run(py, || rgbd_geom::depth_disparity(v, baseline, focal))?;
-    Ok(numpy::ndarray::ArrayD::from_shape_vec(shape, out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, shape, out)
 }
 
 type Reprojected<'py> = (
@@ -259,21 +254,12 @@ pub fn reproject_depth<'py>(
         rgbd_geom::reproject_depth(d, &src, &dst, &pose, ch, opts)
     })?;
     let (h, w) = (dst.intrinsics.height, dst.intrinsics.width);
-    let err = |e: numpy::ndarray::ShapeError| shape_err(e.to_string());
-    let depth = Array2::from_shape_vec((h, w), out.depth)
-        .map_err(err)?
-        .into_pyarray(py);
+    let depth = to_numpy(py, (h, w), out.depth)?;
     let chans = match ch {
-        Some((_, n)) => Some(
-            Array3::from_shape_vec((h, w, n), out.channels)
-                .map_err(err)?
-                .into_pyarray(py),
-        ),
+        Some((_, n)) => Some(to_numpy(py, (h, w, n), out.channels)?),
         None => None,
     };
-    let idx = Array2::from_shape_vec((h, w), out.source_index)
-        .map_err(err)?
-        .into_pyarray(py);
+    let idx = to_numpy(py, (h, w), out.source_index)?;
     Ok((depth, chans, idx))
 }
 
@@ -296,7 +282,5 @@ pub fn normals_from_points<'py>(
     let out = run(py, || {
         rgbd_geom::normals_from_points(p, w, h, max_depth_jump)
     })?;
-    Ok(Array3::from_shape_vec((h, w, 3), out)
-        .map_err(|e| shape_err(e.to_string()))?
-        .into_pyarray(py))
+    to_numpy(py, (h, w, 3), out)
 }

@@ -5,6 +5,7 @@ from rgbd_rs.data.azure_kinect import (
     AzureKinectFrame,
     load_azure_kinect_calibration,
     load_azure_kinect_frame,
+    reproject_to_color,
 )
 from rgbd_rs.data.paths import data_root
 
@@ -14,4 +15,5 @@ __all__ = [
     "data_root",
     "load_azure_kinect_calibration",
     "load_azure_kinect_frame",
+    "reproject_to_color",
 ]

@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose
 from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.geometry import Reprojection, reproject_depth
 
 # mode -> (binned resolution, crop offset, output resolution), from the SDK's mode tables.
 DEPTH_MODES: dict[str, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]] = {
@@ -112,6 +113,27 @@ def load_azure_kinect_calibration(
         _mode_camera(cp, COLOR_MODES[color_resolution]),
         pose,
         radius,
+    )
+
+
+def reproject_to_color(
+    frame: AzureKinectFrame,
+    calibration: AzureKinectCalibration,
+    *,
+    splat_radius: int = 1,
+    pose: Pose | None = None,
+) -> Reprojection:
+    """Reproject a frame's ToF depth (carrying its amplitude) onto the colour camera.
+
+    ``pose`` overrides the calibrated depth -> colour transform (e.g. to test a registration).
+    """
+    return reproject_depth(
+        frame.depth,
+        calibration.depth,
+        calibration.color,
+        calibration.depth_to_color if pose is None else pose,
+        channels=frame.amplitude,
+        splat_radius=splat_radius,
     )
 
 
