@@ -32,10 +32,10 @@ fn values(q: usize, t: f64) -> [f64; MAX_DEGREE + 1] {
     n[0] = 1.0;
     for j in 1..=q {
         let mut saved = 0.0;
-        for r in 0..j {
+        for (r, nr) in n.iter_mut().enumerate().take(j) {
             // right[r + 1] = r + 1 - t, left[j - r] = t + j - r - 1; their sum is j.
-            let temp = n[r] / j as f64;
-            n[r] = saved + (r as f64 + 1.0 - t) * temp;
+            let temp = *nr / j as f64;
+            *nr = saved + (r as f64 + 1.0 - t) * temp;
             saved = (t + (j - r) as f64 - 1.0) * temp;
         }
         n[j] = saved;
