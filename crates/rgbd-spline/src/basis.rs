@@ -94,8 +94,8 @@ mod tests {
             (-3.0 * t.powi(3) + 3.0 * t * t + 3.0 * t + 1.0) / 6.0,
             t.powi(3) / 6.0,
         ];
-        for j in 0..4 {
-            assert!((b.value[j] - want[j]).abs() < 1e-15, "{j}");
+        for (j, w) in want.iter().enumerate() {
+            assert!((b.value[j] - w).abs() < 1e-15, "{j}");
         }
         let d1 = [
             -s * s / 2.0,
@@ -104,9 +104,9 @@ mod tests {
             t * t / 2.0,
         ];
         let d2 = [s, 3.0 * t - 2.0, -3.0 * t + 1.0, t];
-        for j in 0..4 {
+        for (j, (w1, w2)) in d1.iter().zip(&d2).enumerate() {
             assert!(
-                (b.d1[j] - d1[j]).abs() < 1e-14 && (b.d2[j] - d2[j]).abs() < 1e-14,
+                (b.d1[j] - w1).abs() < 1e-14 && (b.d2[j] - w2).abs() < 1e-14,
                 "{j}"
             );
         }
