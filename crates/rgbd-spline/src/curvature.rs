@@ -1,0 +1,136 @@
+//! Principal curvatures of a fitted 3-D surface `S(u, v) = (X, Y, Z)(u, v)` from its first and
+//! second fundamental forms.
+//!
+//! Sign convention: the normal is oriented towards the camera (`n · S < 0`), and curvature is
+//! positive where the surface bulges towards the viewer (a ball seen from outside has
+//! `k1 = k2 = +1/r`), negative in a concave corner or bowl.
+
+use crate::grid::Jet;
+
+/// Curvatures at one point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Curvature {
+    /// Larger principal curvature (1/metre when S is in metres).
+    pub k1: f64,
+    /// Smaller principal curvature.
+    pub k2: f64,
+    /// Mean curvature `(k1 + k2) / 2`.
+    pub mean: f64,
+    /// Gaussian curvature `k1 · k2`.
+    pub gaussian: f64,
+}
+
+/// Curvature of a 3-channel jet; `None` where the parametrisation is degenerate.
+pub fn curvature(jet: &Jet) -> Option<Curvature> {
+    if jet.value.len() != 3 {
+        return None;
+    }
+    let v3 = |a: &[f64]| [a[0], a[1], a[2]];
+    let (s, su, sv) = (v3(&jet.value), v3(&jet.du), v3(&jet.dv));
+    let (suu, suv, svv) = (v3(&jet.duu), v3(&jet.duv), v3(&jet.dvv));
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut n = [
+        su[1] * sv[2] - su[2] * sv[1],
+        su[2] * sv[0] - su[0] * sv[2],
+        su[0] * sv[1] - su[1] * sv[0],
+    ];
+    let len = dot(n, n).sqrt();
+    if !(len > 0.0) {
+        return None;
+    }
+    let sign = if dot(n, s) > 0.0 { -1.0 } else { 1.0 };
+    for x in &mut n {
+        *x *= sign / len;
+    }
+    let (e, f, g) = (dot(su, su), dot(su, sv), dot(sv, sv));
+    // With n towards the viewer a bulge has negative L, N: flip so that bulges are positive.
+    let (l, m, nn) = (-dot(suu, n), -dot(suv, n), -dot(svv, n));
+    let det = e * g - f * f;
+    if !(det > 0.0) {
+        return None;
+    }
+    let gaussian = (l * nn - m * m) / det;
+    let mean = (e * nn - 2.0 * f * m + g * l) / (2.0 * det);
+    let disc = (mean * mean - gaussian).max(0.0).sqrt();
+    Some(Curvature {
+        k1: mean + disc,
+        k2: mean - disc,
+        mean,
+        gaussian,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::{fit_grid, KnotGrid, DEFAULT_LAMBDA};
+
+    /// Organised point cloud of a pinhole camera (f = 200) looking at `hit(ray) -> depth`.
+    fn cloud(w: usize, h: usize, hit: impl Fn([f64; 3]) -> Option<f64>) -> Vec<f64> {
+        let mut out = Vec::with_capacity(w * h * 3);
+        for v in 0..h {
+            for u in 0..w {
+                let d = [
+                    (u as f64 - w as f64 / 2.0) / 200.0,
+                    (v as f64 - h as f64 / 2.0) / 200.0,
+                    1.0,
+                ];
+                match hit(d) {
+                    Some(s) => out.extend_from_slice(&[d[0] * s, d[1] * s, s]),
+                    None => out.extend_from_slice(&[f64::NAN; 3]),
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn sphere_curvatures_within_one_percent() {
+        // Close enough that the ball fills the view: no silhouette, where depth has an infinite
+        // slope that no spline follows (its ringing would reach a few knot spans inwards).
+        let (w, h, r, cz) = (128, 128, 1.0, 1.8);
+        let pts = cloud(w, h, |d| {
+            let b = d[2] * cz;
+            let a = d[0] * d[0] + d[1] * d[1] + 1.0;
+            let disc = b * b - a * (cz * cz - r * r);
+            (disc > 0.0).then(|| (b - disc.sqrt()) / a)
+        });
+        let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
+        let s = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA).unwrap();
+        let mut checked = 0;
+        for v in (16..112).step_by(4) {
+            for u in (16..112).step_by(4) {
+                let c = curvature(&s.jet(u as f64, v as f64)).unwrap();
+                assert!(
+                    (c.k1 - 1.0).abs() < 0.01 && (c.k2 - 1.0).abs() < 0.01,
+                    "{u} {v} {c:?}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 100);
+    }
+
+    #[test]
+    fn cylinder_has_one_zero_curvature() {
+        // Vertical cylinder of radius 0.5 (axis along y) at z = 1, filling the view.
+        let (w, h, r, cz) = (128, 96, 0.5, 1.0);
+        let pts = cloud(w, h, |d| {
+            let a = d[0] * d[0] + 1.0;
+            let b = cz;
+            let disc = b * b - a * (cz * cz - r * r);
+            (disc > 0.0).then(|| (b - disc.sqrt()) / a)
+        });
+        let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
+        let s = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA).unwrap();
+        for v in (16..80).step_by(8) {
+            for u in (16..112).step_by(8) {
+                let c = curvature(&s.jet(u as f64, v as f64)).unwrap();
+                assert!(
+                    (c.k1 - 2.0).abs() < 0.02 && c.k2.abs() < 0.02,
+                    "{u} {v} {c:?}"
+                );
+            }
+        }
+    }
+}
