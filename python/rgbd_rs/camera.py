@@ -249,6 +249,15 @@ class PinholeCamera:
         """The ideal pinhole with the same intrinsics."""
         return replace(self, distortion=Distortion())
 
+    def _ideal_target(self, target: PinholeCamera | None) -> PinholeCamera:
+        """``target``, or this camera without distortion; rejects anything else."""
+        target = target or self.without_distortion()
+        if not isinstance(target, PinholeCamera):
+            raise InvalidArgumentError(
+                f"target: got {type(target).__name__}, expected a PinholeCamera"
+            )
+        return target
+
     def _native(self) -> tuple[float, float, float, float, int, int, list[float]]:
         return (
             float(self.fx),
@@ -323,11 +332,7 @@ class PinholeCamera:
         ``rotation`` (3x3) rectifies: target rays are rotated by ``R^T`` into this camera, as in
         OpenCV's ``initUndistortRectifyMap``.
         """
-        target = target or self.without_distortion()
-        if not isinstance(target, PinholeCamera):
-            raise InvalidArgumentError(
-                f"target: got {type(target).__name__}, expected a PinholeCamera"
-            )
+        target = self._ideal_target(target)
         rot = None
         if rotation is not None:
             rot = [float(v) for v in Pose(np.asarray(rotation, dtype=np.float64)).rotation.ravel()]
@@ -354,11 +359,7 @@ class PinholeCamera:
                 f"{self.width}x{self.height}"
             )
         interpolation = _validate.choice("interpolation", interpolation, ("nearest", "linear"))  # type: ignore[assignment]
-        target = target or self.without_distortion()
-        if not isinstance(target, PinholeCamera):
-            raise InvalidArgumentError(
-                f"target: got {type(target).__name__}, expected a PinholeCamera"
-            )
+        target = self._ideal_target(target)
         out = _rgbd_rs.undistort_image(img, self._native(), target._native(), interpolation)
         if src.dtype.kind in "iu":
             info = np.iinfo(src.dtype)

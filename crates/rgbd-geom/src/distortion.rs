@@ -19,11 +19,23 @@ pub const UNDISTORT_MAX_ITER: usize = 20;
 /// units (1e-12 is about 1e-9 px at f = 1000 px).
 pub const UNDISTORT_TOL: f64 = 1e-12;
 
+/// Radial numerator `1 + k1 r² + k2 r⁴ + k3 r⁶`.
+#[inline(always)]
+fn numerator(k: &[f64; 6], r2: f64) -> f64 {
+    1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[2]))
+}
+
+/// Rational denominator `1 + k4 r² + k5 r⁴ + k6 r⁶`.
+#[inline(always)]
+fn denominator(k: &[f64; 6], r2: f64) -> f64 {
+    1.0 + r2 * (k[3] + r2 * (k[4] + r2 * k[5]))
+}
+
 /// Radial factor and its derivative with respect to r².
 #[inline(always)]
 fn radial(k: &[f64; 6], r2: f64) -> (f64, f64) {
-    let num = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[2]));
-    let den = 1.0 + r2 * (k[3] + r2 * (k[4] + r2 * k[5]));
+    let num = numerator(k, r2);
+    let den = denominator(k, r2);
     let dnum = k[0] + r2 * (2.0 * k[1] + 3.0 * r2 * k[2]);
     let dden = k[3] + r2 * (2.0 * k[4] + 3.0 * r2 * k[5]);
     (num / den, (dnum * den - num * dden) / (den * den))
@@ -84,11 +96,10 @@ impl Distortion {
     pub fn distort_with<const RATIONAL: bool>(&self, x: f64, y: f64) -> [f64; 2] {
         let k = &self.k;
         let r2 = x * x + y * y;
-        let num = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[2]));
         let s = if RATIONAL {
-            num / (1.0 + r2 * (k[3] + r2 * (k[4] + r2 * k[5])))
+            numerator(k, r2) / denominator(k, r2)
         } else {
-            num
+            numerator(k, r2)
         };
         let [p1, p2] = self.p;
         let xy = x * y;

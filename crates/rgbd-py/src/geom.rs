@@ -1,5 +1,6 @@
 //! Thin adapters for `rgbd-geom`: validate, borrow, run without the GIL, return without copies.
 
+use nalgebra::Matrix3;
 use numpy::ndarray::{Array, Dimension, ShapeBuilder};
 use numpy::prelude::*;
 use numpy::{
@@ -7,10 +8,7 @@ use numpy::{
     PyReadonlyArrayDyn,
 };
 use pyo3::prelude::*;
-use rgbd_geom::{
-    reproject::MAX_SPLAT_RADIUS, Camera, Distortion, ImageRef, Interpolation, Intrinsics, Pose,
-    ReprojectOptions,
-};
+use rgbd_geom::{Camera, Distortion, ImageRef, Interpolation, Intrinsics, Pose, ReprojectOptions};
 
 use crate::errors::{contiguous, run, to_py, InvalidArgumentError};
 
@@ -40,6 +38,13 @@ fn to_numpy<'py, T: Element, D: Dimension>(
     Ok(Array::from_shape_vec(shape, values)
         .map_err(|e| shape_err(e.to_string()))?
         .into_pyarray(py))
+}
+
+/// An optional row-major rectifying rotation, validated like a pose's.
+fn rotation_arg(rotation: Option<[f64; 9]>) -> PyResult<Option<Matrix3<f64>>> {
+    rotation
+        .map(|r| Ok(pose((r, [0.0; 3]))?.rotation))
+        .transpose()
 }
 
 fn shape_err(msg: String) -> PyErr {
@@ -118,10 +123,7 @@ pub fn undistort_map<'py>(
     rotation: Option<[f64; 9]>,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let (src, dst) = (camera(src)?, camera(dst)?.intrinsics);
-    let rot = match rotation {
-        Some(r) => Some(pose((r, [0.0; 3]))?.rotation),
-        None => None,
-    };
+    let rot = rotation_arg(rotation)?;
     let map = run(py, || {
         Ok(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
     })?;
@@ -179,10 +181,7 @@ pub fn undistort_image<'py>(
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let interp = interpolation_arg(interpolation)?;
     let (src, dst) = (camera(src)?, camera(dst)?.intrinsics);
-    let rot = match rotation {
-        Some(r) => Some(pose((r, [0.0; 3]))?.rotation),
-        None => None,
-    };
+    let rot = rotation_arg(rotation)?;
     let &[h, w, c] = image.shape() else {
         unreachable!("3-D array")
     };
@@ -235,11 +234,6 @@ pub fn reproject_depth<'py>(
     tol: f64,
 ) -> PyResult<Reprojected<'py>> {
     let (src, dst, pose) = (camera(src)?, camera(dst)?, pose(pose_args)?);
-    if splat_radius > MAX_SPLAT_RADIUS {
-        return Err(InvalidArgumentError::new_err(format!(
-            "splat_radius: got {splat_radius}, expected 0..={MAX_SPLAT_RADIUS}"
-        )));
-    }
     let d = contiguous("depth", depth.as_slice())?;
     let ch = match &channels {
         Some(c) => Some((contiguous("channels", c.as_slice())?, c.shape()[2])),
