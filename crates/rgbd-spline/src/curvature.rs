@@ -5,7 +5,7 @@
 //! positive where the surface bulges towards the viewer (a ball seen from outside has
 //! `k1 = k2 = +1/r`), negative in a concave corner or bowl.
 
-use crate::grid::Jet;
+use crate::surface::Jet;
 
 /// Curvatures at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,7 +22,7 @@ pub struct Curvature {
 
 /// Curvature of a 3-channel jet; `None` where the parametrisation is degenerate.
 pub fn curvature(jet: &Jet) -> Option<Curvature> {
-    if jet.value.len() != 3 {
+    if jet.channels != 3 {
         return None;
     }
     let v3 = |a: &[f64]| [a[0], a[1], a[2]];
@@ -100,7 +100,7 @@ mod tests {
         let mut checked = 0;
         for v in (16..112).step_by(4) {
             for u in (16..112).step_by(4) {
-                let c = curvature(&s.jet(u as f64, v as f64)).unwrap();
+                let c = curvature(&s.surface.jet(u as f64, v as f64).unwrap()).unwrap();
                 assert!(
                     (c.k1 - 1.0).abs() < 0.01 && (c.k2 - 1.0).abs() < 0.01,
                     "{u} {v} {c:?}"
@@ -125,7 +125,7 @@ mod tests {
         let s = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA).unwrap();
         for v in (16..80).step_by(8) {
             for u in (16..112).step_by(8) {
-                let c = curvature(&s.jet(u as f64, v as f64)).unwrap();
+                let c = curvature(&s.surface.jet(u as f64, v as f64).unwrap()).unwrap();
                 assert!(
                     (c.k1 - 2.0).abs() < 0.02 && c.k2.abs() < 0.02,
                     "{u} {v} {c:?}"

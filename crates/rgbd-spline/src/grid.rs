@@ -10,10 +10,10 @@
 //! without data well-posed: the system is positive definite for `lambda > 0` whenever the data
 //! fix a plane, so no rank deficiency and no NaN surface.
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
-
 use crate::basis::{uniform_basis, Basis, MAX_DEGREE};
+use crate::fit::{solve, Fit};
+use crate::normal::accumulate;
+use crate::surface::MAX_CHANNELS;
 use crate::SplineError;
 
 /// Default smoothness weight (relative to one data point's weight). Chosen small enough that a
@@ -99,79 +99,39 @@ impl KnotGrid {
     }
 }
 
-/// A fitted surface: `channels` control-point grids on a [`KnotGrid`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct GridSurface {
-    pub grid: KnotGrid,
-    pub channels: usize,
-    /// Row-major `(ctrl_v, ctrl_u, channels)`.
-    pub ctrl: Vec<f64>,
-}
-
-/// Value and derivatives (per pixel, all channels) of a surface at one point.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Jet {
-    pub value: Vec<f64>,
-    pub du: Vec<f64>,
-    pub dv: Vec<f64>,
-    pub duu: Vec<f64>,
-    pub duv: Vec<f64>,
-    pub dvv: Vec<f64>,
-}
-
-impl GridSurface {
-    /// Evaluates the surface and its first and second derivatives (per pixel) at `(u, v)`.
-    pub fn jet(&self, u: f64, v: f64) -> Jet {
-        let (cu, cv, bu, bv) = self.grid.support(u, v);
-        let (nu, _) = self.grid.ctrl_shape();
-        let c = self.channels;
-        let s = self.grid.spacing;
-        let mut jet = Jet {
-            value: vec![0.0; c],
-            du: vec![0.0; c],
-            dv: vec![0.0; c],
-            duu: vec![0.0; c],
-            duv: vec![0.0; c],
-            dvv: vec![0.0; c],
-        };
-        let p = self.grid.degree;
-        for j in 0..=p {
-            for i in 0..=p {
-                let base = ((cv + j) * nu + cu + i) * c;
-                let w = [
-                    bu.value[i] * bv.value[j],
-                    bu.d1[i] * bv.value[j] / s,
-                    bu.value[i] * bv.d1[j] / s,
-                    bu.d2[i] * bv.value[j] / (s * s),
-                    bu.d1[i] * bv.d1[j] / (s * s),
-                    bu.value[i] * bv.d2[j] / (s * s),
-                ];
-                for ch in 0..c {
-                    let q = self.ctrl[base + ch];
-                    jet.value[ch] += w[0] * q;
-                    jet.du[ch] += w[1] * q;
-                    jet.dv[ch] += w[2] * q;
-                    jet.duu[ch] += w[3] * q;
-                    jet.duv[ch] += w[4] * q;
-                    jet.dvv[ch] += w[5] * q;
-                }
+/// Per-channel mean of the valid pixels (all channels finite, `keep` true): the offset the
+/// normal equations are accumulated against, so sums of squares stay well-conditioned.
+pub fn valid_mean(values: &[f64], channels: usize, keep: impl Fn(usize) -> bool) -> Vec<f64> {
+    let mut sum = vec![0.0; channels];
+    let mut n = 0usize;
+    for (i, px) in values.chunks(channels).enumerate() {
+        if keep(i) && px.iter().all(|x| x.is_finite()) {
+            n += 1;
+            for (s, x) in sum.iter_mut().zip(px) {
+                *s += x;
             }
         }
-        jet
     }
+    sum.iter()
+        .map(|s| if n > 0 { s / n as f64 } else { 0.0 })
+        .collect()
 }
 
-/// Least-squares fit of `channels` values per pixel (`height x width x channels`, row-major;
-/// a pixel with any non-finite channel is skipped) on `grid`, with smoothness weight `lambda`.
-pub fn fit_grid(
+pub(crate) fn check_values(
     values: &[f64],
     width: usize,
     height: usize,
     channels: usize,
-    grid: &KnotGrid,
     lambda: f64,
-) -> Result<GridSurface, SplineError> {
-    if channels == 0 || values.len() != width * height * channels {
+) -> Result<(), SplineError> {
+    if !(1..=MAX_CHANNELS).contains(&channels) {
+        return Err(SplineError::invalid(
+            "channels",
+            channels,
+            format!("1..={MAX_CHANNELS}"),
+        ));
+    }
+    if values.len() != width * height * channels {
         return Err(SplineError::invalid(
             "values",
             format!("{} values", values.len()),
@@ -185,86 +145,78 @@ pub fn fit_grid(
             "a smoothness weight > 0",
         ));
     }
-    let n = grid.n_ctrl();
-    let (nu, nv) = grid.ctrl_shape();
-    let p = grid.degree;
-    let k = (p + 1) * (p + 1);
-    let mut ata = Mat::<f64>::zeros(n, n);
-    let mut atb = Mat::<f64>::zeros(n, channels);
-    let mut used = 0usize;
-    let mut idx = vec![0usize; k];
-    let mut w = vec![0.0f64; k];
-    for v in 0..height {
-        for u in 0..width {
-            let px = &values[(v * width + u) * channels..(v * width + u + 1) * channels];
-            if px.iter().any(|x| !x.is_finite()) {
-                continue;
-            }
-            used += 1;
-            let (cu, cv, bu, bv) = grid.support(u as f64, v as f64);
-            for j in 0..=p {
-                for i in 0..=p {
-                    idx[j * (p + 1) + i] = (cv + j) * nu + cu + i;
-                    w[j * (p + 1) + i] = bu.value[i] * bv.value[j];
-                }
-            }
-            for a in 0..k {
-                for b in 0..k {
-                    ata[(idx[a], idx[b])] += w[a] * w[b];
-                }
-                for (ch, &x) in px.iter().enumerate() {
-                    atb[(idx[a], ch)] += w[a] * x;
-                }
-            }
-        }
-    }
-    if used < (p + 1) * (p + 1) {
-        return Err(SplineError::invalid(
-            "values",
-            format!("{used} valid pixels"),
-            format!("at least (degree+1)^2 = {}", (p + 1) * (p + 1)),
-        ));
-    }
-    add_second_difference_penalty(&mut ata, nu, nv, lambda);
-    let llt = ata
-        .llt(Side::Lower)
-        .map_err(|e| SplineError::invalid("values", format!("{e:?}"), "a well-posed fit"))?;
-    let sol = llt.solve(&atb);
-    let mut ctrl = vec![0.0; n * channels];
-    for i in 0..n {
-        for ch in 0..channels {
-            ctrl[i * channels + ch] = sol[(i, ch)];
-        }
-    }
-    Ok(GridSurface {
-        grid: *grid,
-        channels,
-        ctrl,
-    })
+    Ok(())
 }
 
-/// Adds `lambda (D_u^T D_u + D_v^T D_v)` with second differences along each grid axis.
-fn add_second_difference_penalty(m: &mut Mat<f64>, nu: usize, nv: usize, lambda: f64) {
-    let stencil = [1.0, -2.0, 1.0];
-    let mut add = |ids: [usize; 3]| {
-        for (a, &ia) in ids.iter().enumerate() {
-            for (b, &ib) in ids.iter().enumerate() {
-                m[(ia, ib)] += lambda * stencil[a] * stencil[b];
-            }
+/// Least-squares fit of `channels` values per pixel (`height x width x channels`, row-major; a
+/// pixel with any non-finite channel is skipped) on `grid` with smoothness weight `lambda`.
+/// Fewer than `(p+1)²` valid pixels fall back to a linear fit ([`FitKind::Linear`]).
+pub fn fit_grid(
+    values: &[f64],
+    width: usize,
+    height: usize,
+    channels: usize,
+    grid: &KnotGrid,
+    lambda: f64,
+) -> Result<Fit, SplineError> {
+    fit_mask(values, width, height, channels, None, grid, lambda)
+}
+
+/// As [`fit_grid`] on the pixels where `mask` is true (`None`: all pixels).
+pub fn fit_mask(
+    values: &[f64],
+    width: usize,
+    height: usize,
+    channels: usize,
+    mask: Option<&[bool]>,
+    grid: &KnotGrid,
+    lambda: f64,
+) -> Result<Fit, SplineError> {
+    check_values(values, width, height, channels, lambda)?;
+    check_grid(grid, width, height)?;
+    let labels: Option<Vec<i32>> = match mask {
+        Some(m) if m.len() != width * height => {
+            return Err(SplineError::invalid(
+                "mask",
+                format!("{} values", m.len()),
+                format!("height * width = {}", width * height),
+            ))
         }
+        Some(m) => Some(m.iter().map(|&b| if b { 0 } else { -1 }).collect()),
+        None => None,
     };
-    for row in 0..nv {
-        for col in 1..nu.saturating_sub(1) {
-            let c = row * nu + col;
-            add([c - 1, c, c + 1]);
-        }
+    let offset = valid_mean(values, channels, |i| mask.is_none_or(|m| m[i]));
+    let normals = accumulate(
+        values,
+        width,
+        height,
+        channels,
+        labels.as_deref(),
+        1,
+        grid,
+        &offset,
+    );
+    if normals[0].moments.n == 0 {
+        return Err(SplineError::invalid(
+            "values",
+            "no valid pixel (all NaN or masked out)",
+            "at least one pixel with finite values",
+        ));
     }
-    for row in 1..nv.saturating_sub(1) {
-        for col in 0..nu {
-            let c = row * nu + col;
-            add([c - nu, c, c + nu]);
-        }
+    solve(&normals[0], grid, lambda, &offset, true)
+}
+
+/// The grid must have been made for an image of this size.
+pub(crate) fn check_grid(grid: &KnotGrid, width: usize, height: usize) -> Result<(), SplineError> {
+    let expect = KnotGrid::new(width, height, grid.spacing, grid.degree)?;
+    if expect != *grid {
+        return Err(SplineError::invalid(
+            "grid",
+            format!("{}x{} cells", grid.cells_u, grid.cells_v),
+            format!("the grid of a {width}x{height} image"),
+        ));
     }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -286,7 +238,7 @@ mod tests {
         let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
         let s = fit_grid(&vals, w, h, 1, &grid, DEFAULT_LAMBDA).unwrap();
         for (u, v) in [(0.0, 0.0), (39.0, 29.0), (13.5, 7.25), (20.0, 3.0)] {
-            let j = s.jet(u, v);
+            let j = s.surface.jet(u, v).unwrap();
             assert!(
                 (j.value[0] - plane(u, v)).abs() < 1e-9,
                 "{u} {v} {}",
@@ -310,8 +262,8 @@ mod tests {
         });
         let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
         let s = fit_grid(&vals, w, h, 1, &grid, DEFAULT_LAMBDA).unwrap();
-        assert!(s.ctrl.iter().all(|c| c.is_finite()));
-        assert!((s.jet(5.0, 5.0).value[0] - 1.05).abs() < 1e-6);
+        assert!(s.surface.ctrl.iter().all(|c| c.is_finite()));
+        assert!((s.surface.jet(5.0, 5.0).unwrap().value[0] - 1.05).abs() < 1e-6);
     }
 
     #[test]

@@ -1,15 +1,25 @@
 //! B-spline (NURBS with unit weights) surfaces on a knot grid anchored to the image lattice
-//! (thesis §4.5, §5.3.3). Work in progress (issue 5): the uniform basis with derivatives and the
-//! regularised least-squares fit of a whole view, principal curvatures; segment fits and the Python
-//! API are still to come.
+//! (thesis §4.5, §5.3.3): regularised least-squares fits of whole views and of arbitrary pixel
+//! sets, principal curvatures, and per-segment normal equations whose unions are sums, so region
+//! merging (eq. 4.8) asks "does the union fit better?" with one band solve.
 
+pub mod band;
 pub mod basis;
 pub mod curvature;
+pub mod fit;
 pub mod grid;
+pub mod maps;
+pub mod normal;
+pub mod segments;
+pub mod surface;
 
 pub use basis::{uniform_basis, Basis, BasisError, MAX_DEGREE};
 pub use curvature::{curvature, Curvature};
-pub use grid::{fit_grid, GridSurface, Jet, KnotGrid, DEFAULT_LAMBDA};
+pub use fit::{Fit, FitKind};
+pub use grid::{fit_grid, fit_mask, KnotGrid, DEFAULT_LAMBDA};
+pub use maps::{surface_maps, SurfaceMaps};
+pub use segments::{Criterion, SegmentFits};
+pub use surface::{GridSurface, Jet, MAX_CHANNELS};
 
 use std::fmt::Display;
 

@@ -1,0 +1,293 @@
+//! Solving the normal equations of one pixel set: the regularised spline fit, its residual,
+//! effective degrees of freedom, and the linear fallback for tiny sets.
+
+use crate::band::BandMatrix;
+use crate::grid::KnotGrid;
+use crate::normal::Normal;
+use crate::surface::GridSurface;
+use crate::SplineError;
+
+/// Ridge weight pulling every control point towards the set's least-squares linear fit
+/// (relative to one data point's weight). It only matters for control points that neither data
+/// nor the second-difference penalty pin down (degree 1 on thin sets); a linear surface is
+/// reproduced exactly whatever its value, since it has zero penalty and zero ridge.
+pub const RIDGE: f64 = 1e-10;
+
+/// How a set was fitted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FitKind {
+    /// Regularised tensor-product B-spline.
+    Spline,
+    /// `a + b·u + c·v` per channel: fewer than `(p+1)²` valid pixels.
+    Linear,
+}
+
+/// A fitted pixel set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fit {
+    pub surface: GridSurface,
+    pub kind: FitKind,
+    /// Valid pixels fitted.
+    pub n: usize,
+    /// Sum over pixels of the squared 3-D (all channels) distance to the surface.
+    pub sse: f64,
+    /// Effective degrees of freedom `tr(H)` (`H` the hat matrix), `None` unless requested.
+    pub dof: Option<f64>,
+}
+
+impl Fit {
+    /// Mean squared error `sse / n` (thesis §4.5 / eq. 4.8's `e`).
+    pub fn mse(&self) -> f64 {
+        self.sse / self.n as f64
+    }
+
+    /// Generalised cross-validation score `n · sse / (n - dof)²`: the expected squared error on
+    /// new points of the same surface, so a set does not score better merely because it is
+    /// small. Infinite when the fit interpolates (`dof >= n`).
+    pub fn gcv(&self) -> f64 {
+        let n = self.n as f64;
+        let d = self.dof.unwrap_or(0.0);
+        if n - d <= 1e-9 * n {
+            f64::INFINITY
+        } else {
+            n * self.sse / ((n - d) * (n - d))
+        }
+    }
+}
+
+/// Bounding box of the cells of `normal`.
+fn cell_box(normal: &Normal, grid: &KnotGrid) -> ((usize, usize), (usize, usize)) {
+    let mut lo = (usize::MAX, usize::MAX);
+    let mut hi = (0, 0);
+    for &c in &normal.cells {
+        let (cu, cv) = (c as usize % grid.cells_u, c as usize / grid.cells_u);
+        lo = (lo.0.min(cu), lo.1.min(cv));
+        hi = (hi.0.max(cu), hi.1.max(cv));
+    }
+    (lo, hi)
+}
+
+/// Fits the pixel set of `normal` (values were accumulated minus `offset`).
+pub fn solve(
+    normal: &Normal,
+    grid: &KnotGrid,
+    lambda: f64,
+    offset: &[f64],
+    with_dof: bool,
+) -> Result<Fit, SplineError> {
+    let m = &normal.moments;
+    if m.n == 0 {
+        return Err(SplineError::invalid(
+            "segment",
+            "no valid pixel",
+            "at least one pixel with finite values",
+        ));
+    }
+    let (lo, hi) = cell_box(normal, grid);
+    let (lin, lin_sse) = linear_coef(normal, grid, offset);
+    if m.n < normal.k {
+        return Ok(Fit {
+            surface: GridSurface::linear(grid, lo, hi, &lin),
+            kind: FitKind::Linear,
+            n: m.n,
+            sse: lin_sse,
+            dof: Some(3.0f64.min(m.n as f64)),
+        });
+    }
+    let c = normal.channels;
+    let p = grid.degree;
+    let k1 = p + 1;
+    let k = normal.k;
+    let shape = (hi.0 - lo.0 + 1 + p, hi.1 - lo.1 + 1 + p);
+    let rect = shape.0 * shape.1;
+    // Compact numbering (row-major) of the control points the set touches.
+    let mut compact = vec![u32::MAX; rect];
+    let block_ids = |cell: u32| {
+        let (cu, cv) = (
+            cell as usize % grid.cells_u - lo.0,
+            cell as usize / grid.cells_u - lo.1,
+        );
+        (0..k).map(move |a| (cv + a / k1) * shape.0 + cu + a % k1)
+    };
+    for &cell in &normal.cells {
+        for r in block_ids(cell) {
+            compact[r] = 0;
+        }
+    }
+    let mut n_ids = 0u32;
+    for x in compact.iter_mut().filter(|x| **x == 0) {
+        *x = n_ids;
+        n_ids += 1;
+    }
+    let n_ids = n_ids as usize;
+    let mut bw = 0;
+    for &cell in &normal.cells {
+        let first = compact[block_ids(cell).next().unwrap_or(0)];
+        let last = compact[block_ids(cell).next_back().unwrap_or(0)];
+        bw = bw.max((last - first) as usize);
+    }
+    let stencils = penalty_stencils(&compact, shape);
+    for s in &stencils {
+        bw = bw.max((s[2] - s[0]) as usize);
+    }
+    // Assemble the centred system: rhs_c = Aᵀ(x - mean) = Aᵀx - mean · Aᵀ1.
+    let mean = m.mean();
+    let bl = normal.block_len();
+    let mut a = BandMatrix::zeros(n_ids, bw);
+    let mut rhs = vec![0.0; n_ids * c];
+    let mut rhs_ridge = vec![0.0; n_ids * c];
+    let mut ids = vec![0usize; k];
+    for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
+        for (slot, r) in ids.iter_mut().zip(block_ids(*cell)) {
+            *slot = compact[r] as usize;
+        }
+        let (gram, rest) = block.split_at(k * k);
+        let (brhs, ones) = rest.split_at(k * c);
+        for ia in 0..k {
+            for ib in 0..=ia {
+                a.add(ids[ia], ids[ib], gram[ia * k + ib]);
+            }
+            for ch in 0..c {
+                rhs[ids[ia] * c + ch] += brhs[ia * c + ch] - mean[ch] * ones[ia];
+            }
+        }
+    }
+    // The data Gram matrix alone is needed for the residual and the degrees of freedom.
+    let gram_band = a.clone();
+    let stencil = [1.0, -2.0, 1.0];
+    for s in &stencils {
+        for x in 0..3 {
+            for y in 0..=x {
+                a.add(
+                    s[x] as usize,
+                    s[y] as usize,
+                    lambda * stencil[x] * stencil[y],
+                );
+            }
+        }
+    }
+    let target = GridSurface::linear(grid, lo, hi, &lin);
+    for (r, &id) in compact.iter().enumerate() {
+        if id != u32::MAX {
+            let id = id as usize;
+            a.add(id, id, RIDGE);
+            for ch in 0..c {
+                rhs_ridge[id * c + ch] = RIDGE * (target.ctrl[r * c + ch] - offset[ch] - mean[ch]);
+            }
+        }
+    }
+    let chol = a.cholesky().map_err(|i| {
+        SplineError::invalid(
+            "segment",
+            format!("a non-positive pivot at control point {i}"),
+            "a well-posed fit",
+        )
+    })?;
+    let mut sol: Vec<f64> = rhs.iter().zip(&rhs_ridge).map(|(a, b)| a + b).collect();
+    chol.solve(&mut sol, c);
+    // ||A c - x̃||² = x̃ᵀx̃ - 2 cᵀ Aᵀx̃ + cᵀ G c, with x̃ = x - mean.
+    let n = m.n as f64;
+    let mut sse = 0.0;
+    for ch in 0..c {
+        let xx = m.sq[ch] - n * mean[ch] * mean[ch];
+        let mut cr = 0.0;
+        let mut cgc = 0.0;
+        for i in 0..n_ids {
+            cr += sol[i * c + ch] * rhs[i * c + ch];
+            for j in i.saturating_sub(gram_band.bw)..=i {
+                let g = gram_band.get(i, j);
+                let w = if i == j { 1.0 } else { 2.0 };
+                cgc += w * g * sol[i * c + ch] * sol[j * c + ch];
+            }
+        }
+        sse += xx - 2.0 * cr + cgc;
+    }
+    let dof = with_dof.then(|| {
+        let z = chol.inverse_band();
+        let mut tr = 0.0;
+        for i in 0..n_ids {
+            for j in i.saturating_sub(gram_band.bw)..=i {
+                let w = if i == j { 1.0 } else { 2.0 };
+                tr += w * z.get(i, j) * gram_band.get(i, j);
+            }
+        }
+        tr
+    });
+    let mut ctrl = Vec::with_capacity(rect * c);
+    for &id in &compact {
+        for ch in 0..c {
+            let centred = if id == u32::MAX {
+                0.0
+            } else {
+                sol[id as usize * c + ch]
+            };
+            ctrl.push(centred + mean[ch] + offset[ch]);
+        }
+    }
+    Ok(Fit {
+        surface: GridSurface {
+            grid: *grid,
+            channels: c,
+            origin: lo,
+            shape,
+            ctrl,
+        },
+        kind: FitKind::Spline,
+        n: m.n,
+        sse: sse.max(0.0),
+        dof,
+    })
+}
+
+/// Second-difference stencils (compact ids, ascending) whose three control points all belong to
+/// the set, along u and along v.
+fn penalty_stencils(compact: &[u32], shape: (usize, usize)) -> Vec<[u32; 3]> {
+    let mut out = Vec::new();
+    let (w, h) = shape;
+    for j in 0..h {
+        for i in 0..w {
+            let r = j * w + i;
+            if i + 2 < w {
+                let s = [compact[r], compact[r + 1], compact[r + 2]];
+                if s.iter().all(|&x| x != u32::MAX) {
+                    out.push(s);
+                }
+            }
+            if j + 2 < h {
+                let s = [compact[r], compact[r + w], compact[r + 2 * w]];
+                if s.iter().all(|&x| x != u32::MAX) {
+                    out.push(s);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Least-squares `a + b·gu + c·gv` per channel from the moments, in coordinates centred on the
+/// set (a tiny ridge on the slopes keeps a one-pixel-wide line well-posed).
+fn linear_coef(normal: &Normal, grid: &KnotGrid, offset: &[f64]) -> (Vec<f64>, f64) {
+    let m = &normal.moments;
+    let g = m.geo;
+    let n = m.n as f64;
+    let (mu, mv) = (g[1] / n, g[2] / n);
+    let suu = g[3] - n * mu * mu;
+    let suv = g[4] - n * mu * mv;
+    let svv = g[5] - n * mv * mv;
+    let eps = 1e-9 * n;
+    let det = (suu + eps) * (svv + eps) - suv * suv;
+    let mut coef = Vec::with_capacity(3 * normal.channels);
+    let mut sse = 0.0;
+    for (ch, l) in m.lin.chunks(3).enumerate() {
+        let mean = l[0] / n;
+        let (tu, tv) = (l[1] - n * mu * mean, l[2] - n * mv * mean);
+        let bu = ((svv + eps) * tu - suv * tv) / det;
+        let bv = ((suu + eps) * tv - suv * tu) / det;
+        let xx = m.sq[ch] - n * mean * mean;
+        sse += xx - 2.0 * (bu * tu + bv * tv) + bu * bu * suu + 2.0 * bu * bv * suv + bv * bv * svv;
+        // Grid coordinates -> pixels, offset restored.
+        let a = mean - bu * mu - bv * mv + offset[ch];
+        coef.extend_from_slice(&[a, bu / grid.spacing, bv / grid.spacing]);
+    }
+    (coef, sse.max(0.0))
+}

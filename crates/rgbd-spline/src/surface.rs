@@ -1,0 +1,148 @@
+//! A fitted surface: control points on a rectangle of an image-anchored [`KnotGrid`], evaluated
+//! with its first and second derivatives (per pixel).
+
+use crate::grid::KnotGrid;
+
+/// `channels` control-point grids covering control points `origin .. origin + shape` of `grid`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridSurface {
+    pub grid: KnotGrid,
+    pub channels: usize,
+    /// First control point `(u, v)` of the rectangle.
+    pub origin: (usize, usize),
+    /// Control points `(along u, along v)` of the rectangle.
+    pub shape: (usize, usize),
+    /// Row-major `(shape.1, shape.0, channels)`.
+    pub ctrl: Vec<f64>,
+}
+
+/// Most channels a surface may have (3-D points: 3).
+pub const MAX_CHANNELS: usize = 4;
+
+/// Value and derivatives (per pixel) of a surface at one point; entries past `channels` are 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Jet {
+    pub channels: usize,
+    pub value: [f64; MAX_CHANNELS],
+    pub du: [f64; MAX_CHANNELS],
+    pub dv: [f64; MAX_CHANNELS],
+    pub duu: [f64; MAX_CHANNELS],
+    pub duv: [f64; MAX_CHANNELS],
+    pub dvv: [f64; MAX_CHANNELS],
+}
+
+impl GridSurface {
+    /// The surface `a + b·u + c·v` (per channel, `coef = [a, b, c]` per channel, `u, v` in
+    /// pixels) over the control rectangle of cells `cell_min ..= cell_max`. Uniform B-splines
+    /// reproduce linear functions exactly when each control point sits at its Greville abscissa
+    /// `(i - (p - 1) / 2) · s`.
+    pub fn linear(
+        grid: &KnotGrid,
+        cell_min: (usize, usize),
+        cell_max: (usize, usize),
+        coef: &[f64],
+    ) -> Self {
+        let p = grid.degree;
+        let channels = coef.len() / 3;
+        let shape = (
+            cell_max.0 - cell_min.0 + 1 + p,
+            cell_max.1 - cell_min.1 + 1 + p,
+        );
+        let greville = |i: usize| (i as f64 - (p as f64 - 1.0) / 2.0) * grid.spacing;
+        let mut ctrl = Vec::with_capacity(shape.0 * shape.1 * channels);
+        for j in 0..shape.1 {
+            for i in 0..shape.0 {
+                let (u, v) = (greville(cell_min.0 + i), greville(cell_min.1 + j));
+                for c in coef.chunks(3) {
+                    ctrl.push(c[0] + c[1] * u + c[2] * v);
+                }
+            }
+        }
+        Self {
+            grid: *grid,
+            channels,
+            origin: cell_min,
+            shape,
+            ctrl,
+        }
+    }
+
+    /// Whether pixel `(u, v)` lies in a cell whose control points this surface holds.
+    pub fn covers(&self, u: f64, v: f64) -> bool {
+        let (cu, cv, _, _) = self.grid.support(u, v);
+        let p = self.grid.degree;
+        cu >= self.origin.0
+            && cv >= self.origin.1
+            && cu + p < self.origin.0 + self.shape.0
+            && cv + p < self.origin.1 + self.shape.1
+    }
+
+    /// Value and first/second derivatives (per pixel) at `(u, v)`; `None` outside the
+    /// surface's control rectangle.
+    pub fn jet(&self, u: f64, v: f64) -> Option<Jet> {
+        if !self.covers(u, v) {
+            return None;
+        }
+        let (cu, cv, bu, bv) = self.grid.support(u, v);
+        let (cu, cv) = (cu - self.origin.0, cv - self.origin.1);
+        let nu = self.shape.0;
+        let c = self.channels;
+        let s = self.grid.spacing;
+        let z = [0.0; MAX_CHANNELS];
+        let mut jet = Jet {
+            channels: c,
+            value: z,
+            du: z,
+            dv: z,
+            duu: z,
+            duv: z,
+            dvv: z,
+        };
+        let p = self.grid.degree;
+        for j in 0..=p {
+            for i in 0..=p {
+                let base = ((cv + j) * nu + cu + i) * c;
+                let w = [
+                    bu.value[i] * bv.value[j],
+                    bu.d1[i] * bv.value[j] / s,
+                    bu.value[i] * bv.d1[j] / s,
+                    bu.d2[i] * bv.value[j] / (s * s),
+                    bu.d1[i] * bv.d1[j] / (s * s),
+                    bu.value[i] * bv.d2[j] / (s * s),
+                ];
+                for ch in 0..c {
+                    let q = self.ctrl[base + ch];
+                    jet.value[ch] += w[0] * q;
+                    jet.du[ch] += w[1] * q;
+                    jet.dv[ch] += w[2] * q;
+                    jet.duu[ch] += w[3] * q;
+                    jet.duv[ch] += w[4] * q;
+                    jet.dvv[ch] += w[5] * q;
+                }
+            }
+        }
+        Some(jet)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn linear_surface_is_exact_for_every_degree() {
+        for p in 1..=5 {
+            let grid = KnotGrid::new(50, 40, 7.0, p).unwrap();
+            let s = GridSurface::linear(&grid, (1, 1), (5, 4), &[2.0, 0.1, -0.3]);
+            for (u, v) in [(7.0, 7.0), (20.5, 13.25), (41.9, 34.9)] {
+                let j = s.jet(u, v).unwrap();
+                assert!(
+                    (j.value[0] - (2.0 + 0.1 * u - 0.3 * v)).abs() < 1e-12,
+                    "p={p}"
+                );
+                assert!((j.du[0] - 0.1).abs() < 1e-12 && (j.dv[0] + 0.3).abs() < 1e-12);
+            }
+            assert!(s.jet(3.0, 20.0).is_none());
+        }
+    }
+}
