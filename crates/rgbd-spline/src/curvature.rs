@@ -96,7 +96,7 @@ mod tests {
             (disc > 0.0).then(|| (b - disc.sqrt()) / a)
         });
         let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
-        let s = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA).unwrap();
+        let s = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA, false).unwrap();
         let mut checked = 0;
         for v in (16..112).step_by(4) {
             for u in (16..112).step_by(4) {
@@ -122,7 +122,7 @@ mod tests {
             (disc > 0.0).then(|| (b - disc.sqrt()) / a)
         });
         let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
-        let s = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA).unwrap();
+        let s = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA, false).unwrap();
         for v in (16..80).step_by(8) {
             for u in (16..112).step_by(8) {
                 let c = curvature(&s.surface.jet(u as f64, v as f64).unwrap()).unwrap();

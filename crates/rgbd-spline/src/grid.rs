@@ -12,7 +12,7 @@
 
 use crate::basis::{uniform_basis, Basis, MAX_DEGREE};
 use crate::fit::{solve, Fit};
-use crate::normal::accumulate;
+use crate::normal::{accumulate, Region};
 use crate::surface::MAX_CHANNELS;
 use crate::SplineError;
 
@@ -99,16 +99,25 @@ impl KnotGrid {
     }
 }
 
-/// Per-channel mean of the valid pixels (all channels finite, `keep` true): the offset the
-/// normal equations are accumulated against, so sums of squares stay well-conditioned.
-pub fn valid_mean(values: &[f64], channels: usize, keep: impl Fn(usize) -> bool) -> Vec<f64> {
+/// Per-channel mean of the valid pixels (all channels finite, `keep` true) inside `region`: the
+/// offset the normal equations are accumulated against, so sums of squares stay well-conditioned.
+pub fn valid_mean<T: Copy + Into<f64>>(
+    values: &[T],
+    width: usize,
+    channels: usize,
+    region: Region,
+    keep: impl Fn(usize) -> bool,
+) -> Vec<f64> {
     let mut sum = vec![0.0; channels];
     let mut n = 0usize;
-    for (i, px) in values.chunks(channels).enumerate() {
-        if keep(i) && px.iter().all(|x| x.is_finite()) {
-            n += 1;
-            for (s, x) in sum.iter_mut().zip(px) {
-                *s += x;
+    for v in region.v0..region.v1 {
+        for i in v * width + region.u0..v * width + region.u1 {
+            let px = &values[i * channels..][..channels];
+            if keep(i) && px.iter().all(|&x| x.into().is_finite()) {
+                n += 1;
+                for (s, &x) in sum.iter_mut().zip(px) {
+                    *s += x.into();
+                }
             }
         }
     }
@@ -117,8 +126,8 @@ pub fn valid_mean(values: &[f64], channels: usize, keep: impl Fn(usize) -> bool)
         .collect()
 }
 
-pub(crate) fn check_values(
-    values: &[f64],
+pub(crate) fn check_values<T>(
+    values: &[T],
     width: usize,
     height: usize,
     channels: usize,
@@ -151,26 +160,33 @@ pub(crate) fn check_values(
 /// Least-squares fit of `channels` values per pixel (`height x width x channels`, row-major; a
 /// pixel with any non-finite channel is skipped) on `grid` with smoothness weight `lambda`.
 /// Fewer than `(p+1)²` valid pixels fall back to a linear fit ([`FitKind::Linear`]).
-pub fn fit_grid(
-    values: &[f64],
+/// `with_dof` also computes the effective degrees of freedom (for [`Fit::gcv`]), which costs
+/// about as much again as the solve.
+pub fn fit_grid<T: Copy + Into<f64> + Sync>(
+    values: &[T],
     width: usize,
     height: usize,
     channels: usize,
     grid: &KnotGrid,
     lambda: f64,
+    with_dof: bool,
 ) -> Result<Fit, SplineError> {
-    fit_mask(values, width, height, channels, None, grid, lambda)
+    fit_mask(
+        values, width, height, channels, None, grid, lambda, with_dof,
+    )
 }
 
 /// As [`fit_grid`] on the pixels where `mask` is true (`None`: all pixels).
-pub fn fit_mask(
-    values: &[f64],
+#[allow(clippy::too_many_arguments)]
+pub fn fit_mask<T: Copy + Into<f64> + Sync>(
+    values: &[T],
     width: usize,
     height: usize,
     channels: usize,
     mask: Option<&[bool]>,
     grid: &KnotGrid,
     lambda: f64,
+    with_dof: bool,
 ) -> Result<Fit, SplineError> {
     check_values(values, width, height, channels, lambda)?;
     check_grid(grid, width, height)?;
@@ -185,7 +201,20 @@ pub fn fit_mask(
         Some(m) => Some(m.iter().map(|&b| if b { 0 } else { -1 }).collect()),
         None => None,
     };
-    let offset = valid_mean(values, channels, |i| mask.is_none_or(|m| m[i]));
+    let region = match mask {
+        Some(m) => Region::bounding(width, height, |i| m[i]),
+        None => Some(Region::full(width, height)),
+    };
+    let Some(region) = region else {
+        return Err(SplineError::invalid(
+            "mask",
+            "no pixel selected",
+            "at least one true pixel",
+        ));
+    };
+    let offset = valid_mean(values, width, channels, region, |i| {
+        mask.is_none_or(|m| m[i])
+    });
     let normals = accumulate(
         values,
         width,
@@ -195,6 +224,7 @@ pub fn fit_mask(
         1,
         grid,
         &offset,
+        region,
     );
     if normals[0].moments.n == 0 {
         return Err(SplineError::invalid(
@@ -203,7 +233,7 @@ pub fn fit_mask(
             "at least one pixel with finite values",
         ));
     }
-    solve(&normals[0], grid, lambda, &offset, true)
+    solve(&normals[0], grid, lambda, &offset, with_dof)
 }
 
 /// The grid must have been made for an image of this size.
@@ -236,7 +266,7 @@ mod tests {
         let mut vals = sample(w, h, plane);
         vals[100] = f64::NAN;
         let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
-        let s = fit_grid(&vals, w, h, 1, &grid, DEFAULT_LAMBDA).unwrap();
+        let s = fit_grid(&vals, w, h, 1, &grid, DEFAULT_LAMBDA, false).unwrap();
         for (u, v) in [(0.0, 0.0), (39.0, 29.0), (13.5, 7.25), (20.0, 3.0)] {
             let j = s.surface.jet(u, v).unwrap();
             assert!(
@@ -261,7 +291,7 @@ mod tests {
             }
         });
         let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
-        let s = fit_grid(&vals, w, h, 1, &grid, DEFAULT_LAMBDA).unwrap();
+        let s = fit_grid(&vals, w, h, 1, &grid, DEFAULT_LAMBDA, false).unwrap();
         assert!(s.surface.ctrl.iter().all(|c| c.is_finite()));
         assert!((s.surface.jet(5.0, 5.0).unwrap().value[0] - 1.05).abs() < 1e-6);
     }
@@ -272,8 +302,8 @@ mod tests {
         assert!(KnotGrid::new(10, 10, 4.0, 0).is_err());
         assert!(KnotGrid::new(10, 10, 4.0, 6).is_err());
         let grid = KnotGrid::new(10, 10, 4.0, 3).unwrap();
-        assert!(fit_grid(&[1.0; 99], 10, 10, 1, &grid, 1e-6).is_err());
-        assert!(fit_grid(&[f64::NAN; 100], 10, 10, 1, &grid, 1e-6).is_err());
-        assert!(fit_grid(&[1.0; 100], 10, 10, 1, &grid, 0.0).is_err());
+        assert!(fit_grid(&[1.0; 99], 10, 10, 1, &grid, 1e-6, false).is_err());
+        assert!(fit_grid(&[f64::NAN; 100], 10, 10, 1, &grid, 1e-6, false).is_err());
+        assert!(fit_grid(&[1.0; 100], 10, 10, 1, &grid, 0.0, false).is_err());
     }
 }

@@ -7,12 +7,15 @@
 //! pixels into runs (same row, cell and label) so the `k x k` outer products are formed once per
 //! run as `M_u ⊗ b_v b_vᵀ` instead of once per pixel.
 
-use std::collections::HashMap;
+// Index loops over several fixed-size arrays at once read clearer than zipped iterators here.
+#![allow(clippy::needless_range_loop)]
 
 use rayon::prelude::*;
 
 use crate::basis::Basis;
+use crate::basis::MAX_DEGREE;
 use crate::grid::KnotGrid;
+use crate::surface::MAX_CHANNELS;
 
 /// Scalar moments of a pixel set (offset-subtracted values `x`, grid coordinates `g = u / s`).
 #[derive(Debug, Clone, PartialEq)]
@@ -122,11 +125,144 @@ impl Normal {
     }
 }
 
+const RUN_K: usize = MAX_DEGREE + 1;
+
+/// Sums over one run of pixels (one row, one cell, one label).
+struct RunSums {
+    n: usize,
+    /// Lower triangle of `Σ b_u b_uᵀ` (row stride `RUN_K`).
+    mu: [f64; RUN_K * RUN_K],
+    ou: [f64; RUN_K],
+    ru: [[f64; MAX_CHANNELS]; RUN_K],
+    su: f64,
+    suu: f64,
+    sx: [f64; MAX_CHANNELS],
+    sux: [f64; MAX_CHANNELS],
+    sxx: [f64; MAX_CHANNELS],
+}
+
+impl RunSums {
+    /// Adds this run's scalar moments (the run lies in row `gv`, grid units) to `m`.
+    fn add_moments(&self, m: &mut Moments, gv: f64) {
+        let n = self.n as f64;
+        m.n += self.n;
+        let g = [n, self.su, n * gv, self.suu, gv * self.su, n * gv * gv];
+        for (acc, x) in m.geo.iter_mut().zip(g) {
+            *acc += x;
+        }
+        for (ch, sq) in m.sq.iter_mut().enumerate() {
+            m.lin[3 * ch] += self.sx[ch];
+            m.lin[3 * ch + 1] += self.sux[ch];
+            m.lin[3 * ch + 2] += gv * self.sx[ch];
+            *sq += self.sxx[ch];
+        }
+    }
+}
+
+impl RunSums {
+    fn zero() -> Self {
+        Self {
+            n: 0,
+            mu: [0.0; RUN_K * RUN_K],
+            ou: [0.0; RUN_K],
+            ru: [[0.0; MAX_CHANNELS]; RUN_K],
+            su: 0.0,
+            suu: 0.0,
+            sx: [0.0; MAX_CHANNELS],
+            sux: [0.0; MAX_CHANNELS],
+            sxx: [0.0; MAX_CHANNELS],
+        }
+    }
+
+    /// Adds the geometric sums (basis products, column moments) of column `u`.
+    #[inline]
+    fn add_geometry(&mut self, u: usize, basis: &Basis, k1: usize, inv_s: f64) {
+        let bu = &basis.value;
+        let gu = u as f64 * inv_s;
+        self.su += gu;
+        self.suu += gu * gu;
+        for a in 0..k1 {
+            for b in 0..=a {
+                self.mu[a * RUN_K + b] += bu[a] * bu[b];
+            }
+            self.ou[a] += bu[a];
+        }
+    }
+}
+
+/// Per cell column: its pixel columns `[start, end)` and the geometric sums of a run covering all
+/// of them. Most runs are such full runs without holes, and then only the data sums (`Aᵀx`, a
+/// few moments) are left to accumulate per pixel.
+fn full_runs(cols: &[(usize, Basis)], k1: usize, inv_s: f64) -> Vec<(usize, usize, RunSums)> {
+    let mut out: Vec<(usize, usize, RunSums)> = Vec::new();
+    for (u, (cu, basis)) in cols.iter().enumerate() {
+        if out.len() <= *cu {
+            out.push((u, u, RunSums::zero()));
+        }
+        let last = &mut out[*cu];
+        last.1 = u + 1;
+        last.2.n += 1;
+        last.2.add_geometry(u, basis, k1, inv_s);
+    }
+    out
+}
+
+/// The sums of one run of `C`-channel pixels `px` (columns `u0..`, bases `cols`); `full` holds
+/// the geometric sums to use when every pixel of the run is valid.
+fn run_sums<T: Copy + Into<f64>, const C: usize>(
+    px: &[T],
+    cols: &[(usize, Basis)],
+    u0: usize,
+    k1: usize,
+    inv_s: f64,
+    offset: &[f64],
+    full: Option<&RunSums>,
+) -> RunSums {
+    let mut r = RunSums::zero();
+    let off: [f64; C] = std::array::from_fn(|c| offset[c]);
+    let finite = |p: &[T]| -> Option<[f64; C]> {
+        let x: [f64; C] = std::array::from_fn(|c| p[c].into() - off[c]);
+        x.iter().all(|v| v.is_finite()).then_some(x)
+    };
+    for (i, (p, (_, basis))) in px.chunks_exact(C).zip(cols).enumerate() {
+        let Some(x) = finite(p) else { continue };
+        let bu = &basis.value;
+        let gu = (u0 + i) as f64 * inv_s;
+        r.n += 1;
+        for a in 0..k1 {
+            for c in 0..C {
+                r.ru[a][c] += bu[a] * x[c];
+            }
+        }
+        for c in 0..C {
+            r.sx[c] += x[c];
+            r.sux[c] += gu * x[c];
+            r.sxx[c] += x[c] * x[c];
+        }
+    }
+    match full {
+        Some(t) if r.n == cols.len() => {
+            r.mu = t.mu;
+            r.ou = t.ou;
+            r.su = t.su;
+            r.suu = t.suu;
+        }
+        _ => {
+            for (i, (p, (_, basis))) in px.chunks_exact(C).zip(cols).enumerate() {
+                if finite(p).is_some() {
+                    r.add_geometry(u0 + i, basis, k1, inv_s);
+                }
+            }
+        }
+    }
+    r
+}
+
 /// One label's block in one cell: (label, cell id, block, moments).
 type CellEntry = (i32, u32, Vec<f64>, Moments);
 
 /// Basis of every column (or row) of the image: the cell and the `p + 1` values.
-fn axis_table(grid: &KnotGrid, len: usize, along_u: bool) -> Vec<(usize, Basis)> {
+pub(crate) fn axis_table(grid: &KnotGrid, len: usize, along_u: bool) -> Vec<(usize, Basis)> {
     (0..len)
         .map(|x| {
             let (c0, _, b0, _) = grid.support(x as f64, 0.0);
@@ -140,12 +276,54 @@ fn axis_table(grid: &KnotGrid, len: usize, along_u: bool) -> Vec<(usize, Basis)>
         .collect()
 }
 
+/// Pixel rectangle `[u0, u1) x [v0, v1)` that holds every pixel of interest.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Region {
+    pub u0: usize,
+    pub u1: usize,
+    pub v0: usize,
+    pub v1: usize,
+}
+
+impl Region {
+    pub fn full(width: usize, height: usize) -> Self {
+        Self {
+            u0: 0,
+            u1: width,
+            v0: 0,
+            v1: height,
+        }
+    }
+
+    /// Bounding box of the pixels where `keep` holds (`None` if there are none).
+    pub fn bounding(width: usize, height: usize, keep: impl Fn(usize) -> bool) -> Option<Self> {
+        let mut r = Self {
+            u0: width,
+            u1: 0,
+            v0: height,
+            v1: 0,
+        };
+        for v in 0..height {
+            for u in 0..width {
+                if keep(v * width + u) {
+                    r.u0 = r.u0.min(u);
+                    r.u1 = r.u1.max(u + 1);
+                    r.v0 = r.v0.min(v);
+                    r.v1 = r.v1.max(v + 1);
+                }
+            }
+        }
+        (r.u1 > r.u0).then_some(r)
+    }
+}
+
 /// Accumulates the normal equations of every label in `0..n_labels` (`labels[i] < 0` or any
 /// non-finite channel: pixel ignored; `labels = None`: one set of all valid pixels) from
-/// `values` (`height x width x channels`, row-major) minus `offset` (per channel).
+/// `values` (`height x width x channels`, row-major, `f32` or `f64`) minus `offset` (per
+/// channel), visiting only the pixels of `region`.
 #[allow(clippy::too_many_arguments)]
-pub fn accumulate(
-    values: &[f64],
+pub fn accumulate<T: Copy + Into<f64> + Sync>(
+    values: &[T],
     width: usize,
     height: usize,
     channels: usize,
@@ -153,107 +331,126 @@ pub fn accumulate(
     n_labels: usize,
     grid: &KnotGrid,
     offset: &[f64],
+    region: Region,
 ) -> Vec<Normal> {
     let p = grid.degree;
     let (k1, k) = (p + 1, (p + 1) * (p + 1));
     let cols = axis_table(grid, width, true);
     let rows = axis_table(grid, height, false);
     let inv_s = 1.0 / grid.spacing;
+    let templates = full_runs(&cols, k1, inv_s);
     // Rows grouped by their cell row; groups are independent and run in parallel.
     let mut groups: Vec<(usize, usize)> = Vec::new();
-    for v in 0..height {
+    debug_assert!(region.u1 <= width && region.v1 <= height);
+    for v in region.v0..region.v1 {
         match groups.last_mut() {
             Some(g) if rows[g.0].0 == rows[v].0 => g.1 = v + 1,
             _ => groups.push((v, v + 1)),
         }
     }
+    // Σ over runs of M_u ⊗ b_v b_vᵀ: both factors are symmetric with `tri` distinct entries, so
+    // each run adds the rank-1 product of the two `tri`-vectors to a `tri x tri` matrix (contiguous,
+    // vectorisable); it is expanded into the lower triangle of the Gram block once per cell.
+    let tri = k1 * (k1 + 1) / 2;
+    let pair = |a: usize, b: usize| {
+        let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+        hi * (hi + 1) / 2 + lo
+    };
+    let lower: Vec<(usize, usize)> = (0..k)
+        .flat_map(|a| (0..=a).map(move |b| (a, b)))
+        .map(|(a, b)| {
+            let ((ja, ia), (jb, ib)) = ((a / k1, a % k1), (b / k1, b % k1));
+            (a * k + b, pair(ia, ib) * tri + pair(ja, jb))
+        })
+        .collect();
     let template = Normal::empty(k, channels);
     let bl = template.block_len();
     let parts: Vec<Vec<CellEntry>> = groups
         .par_iter()
         .map(|&(v0, v1)| {
-            let mut slots: HashMap<(i32, u32), usize> = HashMap::new();
+            // Per cell column of this cell row: the (label, index into `out`) seen there.
+            let mut slots: Vec<Vec<(i32, usize)>> = vec![Vec::new(); grid.cells_u];
             let mut out: Vec<CellEntry> = Vec::new();
-            let mut mu = vec![0.0; k1 * k1];
-            let mut ru = vec![0.0; k1 * channels];
-            let mut ou = vec![0.0; k1];
+            let mut g2s: Vec<Vec<f64>> = Vec::new();
+            let mut mt = vec![0.0; tri];
+            let mut wt = vec![0.0; tri];
+            let lab = |i: usize| labels.map_or(0, |l| l[i]);
             for v in v0..v1 {
                 let (cv, bv) = rows[v];
                 let gv = v as f64 * inv_s;
-                let mut u = 0;
-                while u < width {
-                    let label = labels.map_or(0, |l| l[v * width + u]);
+                for a in 0..k1 {
+                    for b in 0..=a {
+                        wt[pair(a, b)] = bv.value[a] * bv.value[b];
+                    }
+                }
+                let mut u = region.u0;
+                while u < region.u1 {
+                    let label = lab(v * width + u);
                     let cu = cols[u].0;
+                    // One run: same label, same cell.
+                    let mut end = u + 1;
+                    while end < region.u1 && cols[end].0 == cu && lab(v * width + end) == label {
+                        end += 1;
+                    }
+                    let (u0, u1) = (u, end);
+                    u = end;
                     if label < 0 || label as usize >= n_labels.max(1) {
-                        u += 1;
                         continue;
                     }
-                    // One run: same label, same cell.
-                    mu.iter_mut().for_each(|x| *x = 0.0);
-                    ru.iter_mut().for_each(|x| *x = 0.0);
-                    ou.iter_mut().for_each(|x| *x = 0.0);
-                    let mut m = Moments::zeros(channels);
-                    while u < width
-                        && cols[u].0 == cu
-                        && labels.map_or(0, |l| l[v * width + u]) == label
-                    {
-                        let px = &values[(v * width + u) * channels..][..channels];
-                        if px.iter().all(|x| x.is_finite()) {
-                            let bu = &cols[u].1.value;
-                            let gu = u as f64 * inv_s;
-                            for a in 0..k1 {
-                                for b in 0..=a {
-                                    mu[a * k1 + b] += bu[a] * bu[b];
-                                }
-                                ou[a] += bu[a];
-                            }
-                            m.n += 1;
-                            let g = [1.0, gu, gv, gu * gu, gu * gv, gv * gv];
-                            for (acc, x) in m.geo.iter_mut().zip(g) {
-                                *acc += x;
-                            }
-                            for (ch, &raw) in px.iter().enumerate() {
-                                let x = raw - offset[ch];
-                                for a in 0..k1 {
-                                    ru[a * channels + ch] += bu[a] * x;
-                                }
-                                m.lin[3 * ch] += x;
-                                m.lin[3 * ch + 1] += gu * x;
-                                m.lin[3 * ch + 2] += gv * x;
-                                m.sq[ch] += x * x;
-                            }
-                        }
-                        u += 1;
-                    }
-                    if m.n == 0 {
+                    let px = &values[(v * width + u0) * channels..(v * width + u1) * channels];
+                    let full = templates
+                        .get(cu)
+                        .filter(|t| t.0 == u0 && t.1 == u1)
+                        .map(|t| &t.2);
+                    let r = match channels {
+                        1 => run_sums::<T, 1>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
+                        2 => run_sums::<T, 2>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
+                        3 => run_sums::<T, 3>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
+                        _ => run_sums::<T, 4>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
+                    };
+                    if r.n == 0 {
                         continue;
                     }
                     let cell = (cv * grid.cells_u + cu) as u32;
-                    let slot = *slots.entry((label, cell)).or_insert_with(|| {
-                        out.push((label, cell, vec![0.0; bl], Moments::zeros(channels)));
-                        out.len() - 1
-                    });
+                    let slot = match slots[cu].iter().find(|e| e.0 == label) {
+                        Some(e) => e.1,
+                        None => {
+                            out.push((label, cell, vec![0.0; bl], Moments::zeros(channels)));
+                            g2s.push(vec![0.0; tri * tri]);
+                            slots[cu].push((label, out.len() - 1));
+                            out.len() - 1
+                        }
+                    };
                     let (_, _, block, mom) = &mut out[slot];
-                    mom.add(&m);
+                    r.add_moments(mom, gv);
+                    let (mu, ru, ou) = (&r.mu, &r.ru, &r.ou);
                     let bvv = &bv.value;
-                    let (gram, rest) = block.split_at_mut(k * k);
+                    for a in 0..k1 {
+                        for b in 0..=a {
+                            mt[pair(a, b)] = mu[a * RUN_K + b];
+                        }
+                    }
+                    for (row, &m) in g2s[slot].chunks_exact_mut(tri).zip(&mt) {
+                        for (g, &w) in row.iter_mut().zip(&wt) {
+                            *g += m * w;
+                        }
+                    }
+                    let (_, rest) = block.split_at_mut(k * k);
                     let (rhs, ones) = rest.split_at_mut(k * channels);
                     for ja in 0..k1 {
                         for ia in 0..k1 {
                             let a = ja * k1 + ia;
-                            for jb in 0..k1 {
-                                for ib in 0..k1 {
-                                    let (hi, lo) = if ia >= ib { (ia, ib) } else { (ib, ia) };
-                                    gram[a * k + jb * k1 + ib] +=
-                                        mu[hi * k1 + lo] * bvv[ja] * bvv[jb];
-                                }
-                            }
                             for ch in 0..channels {
-                                rhs[a * channels + ch] += ru[ia * channels + ch] * bvv[ja];
+                                rhs[a * channels + ch] += ru[ia][ch] * bvv[ja];
                             }
                             ones[a] += ou[ia] * bvv[ja];
                         }
                     }
+                }
+            }
+            for ((_, _, block, _), g2) in out.iter_mut().zip(&g2s) {
+                for &(g, t) in &lower {
+                    block[g] = g2[t];
                 }
             }
             out

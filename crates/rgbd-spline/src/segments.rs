@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use crate::fit::{solve, Fit};
 use crate::grid::{check_grid, check_values, valid_mean, KnotGrid};
 use crate::maps::{surface_maps, SurfaceMaps};
-use crate::normal::{accumulate, Normal};
+use crate::normal::{accumulate, Normal, Region};
 use crate::SplineError;
 
 /// Which number `fit_error` reports.
@@ -44,8 +44,8 @@ impl SegmentFits {
     /// Fits every label `0..=max(labels)` (negative: unlabelled) of `values`
     /// (`height x width x channels`), in parallel.
     #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        values: &[f64],
+    pub fn new<T: Copy + Into<f64> + Sync>(
+        values: &[T],
         width: usize,
         height: usize,
         channels: usize,
@@ -72,7 +72,8 @@ impl SegmentFits {
             ));
         }
         let n_labels = n_labels as usize;
-        let offset = valid_mean(values, channels, |i| labels[i] >= 0);
+        let full = Region::full(width, height);
+        let offset = valid_mean(values, width, channels, full, |i| labels[i] >= 0);
         let normals = accumulate(
             values,
             width,
@@ -82,6 +83,7 @@ impl SegmentFits {
             n_labels,
             grid,
             &offset,
+            full,
         );
         let with_dof = criterion == Criterion::Gcv;
         let fits = normals
@@ -220,7 +222,10 @@ impl SegmentFits {
 
     /// Per-pixel maps of `values` (the array the fits were built from) against the surface of
     /// the segment each pixel belongs to now.
-    pub fn maps(&self, values: &[f64]) -> Result<SurfaceMaps, SplineError> {
+    pub fn maps<T: Copy + Into<f64> + Sync>(
+        &self,
+        values: &[T],
+    ) -> Result<SurfaceMaps, SplineError> {
         check_values(values, self.width, self.height, self.channels, self.lambda)?;
         let root: Vec<usize> = (0..self.parent.len()).map(|i| self.find(i)).collect();
         Ok(surface_maps(

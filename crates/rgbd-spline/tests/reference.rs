@@ -124,7 +124,7 @@ proptest! {
         prop_assume!(n >= (degree + 1) * (degree + 1));
         let grid = KnotGrid::new(w, h, spacing, degree).unwrap();
         let lambda = 1e-3;
-        let fast = fit_mask(&vals, w, h, c, Some(&mask), &grid, lambda).unwrap();
+        let fast = fit_mask(&vals, w, h, c, Some(&mask), &grid, lambda, false).unwrap();
         let slow = reference(&vals, &mask, w, h, c, &grid, lambda);
         let pixels = (0..w * h).filter(|&i| mask[i]);
         for (i, want) in pixels.zip(&slow) {
@@ -145,8 +145,8 @@ proptest! {
             .map(|i| if i % 17 == 0 { f64::NAN } else { rnd() })
             .collect();
         let grid = KnotGrid::new(w, h, spacing, 3).unwrap();
-        let a = fit_grid(&vals, w, h, 3, &grid, 1e-6).unwrap();
-        let b = fit_mask(&vals, w, h, 3, Some(&vec![true; w * h]), &grid, 1e-6).unwrap();
+        let a = fit_grid(&vals, w, h, 3, &grid, 1e-6, true).unwrap();
+        let b = fit_mask(&vals, w, h, 3, Some(&vec![true; w * h]), &grid, 1e-6, true).unwrap();
         prop_assert_eq!(a.n, b.n);
         prop_assert!((a.sse - b.sse).abs() <= 1e-9 * (1.0 + a.sse));
         for (x, y) in a.surface.ctrl.iter().zip(&b.surface.ctrl) {

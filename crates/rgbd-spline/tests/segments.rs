@@ -87,7 +87,7 @@ fn union_equals_a_fit_of_the_union_from_scratch() {
     assert_eq!(eu, merged);
     assert_eq!(s.fit_error(0).unwrap(), merged);
     let mask: Vec<bool> = labels.iter().map(|&l| l != 1).collect();
-    let direct = fit_mask(&pts, W, H, 3, Some(&mask), &grid(), DEFAULT_LAMBDA).unwrap();
+    let direct = fit_mask(&pts, W, H, 3, Some(&mask), &grid(), DEFAULT_LAMBDA, true).unwrap();
     let via_union = s.fit(0).unwrap();
     assert_eq!(via_union.n, direct.n);
     assert!((via_union.sse - direct.sse).abs() < 1e-9 * (1.0 + direct.sse));
@@ -140,7 +140,7 @@ fn error_decreases_as_control_points_grow() {
     let mut last = f64::INFINITY;
     for spacing in [32.0, 16.0, 8.0, 4.0] {
         let g = KnotGrid::new(W, H, spacing, 3).unwrap();
-        let f = fit_grid(&pts, W, H, 3, &g, DEFAULT_LAMBDA).unwrap();
+        let f = fit_grid(&pts, W, H, 3, &g, DEFAULT_LAMBDA, false).unwrap();
         assert!(
             f.mse() < last / 4.0,
             "spacing {spacing}: {} vs {last}",
@@ -204,8 +204,8 @@ fn bad_input_is_an_error() {
     assert!(new(&pts, &vec![-1; W * H]).is_err());
     assert!(new(&pts[..30], &halves()).is_err());
     let other = KnotGrid::new(W + 30, H, 8.0, 3).unwrap();
-    assert!(fit_grid(&pts, W, H, 3, &other, DEFAULT_LAMBDA).is_err());
-    assert!(fit_grid(&pts, W, H, 3, &g, f64::NAN).is_err());
+    assert!(fit_grid(&pts, W, H, 3, &other, DEFAULT_LAMBDA, false).is_err());
+    assert!(fit_grid(&pts, W, H, 3, &g, f64::NAN, false).is_err());
     let nan = vec![f64::NAN; W * H * 3];
     let s = new(&nan, &halves());
     assert!(

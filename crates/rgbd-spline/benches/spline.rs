@@ -1,0 +1,101 @@
+//! Criterion benches of the spline kernels at the sizes. benches/bench_spline.py compares
+//! the same fits against scipy's LSQBivariateSpline in one run.
+
+use criterion::{criterion_group, criterion_main, Criterion as Bench};
+use rgbd_spline::{fit_grid, fit_mask, Criterion, KnotGrid, SegmentFits, DEFAULT_LAMBDA};
+use std::hint::black_box;
+
+/// Organised cloud of a smooth surface seen by a 640x480-class pinhole camera.
+fn cloud(w: usize, h: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(w * h * 3);
+    for v in 0..h {
+        for u in 0..w {
+            let z = 2.0 + 0.3 * (u as f64 / 40.0).sin() * (v as f64 / 30.0).cos();
+            let (x, y) = (
+                (u as f64 - w as f64 / 2.0) / 525.0,
+                (v as f64 - h as f64 / 2.0) / 525.0,
+            );
+            out.extend_from_slice(&[(x * z) as f32, (y * z) as f32, z as f32]);
+        }
+    }
+    out
+}
+
+fn bench_segment(c: &mut Bench) {
+    let (w, h) = (640, 480);
+    let pts = cloud(w, h);
+    // 10k pixels, 10x10 cells: as scipy's 10x10 interior knots.
+    let mask: Vec<bool> = (0..w * h)
+        .map(|i| (200..300).contains(&(i % w)) && (100..200).contains(&(i / w)))
+        .collect();
+    let grid = KnotGrid::new(w, h, 10.0, 3).unwrap();
+    c.bench_function("fit_mask 10k px, 10x10 cells", |b| {
+        b.iter(|| {
+            fit_mask(
+                black_box(&pts),
+                w,
+                h,
+                3,
+                Some(&mask),
+                &grid,
+                DEFAULT_LAMBDA,
+                true,
+            )
+            .unwrap()
+        })
+    });
+    // 300 segments of 32x32 pixels (20 x 15 tiles), 16-pixel spacing.
+    let labels: Vec<i32> = (0..w * h)
+        .map(|i| ((i / w) / 32 * 20 + (i % w) / 32) as i32)
+        .collect();
+    let g16 = KnotGrid::new(w, h, 16.0, 3).unwrap();
+    c.bench_function("SegmentFits 640x480, 300 segments", |b| {
+        b.iter(|| {
+            SegmentFits::new(
+                black_box(&pts),
+                w,
+                h,
+                3,
+                &labels,
+                &g16,
+                DEFAULT_LAMBDA,
+                Criterion::Gcv,
+            )
+            .unwrap()
+        })
+    });
+    // Two adjacent 5k-pixel segments (71x71 squares).
+    let pair: Vec<i32> = (0..w * h)
+        .map(|i| {
+            let (u, v) = (i % w, i / w);
+            match (u, v) {
+                (100..171, 100..171) => 0,
+                (171..242, 100..171) => 1,
+                _ => -1,
+            }
+        })
+        .collect();
+    let fits =
+        SegmentFits::new(&pts, w, h, 3, &pair, &g16, DEFAULT_LAMBDA, Criterion::Gcv).unwrap();
+    c.bench_function("union_error 2 x 5k px", |b| {
+        b.iter(|| fits.union_error(black_box(0), 1).unwrap())
+    });
+}
+
+fn bench_view(c: &mut Bench) {
+    let (w, h) = (320, 320);
+    let pts = cloud(w, h);
+    for s in [16.0, 8.0] {
+        let grid = KnotGrid::new(w, h, s, 3).unwrap();
+        c.bench_function(&format!("fit_grid 320x320 s={s}"), |b| {
+            b.iter(|| fit_grid(black_box(&pts), w, h, 3, &grid, DEFAULT_LAMBDA, false).unwrap())
+        });
+        let fit = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA, false).unwrap();
+        c.bench_function(&format!("maps 320x320 s={s}"), |b| {
+            b.iter(|| rgbd_spline::surface_maps(black_box(&pts), w, h, 3, |_| Some(&fit)))
+        });
+    }
+}
+
+criterion_group!(benches, bench_segment, bench_view);
+criterion_main!(benches);
