@@ -1,14 +1,18 @@
 # Hand-written stub of the native module; checked against it by mypy.stubtest.
+from typing import final
+
 import numpy as np
 import numpy.typing as npt
 
 __all__ = [
     "InvalidArgumentError",
     "RgbdError",
+    "SegmentFits",
     "ShapeMismatchError",
     "depth_disparity",
     "depth_to_points",
     "distort_pixels",
+    "fit_surface",
     "normals_from_points",
     "num_threads",
     "project_points",
@@ -68,3 +72,46 @@ def reproject_depth(
 def normals_from_points(
     points: npt.NDArray[np.float32], max_depth_jump: float
 ) -> npt.NDArray[np.float32]: ...
+
+_Maps = tuple[
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float32],
+]
+
+def fit_surface(
+    points: npt.NDArray[np.float32],
+    mask: npt.NDArray[np.bool_] | None,
+    spacing: float,
+    degree: int,
+    lam: float,
+    with_dof: bool,
+) -> tuple[_Maps, int, float, float | None, bool]: ...
+
+@final
+class SegmentFits:
+    def __new__(
+        cls,
+        points: npt.NDArray[np.float32],
+        labels: npt.NDArray[np.int32],
+        spacing: float,
+        degree: int,
+        lam: float,
+        criterion: str,
+    ) -> SegmentFits: ...
+    @property
+    def n_labels(self) -> int: ...
+    @property
+    def criterion(self) -> str: ...
+    def size(self, i: int) -> int: ...
+    def fit_error(self, i: int) -> float: ...
+    def mse(self, i: int) -> float: ...
+    def union_error(self, i: int, j: int) -> float: ...
+    def should_merge(self, i: int, j: int) -> bool: ...
+    def merge(self, i: int, j: int) -> float: ...
+    def find(self, label: int) -> int: ...
+    def labels(self) -> npt.NDArray[np.int32]: ...
+    def maps(self, points: npt.NDArray[np.float32]) -> _Maps: ...

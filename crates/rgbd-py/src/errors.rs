@@ -6,6 +6,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rgbd_geom::GeomError;
+use rgbd_spline::SplineError;
 
 create_exception!(
     _rgbd_rs,
@@ -26,20 +27,41 @@ create_exception!(
     "An array does not have the shape its companions or the camera imply."
 );
 
-/// Maps a core error to its Python exception, message unchanged.
-pub fn to_py(err: GeomError) -> PyErr {
-    let msg = err.to_string();
-    match err {
-        GeomError::InvalidArgument { .. } => InvalidArgumentError::new_err(msg),
-        GeomError::ShapeMismatch { .. } => ShapeMismatchError::new_err(msg),
+/// A core crate's error enum, mapped variant by variant to the Python hierarchy.
+pub trait CoreError {
+    fn into_py(self) -> PyErr;
+}
+
+impl CoreError for GeomError {
+    fn into_py(self) -> PyErr {
+        let msg = self.to_string();
+        match self {
+            GeomError::InvalidArgument { .. } => InvalidArgumentError::new_err(msg),
+            GeomError::ShapeMismatch { .. } => ShapeMismatchError::new_err(msg),
+        }
     }
 }
 
+impl CoreError for SplineError {
+    fn into_py(self) -> PyErr {
+        let msg = self.to_string();
+        match self {
+            SplineError::InvalidArgument { .. } => InvalidArgumentError::new_err(msg),
+        }
+    }
+}
+
+/// Maps a core error to its Python exception, message unchanged.
+pub fn to_py(err: impl CoreError) -> PyErr {
+    err.into_py()
+}
+
 /// Runs `f` with the GIL released; a panic becomes `RgbdError` instead of crossing into Python.
-pub fn run<T, F>(py: Python<'_>, f: F) -> PyResult<T>
+pub fn run<T, E, F>(py: Python<'_>, f: F) -> PyResult<T>
 where
     T: Send,
-    F: FnOnce() -> Result<T, GeomError> + Send,
+    E: CoreError + Send,
+    F: FnOnce() -> Result<T, E> + Send,
 {
     match py.detach(|| catch_unwind(AssertUnwindSafe(f))) {
         Ok(res) => res.map_err(to_py),

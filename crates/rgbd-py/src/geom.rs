@@ -30,7 +30,7 @@ fn pose(p: PoseArgs) -> PyResult<Pose> {
 }
 
 /// Hands a result buffer to numpy as an array of `shape`, without copying it.
-fn to_numpy<'py, T: Element, D: Dimension>(
+pub(crate) fn to_numpy<'py, T: Element, D: Dimension>(
     py: Python<'py>,
     shape: impl ShapeBuilder<Dim = D>,
     values: Vec<T>,
@@ -47,7 +47,7 @@ fn rotation_arg(rotation: Option<[f64; 9]>) -> PyResult<Option<Matrix3<f64>>> {
         .transpose()
 }
 
-fn shape_err(msg: String) -> PyErr {
+pub(crate) fn shape_err(msg: String) -> PyErr {
     InvalidArgumentError::new_err(msg)
 }
 
@@ -125,7 +125,7 @@ pub fn undistort_map<'py>(
     let (src, dst) = (camera(src)?, camera(dst)?.intrinsics);
     let rot = rotation_arg(rotation)?;
     let map = run(py, || {
-        Ok(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
+        Ok::<_, rgbd_geom::GeomError>(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
     })?;
     to_numpy(py, (dst.height, dst.width, 2), map)
 }

@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 
 mod errors;
 mod geom;
+mod spline;
 
 /// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import).
 #[pyfunction]
@@ -47,5 +48,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(geom::depth_disparity, m)?)?;
     m.add_function(wrap_pyfunction!(geom::reproject_depth, m)?)?;
     m.add_function(wrap_pyfunction!(geom::normals_from_points, m)?)?;
+    m.add_function(wrap_pyfunction!(spline::fit_surface, m)?)?;
+    m.add_class::<spline::PySegmentFits>()?;
     Ok(())
 }

@@ -1,0 +1,254 @@
+"""B-spline (NURBS with unit weights) surface fitting and curvature maps (thesis §4.5, §5.3.3).
+
+Surfaces ``S(u, v) = (X, Y, Z)`` are fitted to organised ``H x W x 3`` point clouds (NaN = no
+measurement) with ``(u, v)`` the pixel lattice. The knot grid is anchored to the image: knots every
+``spacing`` pixels, so any pixel set gets a number of control points proportional to its area
+(thesis §4.5), and the normal equations of disjoint sets add up, which makes
+:meth:`SegmentFits.union_error` one small solve.
+
+Example::
+
+    import numpy as np
+    from rgbd_rs import PinholeCamera
+    from rgbd_rs.surface import fit_grid
+
+    cam = PinholeCamera(fx=525, fy=525, cx=319.5, cy=239.5, width=640, height=480)
+    points = cam.depth_to_points(depth)            # H x W x 3, metres
+    fit = fit_grid(points, spacing=16)
+    fit.k1, fit.k2                                 # principal curvatures, 1/m, k1 >= k2
+    fit.error                                      # per-pixel distance to the surface, m
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs.errors import InvalidArgumentError
+
+F32 = npt.NDArray[np.float32]
+I32 = npt.NDArray[np.int32]
+
+#: Knot spacing in pixels. Not given by the thesis or its sources (METHOD_NOTES §5 [NF]); 16 px
+#: gives a 640x480 view 43x33 control points and a 1000-pixel segment about 30, enough for the
+#: curved furniture of NYUv2 at Kinect noise levels; see the README for its measured effect.
+DEFAULT_SPACING = 16.0
+#: Degree in u and v (thesis §5.3.3: 3).
+DEFAULT_DEGREE = 3
+#: Second-difference smoothness weight relative to one data point (keeps knot spans without data
+#: well-posed; a noise-free quadric is reproduced to < 1e-6 relative error).
+DEFAULT_LAMBDA = 1e-6
+#: Highest supported degree.
+MAX_DEGREE = 5
+
+
+@dataclass(frozen=True)
+class SurfaceMaps:
+    """Per-pixel results; NaN where a pixel has no surface (or no measurement, for ``error``)."""
+
+    #: ``H x W x 3`` surface point at each pixel's ``(u, v)``.
+    fitted: F32
+    #: ``H x W`` distance between the measured point and ``fitted`` (metres).
+    error: F32
+    #: ``H x W`` larger principal curvature (1/m; positive where the surface bulges to the camera).
+    k1: F32
+    #: ``H x W`` smaller principal curvature.
+    k2: F32
+    #: ``H x W`` mean curvature ``(k1 + k2) / 2``.
+    mean: F32
+    #: ``H x W`` Gaussian curvature ``k1 * k2``.
+    gaussian: F32
+
+
+@dataclass(frozen=True)
+class SurfaceFit(SurfaceMaps):
+    """One fitted surface: its per-pixel maps and fit statistics."""
+
+    #: Valid pixels fitted.
+    n: int
+    #: Sum of squared 3-D distances to the surface.
+    sse: float
+    #: Effective degrees of freedom (trace of the hat matrix); None unless ``with_dof``.
+    dof: float | None
+    #: True when fewer than ``(degree+1)²`` pixels forced the linear fallback ``a + b·u + c·v``.
+    linear: bool
+
+    @property
+    def mse(self) -> float:
+        """Mean squared error ``sse / n`` (the thesis' segment fitting error ``e``)."""
+        return self.sse / self.n
+
+    @property
+    def gcv(self) -> float:
+        """Generalised cross-validation score ``n·sse / (n - dof)²`` (needs ``with_dof``)."""
+        if self.dof is None:
+            raise InvalidArgumentError("gcv: got a fit without dof, expected with_dof=True")
+        rest = self.n - self.dof
+        return float("inf") if rest <= 1e-9 * self.n else self.n * self.sse / rest**2
+
+
+def _params(spacing: float, degree: int, lam: float) -> tuple[float, int, float]:
+    s = _validate.real("spacing", spacing, positive=True)
+    if s < 1.0:
+        raise InvalidArgumentError(f"spacing: got {s}, expected a knot spacing >= 1 pixel")
+    d = _validate.integer("degree", degree, minimum=1, maximum=MAX_DEGREE)
+    return s, d, _validate.real("lam", lam, positive=True)
+
+
+def _maps(raw: tuple[F32, F32, F32, F32, F32, F32]) -> dict[str, F32]:
+    return dict(zip(("fitted", "error", "k1", "k2", "mean", "gaussian"), raw, strict=True))
+
+
+def fit_mask(
+    points: npt.ArrayLike,
+    mask: npt.ArrayLike | None,
+    *,
+    spacing: float = DEFAULT_SPACING,
+    degree: int = DEFAULT_DEGREE,
+    lam: float = DEFAULT_LAMBDA,
+    with_dof: bool = True,
+) -> SurfaceFit:
+    """Fit one surface to the valid points where ``mask`` is true (any shape, holes allowed).
+
+    Maps are NaN outside the mask. Fewer than ``(degree+1)²`` valid pixels fall back to a linear
+    fit (``linear=True``); no valid pixel raises :class:`~rgbd_rs.InvalidArgumentError`.
+    ``with_dof`` also computes the effective degrees of freedom for :attr:`SurfaceFit.gcv`.
+    """
+    p = _validate.array("points", points, shape=(None, None, 3))
+    m = None
+    if mask is not None:
+        raw_mask = np.asarray(mask)
+        if raw_mask.dtype != np.bool_:
+            raise InvalidArgumentError(
+                f"mask: got dtype {raw_mask.dtype}, expected a boolean array"
+            )
+        m = _validate.array(
+            "mask", raw_mask.view(np.uint8), shape=(p.shape[0], p.shape[1]), dtype=np.uint8
+        ).view(np.bool_)
+    s, d, lam_ = _params(spacing, degree, lam)
+    raw, n, sse, dof, linear = _rgbd_rs.fit_surface(p, m, s, d, lam_, bool(with_dof))
+    return SurfaceFit(**_maps(raw), n=n, sse=sse, dof=dof, linear=linear)
+
+
+def fit_grid(
+    points: npt.ArrayLike,
+    *,
+    spacing: float = DEFAULT_SPACING,
+    degree: int = DEFAULT_DEGREE,
+    lam: float = DEFAULT_LAMBDA,
+    with_dof: bool = False,
+) -> SurfaceFit:
+    """Fit one surface to a whole view (NaN holes skipped) and return it with curvature maps.
+
+    The shape pipeline (thesis §5.3.3) calls this on each rendered depth view.
+    """
+    return fit_mask(points, None, spacing=spacing, degree=degree, lam=lam, with_dof=with_dof)
+
+
+def ortho_points(depth: npt.ArrayLike, pixel_size: float) -> F32:
+    """``H x W x 3`` points of an orthographic depth view: ``(u·s, v·s, depth)``.
+
+    Use with :func:`fit_grid` for the curvature maps of rendered shape views.
+    """
+    z = _validate.array("depth", depth, shape=(None, None))
+    s = _validate.real("pixel_size", pixel_size, positive=True)
+    v, u = np.mgrid[0 : z.shape[0], 0 : z.shape[1]].astype(np.float32)
+    return np.ascontiguousarray(np.stack([u * s, v * s, z], axis=-1), dtype=np.float32)
+
+
+class SegmentFits:
+    """Spline fits of every segment of a label image, for region merging (thesis §4.7).
+
+    ``labels`` is ``H x W`` integer, ``-1`` (any negative) for unlabelled pixels, segments
+    ``0..max``. Each segment keeps its normal equations; :meth:`union_error` sums two systems and
+    solves once (no pass over pixels), :meth:`merge` makes that union permanent.
+
+    ``criterion`` picks what :meth:`fit_error` reports:
+
+    * ``"gcv"`` (default): generalised cross-validation ``n·SSE/(n - dof)²``, the MSE corrected for
+      the degrees of freedom the fit used. Eq. 4.8 then merges two noisy patches of one surface
+      and refuses a union across a depth step.
+    * ``"mse"``: the thesis' plain MSE. With a knot grid anchored to the image, the union's fit is
+      a restriction of the parts', so its MSE is never below their weighted mean and eq. 4.8 never
+      merges; kept for comparison.
+
+    Example::
+
+        fits = SegmentFits(points, labels)
+        if fits.should_merge(3, 7):       # eq. 4.8
+            fits.merge(3, 7)              # segment 7 joins 3
+        fits.labels()                     # the current label image
+    """
+
+    def __init__(
+        self,
+        points: npt.ArrayLike,
+        labels: npt.ArrayLike,
+        *,
+        spacing: float = DEFAULT_SPACING,
+        degree: int = DEFAULT_DEGREE,
+        lam: float = DEFAULT_LAMBDA,
+        criterion: str = "gcv",
+    ) -> None:
+        p = _validate.array("points", points, shape=(None, None, 3))
+        raw = np.asarray(labels)
+        if raw.dtype.kind not in "iu":
+            raise InvalidArgumentError(f"labels: got dtype {raw.dtype}, expected an integer array")
+        lab = _validate.array("labels", raw, shape=(p.shape[0], p.shape[1]), dtype=np.int64)
+        if lab.size and lab.max() > np.iinfo(np.int32).max:
+            raise InvalidArgumentError(f"labels: got a label {lab.max()}, expected < 2**31")
+        crit = _validate.choice("criterion", criterion, ("gcv", "mse"))
+        s, d, lam_ = _params(spacing, degree, lam)
+        lab32 = np.ascontiguousarray(np.maximum(lab, -1), dtype=np.int32)
+        self._native = _rgbd_rs.SegmentFits(p, lab32, s, d, lam_, crit)
+        self.shape: tuple[int, int] = (p.shape[0], p.shape[1])
+
+    @property
+    def n_labels(self) -> int:
+        """Number of labels the fits were built with (merged ones included)."""
+        return self._native.n_labels
+
+    @property
+    def criterion(self) -> str:
+        """``"gcv"`` or ``"mse"``."""
+        return self._native.criterion
+
+    def size(self, i: int) -> int:
+        """Valid pixels of live segment ``i``."""
+        return self._native.size(i)
+
+    def fit_error(self, i: int) -> float:
+        """Fitting error of live segment ``i`` under :attr:`criterion` (inf: it interpolates)."""
+        return self._native.fit_error(i)
+
+    def mse(self, i: int) -> float:
+        """Plain mean squared 3-D distance of segment ``i`` to its surface."""
+        return self._native.mse(i)
+
+    def union_error(self, i: int, j: int) -> float:
+        """Fitting error of the union of live segments ``i`` and ``j`` (nothing changes)."""
+        return self._native.union_error(i, j)
+
+    def should_merge(self, i: int, j: int) -> bool:
+        """Eq. 4.8: ``e_i|S_i| + e_j|S_j| > e_ij (|S_i| + |S_j|)``."""
+        return self._native.should_merge(i, j)
+
+    def merge(self, i: int, j: int) -> float:
+        """Merge live segment ``j`` into ``i``; returns the merged segment's error."""
+        return self._native.merge(i, j)
+
+    def find(self, label: int) -> int:
+        """The live segment an original label belongs to now."""
+        return self._native.find(label)
+
+    def labels(self) -> I32:
+        """``H x W`` label image with merged labels replaced by their live segment."""
+        return self._native.labels()
+
+    def maps(self, points: npt.ArrayLike) -> SurfaceMaps:
+        """Per-pixel maps of ``points`` against the surface of each pixel's current segment."""
+        p = _validate.array("points", points, shape=(self.shape[0], self.shape[1], 3))
+        return SurfaceMaps(**_maps(self._native.maps(p)))
