@@ -69,9 +69,10 @@ wheel: env ## build the wheel, install it into a fresh venv, smoke-test it there
 	  import numpy as np; cam = rgbd_rs.PinholeCamera(100., 100., 10., 10., 20, 20); \
 	  print('wheel OK:', p.parent, cam.project(np.array([[0., 0., 1.]])))"
 
-bench: build ## run the benchmarks (criterion + Python vs OpenCV)
-	cargo bench -p rgbd-geom
+bench: build ## run the benchmarks (criterion + Python vs OpenCV and scipy)
+	cargo bench -p rgbd-geom -p rgbd-spline
 	$(PY) benches/bench_geom.py
+	$(PY) benches/bench_spline.py
 
 clean: ## remove build outputs (keeps the cached venv)
 	cargo clean

@@ -2,7 +2,7 @@
 
 use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use rgbd_spline::{fit_mask, Criterion, FitKind, KnotGrid, SegmentFits, SurfaceMaps};
+use rgbd_spline::{fit_mask, Criterion, FitKind, KnotGrid, Region, SegmentFits, SurfaceMaps};
 
 use crate::errors::{contiguous, run, to_py, InvalidArgumentError};
 use crate::geom::{shape_err, to_numpy};
@@ -18,18 +18,14 @@ type MapsOut<'py> = (
     Map2<'py>,
 );
 
-fn f32s(v: Vec<f64>) -> Vec<f32> {
-    v.into_iter().map(|x| x as f32).collect()
-}
-
 fn maps_out<'py>(py: Python<'py>, h: usize, w: usize, m: SurfaceMaps) -> PyResult<MapsOut<'py>> {
     Ok((
-        to_numpy(py, (h, w, 3), f32s(m.fitted))?,
-        to_numpy(py, (h, w), f32s(m.error))?,
-        to_numpy(py, (h, w), f32s(m.k1))?,
-        to_numpy(py, (h, w), f32s(m.k2))?,
-        to_numpy(py, (h, w), f32s(m.mean))?,
-        to_numpy(py, (h, w), f32s(m.gaussian))?,
+        to_numpy(py, (h, w, 3), m.fitted)?,
+        to_numpy(py, (h, w), m.error)?,
+        to_numpy(py, (h, w), m.k1)?,
+        to_numpy(py, (h, w), m.k2)?,
+        to_numpy(py, (h, w), m.mean)?,
+        to_numpy(py, (h, w), m.gaussian)?,
     ))
 }
 
@@ -87,8 +83,11 @@ pub fn fit_surface<'py>(
     let (fit, maps) = run(py, || {
         let grid = KnotGrid::new(w, h, spacing, degree)?;
         let fit = fit_mask(p, w, h, 3, m, &grid, lam, with_dof)?;
-        let maps =
-            rgbd_spline::surface_maps(p, w, h, 3, |i| m.is_none_or(|m| m[i]).then_some(&fit));
+        // Outside the mask every map is NaN: evaluate only its bounding box.
+        let region = m.and_then(|m| Region::bounding(w, h, |i| m[i]));
+        let maps = rgbd_spline::surface_maps(p, w, h, 3, region, |i| {
+            m.is_none_or(|m| m[i]).then_some(&fit)
+        });
         Ok::<_, rgbd_spline::SplineError>((fit, maps))
     })?;
     let linear = fit.kind == FitKind::Linear;

@@ -92,7 +92,7 @@ fn bench_view(c: &mut Bench) {
         });
         let fit = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA, false).unwrap();
         c.bench_function(&format!("maps 320x320 s={s}"), |b| {
-            b.iter(|| rgbd_spline::surface_maps(black_box(&pts), w, h, 3, |_| Some(&fit)))
+            b.iter(|| rgbd_spline::surface_maps(black_box(&pts), w, h, 3, None, |_| Some(&fit)))
         });
     }
 }

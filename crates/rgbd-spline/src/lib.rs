@@ -18,6 +18,7 @@ pub use curvature::{curvature, Curvature};
 pub use fit::{Fit, FitKind};
 pub use grid::{fit_grid, fit_mask, KnotGrid, DEFAULT_LAMBDA};
 pub use maps::{surface_maps, SurfaceMaps};
+pub use normal::Region;
 pub use segments::{Criterion, SegmentFits};
 pub use surface::{GridSurface, Jet, MAX_CHANNELS};
 

@@ -10,21 +10,22 @@ use rayon::prelude::*;
 use crate::basis::Basis;
 use crate::curvature::curvature;
 use crate::fit::Fit;
-use crate::normal::axis_table;
+use crate::normal::{axis_table, Region};
 use crate::surface::{Jet, MAX_CHANNELS};
 
-/// Per-pixel outputs, NaN where a pixel has no surface (or no finite measurement, for `error`).
+/// Per-pixel outputs (float32, as every image the library returns), NaN where a pixel has no
+/// surface (or no finite measurement, for `error`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurfaceMaps {
     /// `height x width x channels`.
-    pub fitted: Vec<f64>,
+    pub fitted: Vec<f32>,
     /// Distance between the measured and the fitted point.
-    pub error: Vec<f64>,
+    pub error: Vec<f32>,
     /// Principal curvatures `k1 >= k2`, mean and Gaussian curvature (3-channel surfaces only).
-    pub k1: Vec<f64>,
-    pub k2: Vec<f64>,
-    pub mean: Vec<f64>,
-    pub gaussian: Vec<f64>,
+    pub k1: Vec<f32>,
+    pub k2: Vec<f32>,
+    pub mean: Vec<f32>,
+    pub gaussian: Vec<f32>,
 }
 
 /// A surface's control grid contracted with one row's v-basis: per local column, value, ∂v and
@@ -94,19 +95,25 @@ impl<'a> RowContraction<'a> {
     }
 }
 
-/// Evaluates, for every pixel, the fit `fit_of(pixel index)` at that pixel. All fits must share
-/// one knot grid (they come from one image).
+/// Evaluates, for every pixel of `region` (`None`: the whole image), the fit
+/// `fit_of(pixel index)` at that pixel. All fits must share one knot grid (they come from one
+/// image).
 pub fn surface_maps<'a, T: Copy + Into<f64> + Sync>(
     values: &[T],
     width: usize,
     height: usize,
     channels: usize,
+    region: Option<Region>,
     fit_of: impl Fn(usize) -> Option<&'a Fit> + Sync,
 ) -> SurfaceMaps {
     let n = width * height;
-    let mut fitted = vec![f64::NAN; n * channels];
-    let mut scalar = vec![[f64::NAN; 5]; n];
-    let grid = (0..n).find_map(&fit_of).map(|f| f.surface.grid);
+    let region = region.unwrap_or(Region::full(width, height));
+    let mut fitted = vec![f32::NAN; n * channels];
+    let mut scalar = vec![[f32::NAN; 5]; n];
+    let grid = (region.v0..region.v1)
+        .flat_map(|v| (region.u0..region.u1).map(move |u| v * width + u))
+        .find_map(&fit_of)
+        .map(|f| f.surface.grid);
     if let Some(grid) = grid {
         let cols = axis_table(&grid, width, true);
         let rows = axis_table(&grid, height, false);
@@ -115,9 +122,12 @@ pub fn surface_maps<'a, T: Copy + Into<f64> + Sync>(
             .zip(scalar.par_chunks_mut(width))
             .enumerate()
             .for_each(|(v, (frow, srow))| {
+                if v < region.v0 || v >= region.v1 {
+                    return;
+                }
                 let (cv, bv) = &rows[v];
                 let mut cache: Option<RowContraction> = None;
-                for u in 0..width {
+                for u in region.u0..region.u1 {
                     let px = v * width + u;
                     let Some(fit) = fit_of(px) else { continue };
                     if !cache.as_ref().is_some_and(|c| std::ptr::eq(c.fit, fit)) {
@@ -128,20 +138,27 @@ pub fn surface_maps<'a, T: Copy + Into<f64> + Sync>(
                         continue;
                     };
                     let meas = &values[px * channels..][..channels];
-                    frow[u * channels..][..channels].copy_from_slice(&jet.value[..channels]);
+                    for (o, x) in frow[u * channels..][..channels].iter_mut().zip(&jet.value) {
+                        *o = *x as f32;
+                    }
                     let d2: f64 = meas
                         .iter()
                         .zip(&jet.value)
                         .map(|(&m, f)| (m.into() - f) * (m.into() - f))
                         .sum();
-                    srow[u][0] = d2.sqrt();
+                    srow[u][0] = d2.sqrt() as f32;
                     if let Some(c) = curvature(&jet) {
-                        srow[u][1..].copy_from_slice(&[c.k1, c.k2, c.mean, c.gaussian]);
+                        srow[u][1..].copy_from_slice(&[
+                            c.k1 as f32,
+                            c.k2 as f32,
+                            c.mean as f32,
+                            c.gaussian as f32,
+                        ]);
                     }
                 }
             });
     }
-    let col = |i: usize| scalar.iter().map(|s| s[i]).collect::<Vec<f64>>();
+    let col = |i: usize| scalar.iter().map(|s| s[i]).collect::<Vec<f32>>();
     SurfaceMaps {
         fitted,
         error: col(0),
@@ -166,15 +183,15 @@ mod tests {
         for p in 1..=5 {
             let grid = KnotGrid::new(w, h, 5.5, p).unwrap();
             let fit = fit_grid(&vals, w, h, 3, &grid, 1e-3, false).unwrap();
-            let maps = surface_maps(&vals, w, h, 3, |_| Some(&fit));
+            let maps = surface_maps(&vals, w, h, 3, None, |_| Some(&fit));
             for px in [0, 5, 100, 517, w * h - 1] {
                 let j = fit.surface.jet((px % w) as f64, (px / w) as f64).unwrap();
                 for c in 0..3 {
-                    assert!((maps.fitted[px * 3 + c] - j.value[c]).abs() < 1e-12);
+                    assert_eq!(maps.fitted[px * 3 + c], j.value[c] as f32);
                 }
                 let k = curvature(&j).unwrap();
-                assert!((maps.k1[px] - k.k1).abs() <= 1e-9 * (1.0 + k.k1.abs()));
-                assert!((maps.gaussian[px] - k.gaussian).abs() <= 1e-9 * (1.0 + k.gaussian.abs()));
+                let close = |a: f32, b: f64| (a as f64 - b).abs() <= 1e-6 * (1.0 + b.abs());
+                assert!(close(maps.k1[px], k.k1) && close(maps.gaussian[px], k.gaussian));
             }
         }
     }

@@ -233,6 +233,7 @@ impl SegmentFits {
             self.width,
             self.height,
             self.channels,
+            None,
             |px| {
                 let l = self.labels[px];
                 if l < 0 {

@@ -1,0 +1,138 @@
+"""Spline-fitting speed: rgbd_rs.surface against scipy's LSQBivariateSpline, in the same run.
+
+scipy fits one scalar graph surface z(u, v) (FITPACK, one thread); rgbd_rs fits the three
+coordinates X, Y, Z of an organised point cloud with the same knot count, which is strictly more
+work. Each configuration runs in a fresh process with RAYON_NUM_THREADS set. Times are medians
+after a warm-up. "vs scipy" = scipy time / rgbd_rs time (> 1: rgbd_rs is faster).
+
+    python benches/bench_spline.py            # 1 and 2 threads
+    python benches/bench_spline.py --markdown # the README table
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+REPEATS = 9
+
+
+def timeit(fn: Callable[[], object], repeats: int = REPEATS) -> float:
+    fn()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return statistics.median(times) * 1e3
+
+
+def cloud(w: int, h: int) -> np.ndarray:
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    z = 2.0 + 0.3 * np.sin(u / 40.0) * np.cos(v / 30.0)
+    x, y = (u - w / 2) / 525.0 * z, (v - h / 2) / 525.0 * z
+    return np.ascontiguousarray(np.stack([x, y, z], -1), dtype=np.float32)
+
+
+def run_one() -> list[dict[str, object]]:
+    from scipy.interpolate import LSQBivariateSpline
+
+    from rgbd_rs.surface import SegmentFits, fit_grid, fit_mask
+
+    rows: list[dict[str, object]] = []
+    w, h = 640, 480
+    pts = cloud(w, h)
+    # 10k-pixel segment, 10x10 knot cells (scipy: 10x10 interior knots over the same box).
+    mask = np.zeros((h, w), bool)
+    mask[100:200, 200:300] = True
+    ours = timeit(lambda: fit_mask(pts, mask, spacing=10.0, with_dof=False))
+    v, u = np.nonzero(mask)
+    z = pts[mask][:, 2].astype(np.float64)
+    tx = np.linspace(200, 300, 12)[1:-1]
+    ty = np.linspace(100, 200, 12)[1:-1]
+    bbox = [200, 300, 100, 200]
+    scipy_ms = timeit(
+        lambda: LSQBivariateSpline(u.astype(float), v.astype(float), z, tx, ty, bbox=bbox)
+    )
+    rows.append({"case": "10k-pixel segment, 10x10 knot spans", "ours": ours, "scipy": scipy_ms})
+    # All segments of a 640x480 frame: 300 tiles of 32x32 pixels, 16-pixel spacing.
+    labels = ((np.arange(h)[:, None] // 32) * 20 + np.arange(w)[None, :] // 32).astype(np.int32)
+    ours = timeit(lambda: SegmentFits(pts, labels, spacing=16.0))
+    one = labels == 0
+    vv, uu = np.nonzero(one)
+    zz = pts[one][:, 2].astype(np.float64)
+    t1 = np.array([16.0])
+    uf, vf = uu.astype(float), vv.astype(float)
+    per = timeit(lambda: LSQBivariateSpline(uf, vf, zz, t1, t1, bbox=[0, 32, 0, 32]))
+    rows.append(
+        {"case": "300 segments of a 640x480 frame (with dof)", "ours": ours, "scipy": per * 300}
+    )
+    # union_error of two adjacent 5k-pixel segments.
+    pair = np.full((h, w), -1, np.int32)
+    pair[100:171, 100:171] = 0
+    pair[100:171, 171:242] = 1
+    fits = SegmentFits(pts, pair, spacing=16.0)
+    ours = timeit(lambda: fits.union_error(0, 1), repeats=201)
+    rows.append({"case": "union_error, two 5k-pixel segments", "ours": ours, "scipy": None})
+    # A 320x320 depth view with curvature maps (shape pipeline), 16 and 8-pixel spacing.
+    view = cloud(320, 320)
+    vv, uu = np.mgrid[0:320, 0:320]
+    for s in (16.0, 8.0):
+        ours = timeit(lambda s=s: fit_grid(view, spacing=s))
+        knots = np.arange(1, int(np.ceil(320 / s))) * s
+        zv = view[..., 2].ravel().astype(np.float64)
+        sp = timeit(
+            lambda knots=knots, zv=zv: LSQBivariateSpline(
+                uu.ravel().astype(float),
+                vv.ravel().astype(float),
+                zv,
+                knots,
+                knots,
+                bbox=[0, 320, 0, 320],
+            ),
+            repeats=3,
+        )
+        rows.append(
+            {"case": f"320x320 view + curvature maps, spacing {s:g}", "ours": ours, "scipy": sp}
+        )
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--markdown", action="store_true", help="print the README table")
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        print(json.dumps(run_one()))
+        return
+    results = {}
+    for threads in (1, 2):
+        env = dict(os.environ, RAYON_NUM_THREADS=str(threads), OMP_NUM_THREADS=str(threads))
+        cmd = [sys.executable, __file__, "--child"]
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
+        results[threads] = json.loads(out.stdout.strip().splitlines()[-1])
+    print(
+        "| case | scipy ms | rgbd_rs ms, 1 thread | vs scipy | rgbd_rs ms, 2 threads | vs scipy |"
+    )
+    print("|" + "---|" * 6)
+    for r1, r2 in zip(results[1], results[2], strict=True):
+        sp = r1["scipy"]
+        sp_s = f"{sp:.1f}" if sp else "(no equivalent)"
+        r_1 = f"{sp / r1['ours']:.0f}x" if sp else "-"
+        r_2 = f"{sp / r2['ours']:.0f}x" if sp else "-"
+        print(f"| {r1['case']} | {sp_s} | {r1['ours']:.2f} | {r_1} | {r2['ours']:.2f} | {r_2} |")
+    if not args.markdown:
+        print("\nscipy fits z only (1 channel, 1 thread); rgbd_rs fits X, Y, Z.")
+
+
+if __name__ == "__main__":
+    main()
