@@ -2,7 +2,7 @@
 
 use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use rgbd_spline::{fit_mask, Criterion, FitKind, KnotGrid, Region, SegmentFits, SurfaceMaps};
+use rgbd_spline::{fit_mask, Criterion, FitKind, KnotGrid, SegmentFits, SurfaceMaps};
 
 use crate::errors::{contiguous, run, to_py, InvalidArgumentError};
 use crate::geom::{shape_err, to_numpy};
@@ -83,8 +83,8 @@ pub fn fit_surface<'py>(
     let (fit, maps) = run(py, || {
         let grid = KnotGrid::new(w, h, spacing, degree)?;
         let fit = fit_mask(p, w, h, 3, m, &grid, lam, with_dof)?;
-        // Outside the mask every map is NaN: evaluate only its bounding box.
-        let region = m.and_then(|m| Region::bounding(w, h, |i| m[i]));
+        // Outside the mask every map is NaN: evaluate only the fit's cell box.
+        let region = m.map(|_| fit.surface.pixel_region(w, h));
         let maps = rgbd_spline::surface_maps(p, w, h, 3, region, |i| {
             m.is_none_or(|m| m[i]).then_some(&fit)
         });

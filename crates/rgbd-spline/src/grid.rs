@@ -190,17 +190,11 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
 ) -> Result<Fit, SplineError> {
     check_values(values, width, height, channels, lambda)?;
     check_grid(grid, width, height)?;
-    let labels: Option<Vec<i32>> = match mask {
-        Some(m) if m.len() != width * height => {
-            return Err(SplineError::invalid(
-                "mask",
-                format!("{} values", m.len()),
-                format!("height * width = {}", width * height),
-            ))
-        }
-        Some(m) => Some(m.iter().map(|&b| if b { 0 } else { -1 }).collect()),
-        None => None,
-    };
+    if let Some(m) = mask {
+        check_pixels("mask", m.len(), width, height)?;
+    }
+    let labels: Option<Vec<i32>> =
+        mask.map(|m| m.iter().map(|&b| if b { 0 } else { -1 }).collect());
     let region = match mask {
         Some(m) => Region::bounding(width, height, |i| m[i]),
         None => Some(Region::full(width, height)),
@@ -234,6 +228,23 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
         ));
     }
     solve(&normals[0], grid, lambda, &offset, with_dof)
+}
+
+/// A per-pixel array (`arg`) must hold one value per pixel.
+pub(crate) fn check_pixels(
+    arg: &'static str,
+    len: usize,
+    width: usize,
+    height: usize,
+) -> Result<(), SplineError> {
+    if len != width * height {
+        return Err(SplineError::invalid(
+            arg,
+            format!("{len} values"),
+            format!("height * width = {}", width * height),
+        ));
+    }
+    Ok(())
 }
 
 /// The grid must have been made for an image of this size.

@@ -40,10 +40,7 @@ impl<'a> RowContraction<'a> {
     fn new(fit: &'a Fit, cv: usize, bv: &Basis) -> Option<Self> {
         let s = &fit.surface;
         let p = s.grid.degree;
-        if cv < s.origin.1 || cv + p >= s.origin.1 + s.shape.1 {
-            return None;
-        }
-        let cv = cv - s.origin.1;
+        let cv = s.local_v(cv)?;
         let c = s.channels;
         let inv = 1.0 / s.grid.spacing;
         let mut cols = vec![[[0.0; MAX_CHANNELS]; 3]; s.shape.0];
@@ -64,21 +61,9 @@ impl<'a> RowContraction<'a> {
     fn jet(&self, cu: usize, bu: &Basis) -> Option<Jet> {
         let s = &self.fit.surface;
         let p = s.grid.degree;
-        if cu < s.origin.0 || cu + p >= s.origin.0 + s.shape.0 {
-            return None;
-        }
-        let cu = cu - s.origin.0;
+        let cu = s.local_u(cu)?;
         let inv = 1.0 / s.grid.spacing;
-        let z = [0.0; MAX_CHANNELS];
-        let mut jet = Jet {
-            channels: s.channels,
-            value: z,
-            du: z,
-            dv: z,
-            duu: z,
-            duv: z,
-            dvv: z,
-        };
+        let mut jet = Jet::zero(s.channels);
         for i in 0..=p {
             let [r0, r1, r2] = &self.cols[cu + i];
             let (b0, b1, b2) = (bu.value[i], bu.d1[i] * inv, bu.d2[i] * inv * inv);

@@ -78,7 +78,8 @@ impl Normal {
         self.k * self.k + self.k * self.channels + self.k
     }
 
-    fn empty(k: usize, channels: usize) -> Self {
+    /// The system of no pixel.
+    pub(crate) fn empty(k: usize, channels: usize) -> Self {
         Self {
             cells: Vec::new(),
             blocks: Vec::new(),

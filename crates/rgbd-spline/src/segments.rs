@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 
 use crate::fit::{solve, Fit};
-use crate::grid::{check_grid, check_values, valid_mean, KnotGrid};
+use crate::grid::{check_grid, check_pixels, check_values, valid_mean, KnotGrid};
 use crate::maps::{surface_maps, SurfaceMaps};
 use crate::normal::{accumulate, Normal, Region};
 use crate::SplineError;
@@ -56,13 +56,7 @@ impl SegmentFits {
     ) -> Result<Self, SplineError> {
         check_values(values, width, height, channels, lambda)?;
         check_grid(grid, width, height)?;
-        if labels.len() != width * height {
-            return Err(SplineError::invalid(
-                "labels",
-                format!("{} values", labels.len()),
-                format!("height * width = {}", width * height),
-            ));
-        }
+        check_pixels("labels", labels.len(), width, height)?;
         let n_labels = labels.iter().copied().max().unwrap_or(-1) + 1;
         if n_labels <= 0 {
             return Err(SplineError::invalid(
@@ -161,25 +155,27 @@ impl SegmentFits {
         Ok(self.error_of(self.fit(i)?))
     }
 
-    fn union_fit(&self, i: usize, j: usize) -> Result<Fit, SplineError> {
+    /// The normal equations of the union of live segments `i` and `j`, and their fit.
+    fn union_fit(&self, i: usize, j: usize) -> Result<(Normal, Fit), SplineError> {
         self.live("i", i)?;
         self.live("j", j)?;
         if i == j {
             return Err(SplineError::invalid("j", j, "a segment other than i"));
         }
         let u = self.normals[i].union(&self.normals[j]);
-        solve(
+        let fit = solve(
             &u,
             &self.grid,
             self.lambda,
             &self.offset,
             self.criterion == Criterion::Gcv,
-        )
+        )?;
+        Ok((u, fit))
     }
 
     /// Fitting error of the union of live segments `i` and `j` (nothing is changed).
     pub fn union_error(&self, i: usize, j: usize) -> Result<f64, SplineError> {
-        Ok(self.error_of(&self.union_fit(i, j)?))
+        Ok(self.error_of(&self.union_fit(i, j)?.1))
     }
 
     /// Eq. 4.8: whether `e_i|S_i| + e_j|S_j| > e_ij (|S_i| + |S_j|)`.
@@ -191,14 +187,11 @@ impl SegmentFits {
 
     /// Merges live segment `j` into `i`; returns the error of the merged segment.
     pub fn merge(&mut self, i: usize, j: usize) -> Result<f64, SplineError> {
-        let fit = self.union_fit(i, j)?;
+        let (union, fit) = self.union_fit(i, j)?;
         let e = self.error_of(&fit);
-        self.normals[i] = self.normals[i].union(&self.normals[j]);
-        self.normals[j] = Normal {
-            cells: Vec::new(),
-            blocks: Vec::new(),
-            ..self.normals[j].clone()
-        };
+        let empty = Normal::empty(union.k, union.channels);
+        self.normals[i] = union;
+        self.normals[j] = empty;
         self.fits[i] = Ok(fit);
         self.fits[j] = Err(SplineError::invalid(
             "j",

@@ -2,6 +2,7 @@
 //! with its first and second derivatives (per pixel).
 
 use crate::grid::KnotGrid;
+use crate::normal::Region;
 
 /// `channels` control-point grids covering control points `origin .. origin + shape` of `grid`.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,6 +30,22 @@ pub struct Jet {
     pub duu: [f64; MAX_CHANNELS],
     pub duv: [f64; MAX_CHANNELS],
     pub dvv: [f64; MAX_CHANNELS],
+}
+
+impl Jet {
+    /// All values and derivatives zero.
+    pub fn zero(channels: usize) -> Self {
+        let z = [0.0; MAX_CHANNELS];
+        Self {
+            channels,
+            value: z,
+            du: z,
+            dv: z,
+            duu: z,
+            duv: z,
+            dvv: z,
+        }
+    }
 }
 
 impl GridSurface {
@@ -67,37 +84,53 @@ impl GridSurface {
         }
     }
 
+    /// Local control column of cell column `cu`, if all its `p + 1` control columns are held.
+    pub fn local_u(&self, cu: usize) -> Option<usize> {
+        (cu >= self.origin.0 && cu + self.grid.degree < self.origin.0 + self.shape.0)
+            .then(|| cu - self.origin.0)
+    }
+
+    /// Local control row of cell row `cv`, if all its `p + 1` control rows are held.
+    pub fn local_v(&self, cv: usize) -> Option<usize> {
+        (cv >= self.origin.1 && cv + self.grid.degree < self.origin.1 + self.shape.1)
+            .then(|| cv - self.origin.1)
+    }
+
     /// Whether pixel `(u, v)` lies in a cell whose control points this surface holds.
     pub fn covers(&self, u: f64, v: f64) -> bool {
         let (cu, cv, _, _) = self.grid.support(u, v);
+        self.local_u(cu).is_some() && self.local_v(cv).is_some()
+    }
+
+    /// The pixels of an image of `width x height` whose cells this surface holds (its cell box).
+    pub fn pixel_region(&self, width: usize, height: usize) -> Region {
         let p = self.grid.degree;
-        cu >= self.origin.0
-            && cv >= self.origin.1
-            && cu + p < self.origin.0 + self.shape.0
-            && cv + p < self.origin.1 + self.shape.1
+        let s = self.grid.spacing;
+        // Cells clamp at the image edge: the last cell runs to the last pixel.
+        let span = |first: usize, cells: usize, total: usize, len: usize| {
+            let last = first + cells - p - 1;
+            let start = ((first as f64 * s).ceil() as usize).min(len);
+            let end = if last + 1 >= total {
+                len
+            } else {
+                (((last + 1) as f64 * s).ceil() as usize).min(len)
+            };
+            (start, end)
+        };
+        let (u0, u1) = span(self.origin.0, self.shape.0, self.grid.cells_u, width);
+        let (v0, v1) = span(self.origin.1, self.shape.1, self.grid.cells_v, height);
+        Region { u0, u1, v0, v1 }
     }
 
     /// Value and first/second derivatives (per pixel) at `(u, v)`; `None` outside the
     /// surface's control rectangle.
     pub fn jet(&self, u: f64, v: f64) -> Option<Jet> {
-        if !self.covers(u, v) {
-            return None;
-        }
         let (cu, cv, bu, bv) = self.grid.support(u, v);
-        let (cu, cv) = (cu - self.origin.0, cv - self.origin.1);
+        let (cu, cv) = (self.local_u(cu)?, self.local_v(cv)?);
         let nu = self.shape.0;
         let c = self.channels;
         let s = self.grid.spacing;
-        let z = [0.0; MAX_CHANNELS];
-        let mut jet = Jet {
-            channels: c,
-            value: z,
-            du: z,
-            dv: z,
-            duu: z,
-            duv: z,
-            dvv: z,
-        };
+        let mut jet = Jet::zero(c);
         let p = self.grid.degree;
         for j in 0..=p {
             for i in 0..=p {
@@ -143,6 +176,27 @@ mod tests {
                 assert!((j.du[0] - 0.1).abs() < 1e-12 && (j.dv[0] + 0.3).abs() < 1e-12);
             }
             assert!(s.jet(3.0, 20.0).is_none());
+        }
+    }
+
+    #[test]
+    fn pixel_region_is_exactly_the_covered_pixels() {
+        let (w, h) = (50, 40);
+        for spacing in [1.0, 3.0, 7.0, 7.5, 16.0] {
+            let grid = KnotGrid::new(w, h, spacing, 3).unwrap();
+            let last = (grid.cells_u - 1, grid.cells_v - 1);
+            for (lo, hi) in [((0, 0), last), ((1, 1), (2, 2)), ((0, 1), (last.0, 1))] {
+                let hi = (hi.0.min(last.0), hi.1.min(last.1));
+                let lo = (lo.0.min(hi.0), lo.1.min(hi.1));
+                let s = GridSurface::linear(&grid, lo, hi, &[1.0, 0.0, 0.0]);
+                let r = s.pixel_region(w, h);
+                for v in 0..h {
+                    for u in 0..w {
+                        let inside = (r.u0..r.u1).contains(&u) && (r.v0..r.v1).contains(&v);
+                        assert_eq!(inside, s.covers(u as f64, v as f64), "s={spacing} {u},{v}");
+                    }
+                }
+            }
         }
     }
 }
