@@ -13,13 +13,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 
 import numpy as np
+
+from _timing import timeit
 
 REPEATS = 7
 N_POINTS = 1_000_000
@@ -28,16 +28,6 @@ COEFFS = {
     "brown5": [-0.28, 0.07, 1e-3, -5e-4, -0.008],
     "rational8": [0.3301, -2.4894, -1.618e-4, -1.294e-4, 1.4537, 0.2089, -2.3029, 1.3751],
 }
-
-
-def timeit(fn: Callable[[], object]) -> float:
-    fn()
-    times = []
-    for _ in range(REPEATS):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times) * 1e3
 
 
 def bench_model(
@@ -84,7 +74,11 @@ def bench_model(
         ),
     ]
     return [
-        {"op": f"{name} ({model})", "rgbd_ms": timeit(ours), "opencv_ms": timeit(theirs)}
+        {
+            "op": f"{name} ({model})",
+            "rgbd_ms": timeit(ours, REPEATS),
+            "opencv_ms": timeit(theirs, REPEATS),
+        }
         for name, ours, theirs in cases
     ]
 

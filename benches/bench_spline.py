@@ -14,25 +14,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
-import time
-from collections.abc import Callable
 
 import numpy as np
 
+from _timing import timeit
+
 REPEATS = 9
-
-
-def timeit(fn: Callable[[], object], repeats: int = REPEATS) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times) * 1e3
 
 
 def cloud(w: int, h: int) -> np.ndarray:
@@ -53,25 +42,24 @@ def run_one() -> list[dict[str, object]]:
     # 10k-pixel segment, 10x10 knot cells (scipy: 10x10 interior knots over the same box).
     mask = np.zeros((h, w), bool)
     mask[100:200, 200:300] = True
-    ours = timeit(lambda: fit_mask(pts, mask, spacing=10.0, with_dof=False))
+    ours = timeit(lambda: fit_mask(pts, mask, spacing=10.0, with_dof=False), REPEATS)
     v, u = np.nonzero(mask)
     z = pts[mask][:, 2].astype(np.float64)
     tx = np.linspace(200, 300, 12)[1:-1]
     ty = np.linspace(100, 200, 12)[1:-1]
     bbox = [200, 300, 100, 200]
-    scipy_ms = timeit(
-        lambda: LSQBivariateSpline(u.astype(float), v.astype(float), z, tx, ty, bbox=bbox)
-    )
+    uf, vf = u.astype(float), v.astype(float)
+    scipy_ms = timeit(lambda: LSQBivariateSpline(uf, vf, z, tx, ty, bbox=bbox), REPEATS)
     rows.append({"case": "10k-pixel segment, 10x10 knot spans", "ours": ours, "scipy": scipy_ms})
     # All segments of a 640x480 frame: 300 tiles of 32x32 pixels, 16-pixel spacing.
     labels = ((np.arange(h)[:, None] // 32) * 20 + np.arange(w)[None, :] // 32).astype(np.int32)
-    ours = timeit(lambda: SegmentFits(pts, labels, spacing=16.0))
+    ours = timeit(lambda: SegmentFits(pts, labels, spacing=16.0), REPEATS)
     one = labels == 0
     vv, uu = np.nonzero(one)
     zz = pts[one][:, 2].astype(np.float64)
     t1 = np.array([16.0])
-    uf, vf = uu.astype(float), vv.astype(float)
-    per = timeit(lambda: LSQBivariateSpline(uf, vf, zz, t1, t1, bbox=[0, 32, 0, 32]))
+    u1, v1 = uu.astype(float), vv.astype(float)
+    per = timeit(lambda: LSQBivariateSpline(u1, v1, zz, t1, t1, bbox=[0, 32, 0, 32]), REPEATS)
     rows.append(
         {"case": "300 segments of a 640x480 frame (with dof)", "ours": ours, "scipy": per * 300}
     )
@@ -85,18 +73,14 @@ def run_one() -> list[dict[str, object]]:
     # A 320x320 depth view with curvature maps (shape pipeline), 16 and 8-pixel spacing.
     view = cloud(320, 320)
     vv, uu = np.mgrid[0:320, 0:320]
+    uv, vvf = uu.ravel().astype(float), vv.ravel().astype(float)
+    zv = view[..., 2].ravel().astype(np.float64)
     for s in (16.0, 8.0):
-        ours = timeit(lambda s=s: fit_grid(view, spacing=s))
+        ours = timeit(lambda s=s: fit_grid(view, spacing=s), REPEATS)
         knots = np.arange(1, int(np.ceil(320 / s))) * s
-        zv = view[..., 2].ravel().astype(np.float64)
         sp = timeit(
-            lambda knots=knots, zv=zv: LSQBivariateSpline(
-                uu.ravel().astype(float),
-                vv.ravel().astype(float),
-                zv,
-                knots,
-                knots,
-                bbox=[0, 320, 0, 320],
+            lambda knots=knots: LSQBivariateSpline(
+                uv, vvf, zv, knots, knots, bbox=[0, 320, 0, 320]
             ),
             repeats=3,
         )
