@@ -25,11 +25,8 @@ pub enum GeomError {
 /// Result alias used throughout the crate.
 pub type Result<T> = std::result::Result<T, GeomError>;
 
-pub(crate) fn invalid(
-    arg: &'static str,
-    got: impl Display,
-    expected: impl Into<String>,
-) -> GeomError {
+/// Builds an [`GeomError::InvalidArgument`] (shared by the crates built on this one).
+pub fn invalid(arg: &'static str, got: impl Display, expected: impl Into<String>) -> GeomError {
     GeomError::InvalidArgument {
         arg,
         got: got.to_string(),
@@ -38,12 +35,7 @@ pub(crate) fn invalid(
 }
 
 /// Checks that `buf` holds exactly `expected` elements.
-pub(crate) fn check_len<T>(
-    arg: &'static str,
-    buf: &[T],
-    expected: usize,
-    what: &str,
-) -> Result<()> {
+pub fn check_len<T>(arg: &'static str, buf: &[T], expected: usize, what: &str) -> Result<()> {
     if buf.len() == expected {
         Ok(())
     } else {

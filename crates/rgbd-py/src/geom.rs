@@ -15,7 +15,7 @@ use crate::errors::{contiguous, run, to_py, InvalidArgumentError};
 /// `(fx, fy, cx, cy, width, height, [k1, k2, p1, p2, k3, k4, k5, k6])`, as `PinholeCamera._native()`.
 type CameraArgs = (f64, f64, f64, f64, usize, usize, [f64; 8]);
 /// `(row-major rotation, translation)`, as `Pose._native()`.
-type PoseArgs = ([f64; 9], [f64; 3]);
+pub(crate) type PoseArgs = ([f64; 9], [f64; 3]);
 
 fn camera(c: CameraArgs) -> PyResult<Camera> {
     let k = Intrinsics::new(c.0, c.1, c.2, c.3, c.4, c.5).map_err(to_py)?;
@@ -25,7 +25,7 @@ fn camera(c: CameraArgs) -> PyResult<Camera> {
     ))
 }
 
-fn pose(p: PoseArgs) -> PyResult<Pose> {
+pub(crate) fn pose(p: PoseArgs) -> PyResult<Pose> {
     Pose::new(p.0, p.1).map_err(to_py)
 }
 

@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 
 mod errors;
 mod geom;
+mod render;
 mod spline;
 
 /// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import).
@@ -50,5 +51,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(geom::normals_from_points, m)?)?;
     m.add_function(wrap_pyfunction!(spline::fit_surface, m)?)?;
     m.add_class::<spline::PySegmentFits>()?;
+    m.add_class::<render::PyScene>()?;
+    m.add_function(wrap_pyfunction!(render::render_points, m)?)?;
     Ok(())
 }

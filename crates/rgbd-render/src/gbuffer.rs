@@ -1,0 +1,77 @@
+//! First-hit rendering: depth, normals, triangle / object ids and barycentric coordinates of the
+//! surface seen through each pixel centre. Rows are rendered in parallel (rayon).
+
+use rayon::prelude::*;
+
+use crate::bvh::Hit;
+use crate::scene::Scene;
+use crate::view::View;
+
+/// Per-pixel first-hit attributes, row-major `height x width` (x channels).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GBuffer {
+    /// Depth z along the camera's optical axis (metres), NaN where the ray hits nothing.
+    pub depth: Vec<f32>,
+    /// Unit normal in the camera frame, facing the camera (3 per pixel, NaN on misses).
+    pub normal: Vec<f32>,
+    /// Index of the hit triangle in the scene's input order, -1 on misses.
+    pub prim: Vec<i32>,
+    /// Object index of the hit triangle, -1 on misses.
+    pub object: Vec<i32>,
+    /// Barycentric coordinates (u, v) of vertices 1 and 2 of the hit triangle (NaN on misses).
+    pub bary: Vec<f32>,
+}
+
+/// Casts one ray per pixel centre and keeps the nearest hit (`None` for misses).
+pub fn first_hits(scene: &Scene, view: &View) -> Vec<Option<Hit>> {
+    let w = view.width;
+    (0..view.len())
+        .into_par_iter()
+        .with_min_len(w)
+        .map(|i| {
+            let ray = view.ray((i % w) as f64, (i / w) as f64);
+            scene.cast(&ray, 0.0)
+        })
+        .collect()
+}
+
+/// Depth only (z in the camera frame; NaN for misses): the fast path for depth views.
+pub fn render_depth(scene: &Scene, view: &View) -> Vec<f32> {
+    let w = view.width;
+    let mut out = vec![f32::NAN; view.len()];
+    out.par_chunks_mut(w).enumerate().for_each(|(row, line)| {
+        for (col, px) in line.iter_mut().enumerate() {
+            let ray = view.ray(col as f64, row as f64);
+            if let Some(h) = scene.cast(&ray, 0.0) {
+                *px = h.t;
+            }
+        }
+    });
+    out
+}
+
+/// All first-hit attributes.
+pub fn render_gbuffer(scene: &Scene, view: &View) -> GBuffer {
+    let hits = first_hits(scene, view);
+    let n = view.len();
+    let mut g = GBuffer {
+        depth: vec![f32::NAN; n],
+        normal: vec![f32::NAN; 3 * n],
+        prim: vec![-1; n],
+        object: vec![-1; n],
+        bary: vec![f32::NAN; 2 * n],
+    };
+    let w = view.width;
+    for (i, hit) in hits.iter().enumerate() {
+        let Some(h) = hit else { continue };
+        let ray = view.ray((i % w) as f64, (i / w) as f64);
+        let s = scene.surface(&ray, h);
+        g.depth[i] = h.t;
+        g.normal[3 * i..3 * i + 3].copy_from_slice(&view.to_camera(s.n));
+        g.prim[i] = h.prim as i32;
+        g.object[i] = s.object as i32;
+        g.bary[2 * i] = h.u;
+        g.bary[2 * i + 1] = h.v;
+    }
+    g
+}
