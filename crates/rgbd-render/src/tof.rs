@@ -111,6 +111,31 @@ impl TofOptions {
     }
 }
 
+/// Radius (pixels) of the edge-aware filter applied to the indirect (multipath) phasors: indirect
+/// light varies slowly over a surface, so pooling the secondary rays of neighbouring pixels on
+/// the same surface cuts the Monte-Carlo noise by the window size (7x7 -> ~49x fewer variance)
+/// without blurring across depth edges.
+pub const MULTIPATH_FILTER_RADIUS: usize = 3;
+/// Neighbours pool their indirect light only if their depth differs by less than this fraction
+/// and their normals by less than ~25 degrees (cosine 0.9).
+const FILTER_DEPTH_TOL: f32 = 0.03;
+const FILTER_NORMAL_COS: f32 = 0.9;
+
+/// What the first pass records per pixel.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sample {
+    /// Sum of the direct returns' phasors.
+    direct: (f64, f64),
+    /// Amplitude-weighted mean range of the direct returns (unwrapping reference on misses).
+    ref_range: f64,
+    ref_weight: f64,
+    /// Depth z and normal of the surface at the pixel centre (NaN depth on a miss).
+    z: f32,
+    n: [f32; 3],
+    /// Indirect returns as phasors of their detour (path minus the direct round trip).
+    indirect: (f64, f64),
+}
+
 /// Simulates one ToF frame of `scene` seen by the perspective `view`.
 pub fn simulate_tof(scene: &Scene, view: &View, opts: &TofOptions) -> Result<TofFrame> {
     opts.validate()?;
@@ -121,7 +146,12 @@ pub fn simulate_tof(scene: &Scene, view: &View, opts: &TofOptions) -> Result<Tof
             "a perspective ToF camera",
         ));
     }
-    let w = view.width;
+    let (w, h) = (view.width, view.height);
+    let samples: Vec<Sample> = (0..view.len())
+        .into_par_iter()
+        .with_min_len(w)
+        .map(|i| first_pass(scene, view, opts, i % w, i / w))
+        .collect();
     let n = view.len();
     let mut frame = TofFrame {
         depth: vec![f32::NAN; n],
@@ -136,32 +166,37 @@ pub fn simulate_tof(scene: &Scene, view: &View, opts: &TofOptions) -> Result<Tof
         .enumerate()
         .for_each(|(row, ((depth, amp), truth))| {
             for col in 0..w {
-                let px = pixel(scene, view, opts, col, row);
+                let indirect = pooled_indirect(&samples, w, h, col, row);
+                let px = finish(view, opts, &samples[row * w + col], indirect, col, row);
                 depth[col] = px.0;
                 amp[col] = px.1;
-                truth[col] = px.2;
+                truth[col] = samples[row * w + col].z;
             }
         });
     Ok(frame)
 }
 
-/// (measured depth, amplitude, true depth) of one pixel.
-fn pixel(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize) -> (f32, f32, f32) {
-    let k = std::f64::consts::TAU * o.frequency_hz / SPEED_OF_LIGHT; // rad per metre of path
+/// Radians of phase per metre of optical path.
+fn wavenumber(o: &TofOptions) -> f64 {
+    std::f64::consts::TAU * o.frequency_hz / SPEED_OF_LIGHT
+}
+
+fn first_pass(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize) -> Sample {
+    let k = wavenumber(o);
     let centre = view.ray(col as f64, row as f64);
-    let ray_len = norm(centre.d); // |d| with d_z = 1: radial distance = z * ray_len
     let centre_hit = scene.cast(&centre, 0.0);
-    let truth = centre_hit.map_or(f32::NAN, |h| h.t);
-    let (mut re, mut im) = (0.0f64, 0.0f64);
-    let add_phasor = |re: &mut f64, im: &mut f64, a: f64, path: f64| {
+    let mut out = Sample {
+        z: centre_hit.map_or(f32::NAN, |h| h.t),
+        ..Sample::default()
+    };
+    let add_phasor = |acc: &mut (f64, f64), a: f64, path: f64| {
         let (s, c) = (k * path).sin_cos();
-        *re += a * c;
-        *im -= a * s;
+        acc.0 += a * c;
+        acc.1 -= a * s;
     };
     // Direct returns from an s x s grid of sub-pixel rays.
     let s = o.subsamples;
     let weight = 1.0 / (s * s) as f64;
-    let (mut ref_range, mut ref_weight) = (0.0f64, 0.0f64);
     for j in 0..s * s {
         let du = ((j % s) as f64 + 0.5) / s as f64 - 0.5;
         let dv = ((j / s) as f64 + 0.5) / s as f64 - 0.5;
@@ -178,53 +213,99 @@ fn pixel(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize) -> 
         let d = (hit.t * len) as f64;
         let cos = (-dot(surf.n, ray.d) / len).max(0.0) as f64;
         let a = (o.power * scene.material(&surf).albedo_ir) as f64 * cos / (d * d);
-        add_phasor(&mut re, &mut im, a * weight, 2.0 * d);
-        ref_range += d * a;
-        ref_weight += a;
+        add_phasor(&mut out.direct, a * weight, 2.0 * d);
+        out.ref_range += d * a;
+        out.ref_weight += a;
+    }
+    let Some(hit) = centre_hit else { return out };
+    let p = scene.surface(&centre, &hit);
+    out.n = p.n;
+    if o.multipath_rays == 0 {
+        return out;
     }
     // One-bounce indirect light from the surface at the pixel centre.
-    if let (Some(hit), true) = (centre_hit, o.multipath_rays > 0) {
-        let p = scene.surface(&centre, &hit);
-        let albedo_p = scene.material(&p).albedo_ir as f64;
-        let d_p = (hit.t * ray_len) as f64;
-        let emitter = view.centre();
-        let origin = add(p.p, scale(p.n, SURFACE_EPS));
-        let (t, b) = basis(p.n);
-        let mut rng = Rng::new(o.seed, (row * view.width + col) as u64, 0);
-        let kk = o.multipath_rays;
-        for j in 0..kk {
-            // Stratified in azimuth, cosine-weighted in elevation.
-            let phi = std::f32::consts::TAU * (j as f32 + rng.uniform()) / kk as f32;
-            let r2 = rng.uniform();
-            let r = r2.sqrt();
-            let dir = add(
-                add(scale(t, r * phi.cos()), scale(b, r * phi.sin())),
-                scale(p.n, (1.0 - r2).sqrt()),
-            );
-            let sec = crate::view::Ray { o: origin, d: dir };
-            let Some(h2) = scene.cast(&sec, 0.0) else {
-                continue;
-            };
-            let q = scene.surface(&sec, &h2);
-            let to_e = sub(emitter, q.p);
-            let dist_e = norm(to_e);
-            let cos_q = dot(q.n, to_e) / dist_e;
-            if cos_q <= 0.0 {
-                continue;
-            }
-            let q_origin = add(q.p, scale(q.n, SURFACE_EPS));
-            if scene
-                .bvh()
-                .occluded(q_origin, sub(emitter, q_origin), 0.0, 1.0)
-            {
-                continue;
-            }
-            let albedo_q = scene.material(&q).albedo_ir as f64;
-            let e_q = o.power as f64 * cos_q as f64 / (dist_e as f64 * dist_e as f64);
-            let a = albedo_p * albedo_q * e_q / kk as f64;
-            let path = dist_e as f64 + h2.t as f64 * norm(dir) as f64 + d_p;
-            add_phasor(&mut re, &mut im, a, path);
+    let albedo_p = scene.material(&p).albedo_ir as f64;
+    let emitter = view.centre();
+    let origin = add(p.p, scale(p.n, SURFACE_EPS));
+    let (t, b) = basis(p.n);
+    let mut rng = Rng::new(o.seed, (row * view.width + col) as u64, 0);
+    let kk = o.multipath_rays;
+    for j in 0..kk {
+        // Stratified in azimuth, cosine-weighted in elevation.
+        let phi = std::f32::consts::TAU * (j as f32 + rng.uniform()) / kk as f32;
+        let r2 = rng.uniform();
+        let r = r2.sqrt();
+        let dir = add(
+            add(scale(t, r * phi.cos()), scale(b, r * phi.sin())),
+            scale(p.n, (1.0 - r2).sqrt()),
+        );
+        let sec = crate::view::Ray { o: origin, d: dir };
+        let Some(h2) = scene.cast(&sec, 0.0) else {
+            continue;
+        };
+        let q = scene.surface(&sec, &h2);
+        let to_e = sub(emitter, q.p);
+        let dist_e = norm(to_e);
+        let cos_q = dot(q.n, to_e) / dist_e;
+        if cos_q <= 0.0 {
+            continue;
         }
+        let q_origin = add(q.p, scale(q.n, SURFACE_EPS));
+        if scene
+            .bvh()
+            .occluded(q_origin, sub(emitter, q_origin), 0.0, 1.0)
+        {
+            continue;
+        }
+        let albedo_q = scene.material(&q).albedo_ir as f64;
+        let e_q = o.power as f64 * cos_q as f64 / (dist_e as f64 * dist_e as f64);
+        let a = albedo_p * albedo_q * e_q / kk as f64;
+        // Detour: emitter -> q -> p instead of emitter -> p (the last leg p -> camera is shared).
+        let d_p = norm(sub(p.p, emitter)) as f64;
+        let detour = dist_e as f64 + h2.t as f64 * norm(dir) as f64 - d_p;
+        add_phasor(&mut out.indirect, a, detour);
+    }
+    out
+}
+
+/// Edge-aware mean of the indirect detour phasors around `(col, row)`.
+fn pooled_indirect(samples: &[Sample], w: usize, h: usize, col: usize, row: usize) -> (f64, f64) {
+    let c = &samples[row * w + col];
+    if !c.z.is_finite() {
+        return (0.0, 0.0);
+    }
+    let r = MULTIPATH_FILTER_RADIUS;
+    let (mut sum, mut n) = ((0.0, 0.0), 0usize);
+    for y in row.saturating_sub(r)..(row + r + 1).min(h) {
+        for x in col.saturating_sub(r)..(col + r + 1).min(w) {
+            let q = &samples[y * w + x];
+            if (q.z - c.z).abs() <= FILTER_DEPTH_TOL * c.z && dot(q.n, c.n) >= FILTER_NORMAL_COS {
+                sum.0 += q.indirect.0;
+                sum.1 += q.indirect.1;
+                n += 1;
+            }
+        }
+    }
+    (sum.0 / n as f64, sum.1 / n as f64)
+}
+
+/// (measured depth, amplitude) of one pixel from its direct and pooled indirect light.
+fn finish(
+    view: &View,
+    o: &TofOptions,
+    s: &Sample,
+    indirect: (f64, f64),
+    col: usize,
+    row: usize,
+) -> (f32, f32) {
+    let k = wavenumber(o);
+    let ray_len = norm(view.ray(col as f64, row as f64).d) as f64; // radial = z * |d| (d_z = 1)
+    let (mut re, mut im) = s.direct;
+    if s.z.is_finite() {
+        // Multiply the detour phasors by exp(-i k 2 d_p), the pixel's own direct round trip.
+        let (sn, cs) = (k * 2.0 * s.z as f64 * ray_len).sin_cos();
+        re += indirect.0 * cs + indirect.1 * sn;
+        im += indirect.1 * cs - indirect.0 * sn;
     }
     if o.noise {
         let mut rng = Rng::new(o.seed, (row * view.width + col) as u64, 1);
@@ -234,8 +315,8 @@ fn pixel(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize) -> 
         im += (sigma * rng.normal()) as f64;
     }
     let amplitude = (re * re + im * im).sqrt();
-    if ref_weight == 0.0 || amplitude < o.amplitude_threshold as f64 || amplitude == 0.0 {
-        return (f32::NAN, amplitude as f32, truth);
+    if s.ref_weight == 0.0 || amplitude < o.amplitude_threshold as f64 || amplitude == 0.0 {
+        return (f32::NAN, amplitude as f32);
     }
     let unambiguous = std::f64::consts::PI / k; // c / 2f, in range units
     let range = (-im).atan2(re).rem_euclid(std::f64::consts::TAU) / (2.0 * k);
@@ -243,8 +324,12 @@ fn pixel(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize) -> 
         range
     } else {
         // Oracle unwrapping: the cycle that brings the range closest to the true one.
-        let reference = centre_hit.map_or(ref_range / ref_weight, |h| (h.t * ray_len) as f64);
+        let reference = if s.z.is_finite() {
+            s.z as f64 * ray_len
+        } else {
+            s.ref_range / s.ref_weight
+        };
         range + ((reference - range) / unambiguous).round() * unambiguous
     };
-    ((range / ray_len as f64) as f32, amplitude as f32, truth)
+    ((range / ray_len) as f32, amplitude as f32)
 }

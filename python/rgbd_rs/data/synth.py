@@ -1,0 +1,264 @@
+"""A SYNTH3-style synthetic ToF + stereo dataset (thesis §3.5, Table 3.1): generator and reader.
+
+Rig (thesis Table 3.1): a ZED-like rectified stereo pair (1920x1080, 3.2 mm focal length,
+2.2 um pixels, 12 cm baseline) and a Kinect-v2-like ToF camera (512x424, 3.66 mm, 10 um pixels)
+4 cm below the right (reference) camera with parallel axes. ``scale`` resizes the stereo pair
+(0.5 = the thesis' 960x540); the ToF camera keeps its 512x424.
+
+Layout written by :func:`write_dataset` (``rgbd synth``)::
+
+    DIR/manifest.json          parameters, per-scene file hashes, "complete" when done
+    DIR/calibration.json       the rig (rgbd_rs.data.calibration)
+    DIR/{train,test}/scene_NNNN/left.png, right.png   8-bit RGB
+    DIR/{train,test}/scene_NNNN/data.npz              float32 maps (NaN = invalid):
+        tof_depth, tof_amplitude   the simulated ToF frame on its own lattice
+        tof_gt_depth               ground-truth depth of the ToF view
+        gt_depth, gt_disparity     ground truth on the reference (right) camera
+
+Each scene is written into a temporary folder and renamed when complete, and the manifest is
+rewritten after every scene, so an interrupted run loses nothing and re-running the same command
+resumes. Scene ``i`` of a split depends only on ``(seed, split, i)``: outputs are bit-identical.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _validate
+from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
+from rgbd_rs.data.calibration import load_rig, save_rig
+from rgbd_rs.data.files import read_json, read_npz, read_png, sha256, write_json, write_npz, write_png
+from rgbd_rs.data.synth_scene import random_scene, shared_meshes
+from rgbd_rs.errors import RgbdError
+from rgbd_rs.geometry import depth_to_disparity
+from rgbd_rs.meshes import Mesh
+from rgbd_rs.render import RenderScene, ToFFrame, ToFModel
+
+F32 = npt.NDArray[np.float32]
+U8 = npt.NDArray[np.uint8]
+Split = Literal["train", "test"]
+
+FORMAT = "rgbd_rs-synth/1"
+#: Table 3.1: stereo focal 3.2 mm / 2.2 um pixels; ToF 3.66 mm / 10 um; baseline; ToF offset.
+STEREO_FOCAL_PX = 3.2e-3 / 2.2e-6
+TOF_FOCAL_PX = 3.66e-3 / 10e-6
+BASELINE_M = 0.12
+TOF_BELOW_M = 0.04
+#: Colour rendering: sub-pixel rays per axis, sensor noise (8-bit levels), left-camera exposure
+#: spread (real pairs differ), display gamma. Chosen, not from the thesis.
+SUPERSAMPLE = 2
+COLOR_NOISE = 1.5
+EXPOSURE_SPREAD = 0.15
+GAMMA = 2.2
+_MAP_KEYS = ("tof_depth", "tof_amplitude", "tof_gt_depth", "gt_depth", "gt_disparity")
+
+
+def synth3_rig(scale: float = 0.5) -> ToFStereoRig:
+    """The SYNTH3 rig; ``scale`` sizes the stereo pair (0.5 -> 960x540)."""
+    s = _validate.real("scale", scale, positive=True)
+    w, h = round(1920 * s), round(1080 * s)
+    f = STEREO_FOCAL_PX * w / 1920
+    cam = PinholeCamera(f, f, (w - 1) / 2, (h - 1) / 2, w, h)
+    tof = PinholeCamera(TOF_FOCAL_PX, TOF_FOCAL_PX, 255.5, 211.5, 512, 424)
+    return ToFStereoRig(
+        tof=tof,
+        stereo=StereoRig(cam, cam, BASELINE_M),
+        tof_to_reference=Pose(np.eye(3), np.array([0.0, TOF_BELOW_M, 0.0])),
+        reference="right",
+    )
+
+
+@dataclass(frozen=True)
+class SynthSample:
+    """One scene: the stereo pair (uint8 RGB), the ToF frame and ground truth (see module doc)."""
+
+    left: U8
+    right: U8
+    tof_depth: F32
+    tof_amplitude: F32
+    tof_gt_depth: F32
+    gt_depth: F32
+    gt_disparity: F32
+
+
+def _poses(rig: ToFStereoRig) -> tuple[Pose, Pose, Pose]:
+    """World (= reference camera) to left, right and ToF camera."""
+    b = rig.stereo.baseline
+    to_left = Pose(np.eye(3), np.array([b, 0.0, 0.0]))
+    return to_left, Pose.identity(), rig.tof_to_reference.inverse()
+
+
+def _expose(radiance: F32, gain: float, rng: np.random.Generator) -> U8:
+    v = np.clip(radiance * gain, 0, 1) ** (1 / GAMMA) * 255
+    v = v + rng.normal(0, COLOR_NOISE, v.shape)
+    return np.clip(np.round(v), 0, 255).astype(np.uint8)
+
+
+def render_sample(
+    scene: RenderScene,
+    rig: ToFStereoRig,
+    rng: np.random.Generator,
+    model: ToFModel | None = None,
+    tof_seed: int = 0,
+) -> tuple[SynthSample, ToFFrame]:
+    """Render the stereo pair, ToF frame and ground truth of a built scene (``rng`` draws the
+    exposure and colour noise, ``tof_seed`` the ToF noise and multipath rays)."""
+    to_left, to_right, to_tof = _poses(rig)
+    right = scene.color(rig.stereo.right, to_right, supersample=SUPERSAMPLE)
+    left = scene.color(rig.stereo.left, to_left, supersample=SUPERSAMPLE)
+    # Auto-exposure on the reference image (median -> 40 % grey), the left one off by a bit.
+    lum = right.mean(axis=2)
+    gain = 0.4 ** GAMMA / max(float(np.median(lum[lum > 0])) if (lum > 0).any() else 1.0, 1e-6)
+    left_gain = gain * float(1 + rng.uniform(-EXPOSURE_SPREAD, EXPOSURE_SPREAD))
+    tof = scene.tof(rig.tof, to_tof, model or ToFModel(), seed=tof_seed)
+    gt = scene.depth(rig.reference_camera, to_right)
+    sample = SynthSample(
+        left=_expose(left, left_gain, rng),
+        right=_expose(right, gain, rng),
+        tof_depth=tof.depth,
+        tof_amplitude=tof.amplitude,
+        tof_gt_depth=tof.truth,
+        gt_depth=gt,
+        gt_disparity=depth_to_disparity(gt, rig.stereo.baseline, rig.stereo.focal),
+    )
+    return sample, tof
+
+
+def scene_rng(seed: int, split: Split, index: int, stream: int = 0) -> np.random.Generator:
+    """Generator ``stream`` of scene ``index`` of ``split`` (independent of every other scene):
+    stream 0 draws the scene and colour noise, stream 1 the ToF seed."""
+    return np.random.default_rng([seed, 0 if split == "train" else 1, index, stream])
+
+
+def tof_seed(seed: int, split: Split, index: int) -> int:
+    """The ToF simulator's seed for scene ``index`` of ``split``."""
+    return int(scene_rng(seed, split, index, 1).integers(2**62))
+
+
+def generate(
+    seed: int, split: Split, index: int, rig: ToFStereoRig, meshes: list[Mesh] | None = None
+) -> tuple[SynthSample, RenderScene]:
+    """Build and render scene ``index`` of ``split``."""
+    rng = scene_rng(seed, split, index)
+    scene = random_scene(rng, shared_meshes() if meshes is None else meshes).build()
+    return render_sample(scene, rig, rng, tof_seed=tof_seed(seed, split, index))[0], scene
+
+
+def _write_scene(folder: Path, s: SynthSample) -> dict[str, str]:
+    tmp = folder.with_name(folder.name + ".partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    write_png(tmp / "left.png", s.left)
+    write_png(tmp / "right.png", s.right)
+    write_npz(tmp / "data.npz", {k: getattr(s, k) for k in _MAP_KEYS})
+    hashes = {p.name: sha256(p) for p in sorted(tmp.iterdir())}
+    shutil.rmtree(folder, ignore_errors=True)
+    tmp.rename(folder)
+    return hashes
+
+
+def write_dataset(
+    out: str | Path,
+    *,
+    train: int = 40,
+    test: int = 15,
+    seed: int = 0,
+    scale: float = 0.5,
+    quiet: bool = False,
+) -> Path:
+    """Generate (or resume) a dataset in ``out``; returns the manifest path.
+
+    Re-running with the same arguments skips scenes already written (verified by hash) and
+    completes the rest; other arguments on an existing dataset raise RgbdError.
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    n_train = _validate.integer("train", train)
+    n_test = _validate.integer("test", test)
+    seed = _validate.integer("seed", seed, maximum=2**32 - 1)
+    rig = synth3_rig(scale)
+    meshes = shared_meshes()
+    params = {"seed": seed, "scale": float(scale), "train": n_train, "test": n_test,
+              "meshes": len(meshes)}
+    manifest_path = out / "manifest.json"
+    manifest: dict[str, Any] = {"format": FORMAT, "params": params, "complete": False, "scenes": {}}
+    if manifest_path.exists():
+        old = read_json(manifest_path)
+        if old.get("format") != FORMAT or old.get("params") != params:
+            raise RgbdError(
+                f"{out}: holds a dataset made with {old.get('params')}, not {params}; "
+                "use another --out or delete it"
+            )
+        manifest["scenes"] = old.get("scenes", {})
+    out.mkdir(parents=True, exist_ok=True)
+    save_rig(out / "calibration.json", rig)
+    todo = [("train", i) for i in range(n_train)] + [("test", i) for i in range(n_test)]
+    bar = tqdm(todo, desc="rgbd synth", unit="scene", disable=quiet or None)
+    for split, i in bar:
+        key = f"{split}/scene_{i:04d}"
+        folder = out / key
+        known = manifest["scenes"].get(key)
+        if known and all((folder / f).is_file() and sha256(folder / f) == h for f, h in known.items()):
+            continue
+        sample, _ = generate(seed, split, i, rig, meshes)  # type: ignore[arg-type]
+        manifest["scenes"][key] = _write_scene(folder, sample)
+        write_json(manifest_path, manifest)
+    manifest["complete"] = True
+    return write_json(manifest_path, manifest)
+
+
+class SynthDataset:
+    """Reader of a dataset written by :func:`write_dataset`.
+
+    Refuses an incomplete (interrupted) dataset unless ``allow_partial``; every file error names
+    the file. ``dataset[i]`` is a :class:`SynthSample`; ``dataset.rig`` the calibration.
+    """
+
+    def __init__(self, root: str | Path, split: Split = "train", *, allow_partial: bool = False):
+        self.root = Path(root)
+        self.split = _validate.choice("split", split, ("train", "test"))
+        manifest = read_json(self.root / "manifest.json")
+        if manifest.get("format") != FORMAT:
+            raise RgbdError(f"{self.root / 'manifest.json'}: not an rgbd_rs synthetic dataset")
+        p = manifest["params"]
+        expected = int(p[self.split])
+        self.keys = sorted(k for k in manifest["scenes"] if k.startswith(self.split + "/"))
+        if not manifest.get("complete") and not allow_partial:
+            raise RgbdError(
+                f"{self.root}: incomplete dataset ({len(manifest['scenes'])} of "
+                f"{p['train'] + p['test']} scenes); re-run `rgbd synth` with the same arguments "
+                "to resume, or pass allow_partial=True"
+            )
+        if manifest.get("complete") and len(self.keys) != expected:
+            raise RgbdError(f"{self.root}: manifest lists {len(self.keys)} {split} scenes, expected {expected}")
+        self.rig = load_rig(self.root / "calibration.json")
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def __iter__(self) -> Iterator[SynthSample]:
+        return (self[i] for i in range(len(self)))
+
+    def __getitem__(self, i: int) -> SynthSample:
+        folder = self.root / self.keys[_validate.integer("i", i, maximum=len(self) - 1)]
+        maps = read_npz(folder / "data.npz", _MAP_KEYS)
+        left, right = read_png(folder / "left.png"), read_png(folder / "right.png")
+        stereo = (self.rig.stereo.right.height, self.rig.stereo.right.width)
+        tof = (self.rig.tof.height, self.rig.tof.width)
+        shapes = {"left.png": left.shape[:2], "right.png": right.shape[:2],
+                  "tof_depth": maps["tof_depth"].shape, "tof_amplitude": maps["tof_amplitude"].shape,
+                  "tof_gt_depth": maps["tof_gt_depth"].shape, "gt_depth": maps["gt_depth"].shape,
+                  "gt_disparity": maps["gt_disparity"].shape}
+        for name, shape in shapes.items():
+            want = tof if name.startswith("tof") else stereo
+            if tuple(shape) != want:
+                raise RgbdError(f"{folder}: {name} is {tuple(shape)}, calibration says {want}")
+        return SynthSample(left, right, **{k: maps[k].astype(np.float32) for k in _MAP_KEYS})
+

@@ -1,0 +1,200 @@
+"""Triangle meshes: a small validated container, primitives for procedural scenes, and readers
+for OFF (including ModelNet's fused-header quirk) and PLY files.
+
+Example:
+    >>> from rgbd_rs.meshes import box, sphere
+    >>> m = box((1.0, 2.0, 0.5)).merged(sphere(0.3, center=(0, 0, 1)))
+    >>> m.triangles.shape[1], [round(float(x), 2) for x in m.bounds()[1]]
+    (3, [0.5, 1.0, 1.3])
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+
+F32 = npt.NDArray[np.float32]
+U32 = npt.NDArray[np.uint32]
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """``vertices`` (N x 3 float32, metres) and ``triangles`` (M x 3 vertex indices)."""
+
+    vertices: F32
+    triangles: U32
+
+    def __post_init__(self) -> None:
+        v = _validate.array("vertices", self.vertices, shape=(None, 3), finite=True)
+        t = np.asarray(self.triangles)
+        if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
+            raise InvalidArgumentError(
+                f"triangles: got {t.dtype} array of shape {t.shape}, expected integer (M, 3)"
+            )
+        if t.size and (t.min() < 0 or t.max() >= len(v)):
+            raise InvalidArgumentError(
+                f"triangles: got indices in [{t.min()}, {t.max()}], expected 0..{len(v) - 1}"
+            )
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "triangles", np.ascontiguousarray(t, dtype=np.uint32))
+
+    def bounds(self) -> tuple[F32, F32]:
+        """Axis-aligned bounding box ``(min, max)``."""
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    def transformed(
+        self, rotation: npt.ArrayLike | None = None, translation: npt.ArrayLike = (0, 0, 0)
+    ) -> Mesh:
+        """``R v + t`` applied to every vertex."""
+        r = np.eye(3) if rotation is None else np.asarray(rotation, np.float64)
+        v = self.vertices.astype(np.float64) @ r.T + np.asarray(translation, np.float64)
+        return Mesh(v.astype(np.float32), self.triangles)
+
+    def scaled(self, factor: float | Sequence[float]) -> Mesh:
+        """Vertices multiplied by ``factor`` (scalar or per axis)."""
+        f = np.asarray(factor, np.float32)
+        return Mesh(self.vertices * f, self.triangles)
+
+    def normalized(self, size: float = 1.0) -> Mesh:
+        """Centred on its bounding-box centre and scaled so the longest side is ``size``."""
+        lo, hi = self.bounds()
+        extent = float((hi - lo).max())
+        if not extent > 0:
+            raise InvalidArgumentError("mesh: got a zero-size mesh, expected a non-degenerate one")
+        return self.transformed(translation=-(lo + hi) / 2).scaled(size / extent)
+
+    def merged(self, *others: Mesh) -> Mesh:
+        """One mesh holding this one and ``others``."""
+        return concat([self, *others])
+
+
+def concat(meshes: Sequence[Mesh]) -> Mesh:
+    """Concatenate meshes (vertex indices are offset)."""
+    if not meshes:
+        return Mesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32))
+    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    return Mesh(
+        np.concatenate([m.vertices for m in meshes]),
+        np.concatenate([m.triangles + np.uint32(o) for m, o in zip(meshes, offsets, strict=True)]),
+    )
+
+
+def quad(corners: npt.ArrayLike) -> Mesh:
+    """Two triangles over four corners given in order around the quad."""
+    c = _validate.array("corners", corners, shape=(4, 3), finite=True)
+    return Mesh(c, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
+
+
+def box(size: Sequence[float], center: Sequence[float] = (0.0, 0.0, 0.0)) -> Mesh:
+    """Closed axis-aligned box of ``size`` (x, y, z) centred at ``center``."""
+    s = np.asarray(size, np.float64) / 2
+    if s.shape != (3,) or not (s > 0).all():
+        raise InvalidArgumentError(f"size: got {size}, expected three positive lengths")
+    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
+    faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    tris = [[f[0], f[1], f[2]] for f in faces] + [[f[0], f[2], f[3]] for f in faces]
+    return Mesh((v * s + np.asarray(center)).astype(np.float32), np.array(tris, np.uint32))
+
+
+def cylinder(
+    radius: float,
+    height: float,
+    center: Sequence[float] = (0.0, 0.0, 0.0),
+    segments: int = 32,
+    axis: int = 1,
+) -> Mesh:
+    """Closed cylinder along world ``axis`` (default y, the vertical of a y-down camera world)."""
+    _validate.real("radius", radius, positive=True)
+    _validate.real("height", height, positive=True)
+    n = _validate.integer("segments", segments, minimum=3)
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([radius * np.cos(a), radius * np.sin(a)], axis=1)
+    h = height / 2
+    pts = [np.insert(ring, 1, y, axis=1) for y in (-h, h)]
+    v = np.concatenate([*pts, [[0, -h, 0], [0, h, 0]]])
+    i = np.arange(n)
+    j = (i + 1) % n
+    side = np.concatenate([np.stack([i, j, i + n], 1), np.stack([j, j + n, i + n], 1)])
+    caps = np.concatenate([np.stack([i, np.full(n, 2 * n), j], 1), np.stack([i + n, j + n, np.full(n, 2 * n + 1)], 1)])
+    v = np.roll(v, axis - 1, axis=1)  # the cylinder axis lands on `axis`
+    return Mesh((v + np.asarray(center)).astype(np.float32), np.concatenate([side, caps]).astype(np.uint32))
+
+
+def sphere(
+    radius: float, center: Sequence[float] = (0.0, 0.0, 0.0), rings: int = 16, segments: int = 32
+) -> Mesh:
+    """UV sphere with ``rings`` latitude bands and ``segments`` longitudes."""
+    _validate.real("radius", radius, positive=True)
+    nr = _validate.integer("rings", rings, minimum=2)
+    ns = _validate.integer("segments", segments, minimum=3)
+    th = np.linspace(0, np.pi, nr + 1)[:, None]
+    ph = np.linspace(0, 2 * np.pi, ns, endpoint=False)[None, :]
+    v = np.stack(
+        [np.sin(th) * np.cos(ph), np.cos(th) * np.ones_like(ph), np.sin(th) * np.sin(ph)], -1
+    ).reshape(-1, 3)
+    r, s = np.meshgrid(np.arange(nr), np.arange(ns), indexing="ij")
+    a = (r * ns + s).ravel()
+    b = (r * ns + (s + 1) % ns).ravel()
+    tris = np.concatenate([np.stack([a, b, a + ns], 1), np.stack([b, b + ns, a + ns], 1)])
+    return Mesh((v * radius + np.asarray(center)).astype(np.float32), tris.astype(np.uint32))
+
+
+def load_mesh(path: str | Path) -> Mesh:
+    """Read an OFF or PLY triangle mesh (polygons are fan-triangulated).
+
+    OFF files from ModelNet whose header is fused with the counts line (``OFF3514 3546 0``) are
+    accepted. Unreadable or truncated files raise :class:`RgbdError` naming the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InvalidArgumentError(f"path: got {path}, expected an existing mesh file")
+    suffix = path.suffix.lower()
+    if suffix == ".off":
+        return _read_off(path)
+    if suffix == ".ply":
+        return _read_ply(path)
+    raise InvalidArgumentError(f"path: got a {suffix!r} file ({path}), expected .off or .ply")
+
+
+def _read_off(path: Path) -> Mesh:
+    tokens = path.read_text(errors="replace").split("#")[0].split()
+    try:
+        if not tokens or not tokens[0].startswith("OFF"):
+            raise ValueError("no OFF header")
+        head = tokens[0][3:]
+        rest = ([head] if head else []) + tokens[1:]
+        nv, nf = int(rest[0]), int(rest[1])
+        vals = rest[3:]
+        v = np.asarray(vals[: 3 * nv], np.float64).reshape(nv, 3)
+        pos = 3 * nv
+        tris: list[list[int]] = []
+        for _ in range(nf):
+            k = int(vals[pos])
+            idx = [int(x) for x in vals[pos + 1 : pos + 1 + k]]
+            if len(idx) != k:
+                raise ValueError("file ends inside a face")
+            tris += [[idx[0], idx[i], idx[i + 1]] for i in range(1, k - 1)]
+            pos += 1 + k
+    except (ValueError, IndexError) as exc:
+        raise RgbdError(f"{path}: not a valid OFF mesh ({exc})") from exc
+    return Mesh(v.astype(np.float32), np.asarray(tris, np.uint32).reshape(-1, 3))
+
+
+def _read_ply(path: Path) -> Mesh:
+    import trimesh
+
+    try:
+        m = trimesh.load(path, file_type="ply", force="mesh", process=False)
+        v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    except Exception as exc:  # trimesh raises many types for corrupt files
+        raise RgbdError(f"{path}: not a valid PLY mesh ({exc})") from exc
+    if len(v) == 0 or len(f) == 0:
+        raise RgbdError(f"{path}: PLY mesh has no vertices or faces")
+    return Mesh(v.astype(np.float32), f.astype(np.uint32))
