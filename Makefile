@@ -69,10 +69,12 @@ wheel: env ## build the wheel, install it into a fresh venv, smoke-test it there
 	  import numpy as np; cam = rgbd_rs.PinholeCamera(100., 100., 10., 10., 20, 20); \
 	  print('wheel OK:', p.parent, cam.project(np.array([[0., 0., 1.]])))"
 
-bench: build ## run the benchmarks (criterion + Python vs OpenCV and scipy)
-	cargo bench -p rgbd-geom -p rgbd-spline
+bench: build ## run the benchmarks (criterion + Python vs OpenCV, scipy, trimesh/embree, Open3D)
+	$(PY) tools/deps.py --only bench | xargs $(PY) -m pip install -q
+	cargo bench -p rgbd-geom -p rgbd-spline -p rgbd-render
 	$(PY) benches/bench_geom.py
 	$(PY) benches/bench_spline.py
+	$(PY) benches/bench_render.py
 
 clean: ## remove build outputs (keeps the cached venv)
 	cargo clean

@@ -1,4 +1,5 @@
-"""Print the project's Python requirements (runtime + ``dev`` extra), one per line.
+"""Print the project's Python requirements, one per line: runtime + the ``dev`` extra, or with
+``--only EXTRA`` just that optional extra (e.g. ``bench``).
 
 The Makefile installs these into the cached virtualenv before building the extension, so the
 environment can be created without building the package first.
@@ -9,7 +10,13 @@ from pathlib import Path
 
 import tomllib
 
-data = tomllib.loads(Path(sys.argv[1] if len(sys.argv) > 1 else "pyproject.toml").read_text())
+args = sys.argv[1:]
+only = None
+if args[:1] == ["--only"]:
+    only, args = args[1], args[2:]
+data = tomllib.loads(Path(args[0] if args else "pyproject.toml").read_text())
 project = data["project"]
-for req in [*project["dependencies"], *project["optional-dependencies"]["dev"]]:
+extras = project["optional-dependencies"]
+reqs = extras[only] if only else [*project["dependencies"], *extras["dev"]]
+for req in reqs:
     print(req)

@@ -8,9 +8,9 @@ use crate::math::{add, cross, dot, scale, sub, vmax, vmin, V3};
 /// Bins per axis of the SAH sweep; 16 is within a few % of a full sweep at a fraction of the cost.
 const BINS: usize = 16;
 /// Leaves never hold more triangles than this (the SAH may stop earlier).
-const MAX_LEAF: usize = 8;
+const MAX_LEAF: usize = 4;
 /// Cost of one node traversal relative to one triangle test (SAH constant).
-const TRAVERSAL_COST: f32 = 1.0;
+const TRAVERSAL_COST: f32 = 0.5;
 /// Traversal stack depth; a SAH tree over < 2^32 triangles stays far below it.
 const STACK: usize = 64;
 
@@ -268,9 +268,11 @@ fn slab(n: &Node, o: V3, inv: V3, t_min: f32, t_max: f32) -> Option<f32> {
     for k in 0..3 {
         let a = (n.lo[k] - o[k]) * inv[k];
         let b = (n.hi[k] - o[k]) * inv[k];
-        // min/max ignore the NaN of 0 * inf (ray in a slab plane), keeping the other bound.
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
+        // Plain comparisons (cheaper than f32::min/max); a NaN from 0 * inf (ray inside a slab
+        // plane) fails every comparison and leaves the bounds unchanged.
+        let (near, far) = if a < b { (a, b) } else { (b, a) };
+        t0 = if near > t0 { near } else { t0 };
+        t1 = if far < t1 { far } else { t1 };
     }
     (t0 <= t1).then_some(t0)
 }

@@ -1,4 +1,6 @@
-"""Dataset readers and writers. See :mod:`rgbd_rs.data.azure_kinect` for the real ToF frame."""
+"""Dataset readers and writers: the real Azure Kinect ToF frame (:mod:`.azure_kinect`), Middlebury
+pairs (:mod:`.middlebury`), the synthetic SYNTH3-style dataset (:mod:`.synth`), SYNTH3's own
+MATLAB layout (:mod:`.synth3`) and rig calibration JSON (:mod:`.calibration`)."""
 
 from rgbd_rs.data.azure_kinect import (
     AzureKinectCalibration,
@@ -7,13 +9,27 @@ from rgbd_rs.data.azure_kinect import (
     load_azure_kinect_frame,
     reproject_to_color,
 )
+from rgbd_rs.data.calibration import load_rig, save_rig
+from rgbd_rs.data.middlebury import MiddleburyPair, load_middlebury
 from rgbd_rs.data.paths import data_root
+from rgbd_rs.data.synth import SynthDataset, SynthSample, synth3_rig, write_dataset
+from rgbd_rs.data.synth3 import Synth3Dataset, Synth3Sample
 
 __all__ = [
     "AzureKinectCalibration",
     "AzureKinectFrame",
+    "MiddleburyPair",
+    "Synth3Dataset",
+    "Synth3Sample",
+    "SynthDataset",
+    "SynthSample",
     "data_root",
     "load_azure_kinect_calibration",
     "load_azure_kinect_frame",
+    "load_middlebury",
+    "load_rig",
     "reproject_to_color",
+    "save_rig",
+    "synth3_rig",
+    "write_dataset",
 ]

@@ -1,0 +1,54 @@
+"""Reader for the Middlebury stereo pairs in ``../shared/data/middlebury`` (2003 quarter-size
+``im2/im6/disp2/disp6`` with disparity = PNG / 4; 2005/2006 third-size ``view1/view5/disp1/disp5``
+with disparity = PNG / 3; 0 = unknown, returned as NaN)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs.data.files import read_png
+from rgbd_rs.errors import RgbdError
+
+F32 = npt.NDArray[np.float32]
+U8 = npt.NDArray[np.uint8]
+
+#: (left, right, left GT, right GT, PNG value per pixel of disparity) of each naming scheme.
+SCHEMES = (
+    ("view1.png", "view5.png", "disp1.png", "disp5.png", 3.0),
+    ("im2.png", "im6.png", "disp2.png", "disp6.png", 4.0),
+)
+
+
+@dataclass(frozen=True)
+class MiddleburyPair:
+    """A rectified pair (uint8 RGB) with ground-truth disparity of both views (NaN = unknown)."""
+
+    name: str
+    left: U8
+    right: U8
+    disparity_left: F32
+    disparity_right: F32
+    scale: float
+
+
+def load_middlebury(folder: str | Path) -> MiddleburyPair:
+    """Read one scene folder (e.g. ``.../middlebury/Cones``)."""
+    folder = Path(folder)
+    for left, right, dl, dr, scale in SCHEMES:
+        if (folder / left).is_file():
+            imgs = [read_png(folder / f) for f in (left, right)]
+            disp = []
+            for f in (dl, dr):
+                raw = read_png(folder / f)
+                if raw.ndim != 2:
+                    raise RgbdError(f"{folder / f}: expected a single-channel disparity PNG")
+                disp.append(np.where(raw > 0, raw / np.float32(scale), np.nan).astype(np.float32))
+            shapes = {s.shape[:2] for s in [*imgs, *disp]}
+            if len(shapes) != 1:
+                raise RgbdError(f"{folder}: image and disparity sizes differ ({sorted(shapes)})")
+            return MiddleburyPair(folder.name, imgs[0], imgs[1], disp[0], disp[1], scale)
+    raise RgbdError(f"{folder}: no view1.png or im2.png (not a Middlebury scene folder)")
