@@ -41,12 +41,16 @@ def scene_and_rays():  # type: ignore[no-untyped-def]
     d = np.stack([(u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, np.ones_like(u)], -1).reshape(-1, 3)
     verts = np.concatenate([m.vertices for m, _ in sc.objects])
     offs = np.cumsum([0] + [len(m.vertices) for m, _ in sc.objects[:-1]])
-    faces = np.concatenate([m.triangles.astype(np.int64) + o for (m, _), o in zip(sc.objects, offs)])
+    faces = np.concatenate(
+        [m.triangles.astype(np.int64) + o for (m, _), o in zip(sc.objects, offs, strict=True)]
+    )
     return sc, built, rig, d, verts, faces
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--markdown", action="store_true")
     args = ap.parse_args()
 
@@ -54,7 +58,7 @@ def main() -> None:
     from rgbd_rs.data.synth import _poses
     from rgbd_rs.render import ToFModel
 
-    sc, built, rig, d, verts, faces = scene_and_rays()
+    _, built, rig, d, verts, faces = scene_and_rays()
     cam = rig.stereo.right
     n_rays = len(d)
     ours_depth = built.depth(cam, Pose.identity())
@@ -85,7 +89,9 @@ def main() -> None:
         import open3d as o3d
 
         rs = o3d.t.geometry.RaycastingScene()
-        rs.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32)))
+        rs.add_triangles(
+            o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32))
+        )
         rays = o3d.core.Tensor(np.concatenate([np.zeros_like(d), d], 1).astype(np.float32))
 
         def o3d_cast() -> np.ndarray:
@@ -109,19 +115,28 @@ def main() -> None:
     t_scene = timeit(full_scene, 3)
     t_tof = timeit(lambda: built.tof(rig.tof, to_tof, model), 3)
     threads = os.environ.get("RAYON_NUM_THREADS", str(os.cpu_count()))
-    head = f"{built.triangle_count} triangles, {cam.width}x{cam.height} first-hit depth rays, {threads} threads"
+    head = (
+        f"{built.triangle_count} triangles, {cam.width}x{cam.height} first-hit depth rays, "
+        f"{threads} threads"
+    )
     if args.markdown:
         print(f"| first-hit depth ({head}) | ms | Mrays/s | vs it | median abs z diff |")
         print("|---|---|---|---|---|")
         for name, t, diff in rows:
-            print(f"| {name} | {t:.1f} | {n_rays / t / 1e3:.2f} | {t / t_ours:.2f}× | {diff:.1e} m |")
-        print(f"\nSynthetic scene (stereo pair 2×2 SS + ToF 2×2 sub-samples, 8 multipath rays): "
-              f"{t_scene / 1e3:.2f} s, of which ToF {t_tof / 1e3:.2f} s")
+            print(
+                f"| {name} | {t:.1f} | {n_rays / t / 1e3:.2f} | {t / t_ours:.2f}x | {diff:.1e} m |"
+            )
+        print(
+            f"\nSynthetic scene (stereo pair 2x2 SS + ToF 2x2 sub-samples, 8 multipath rays): "
+            f"{t_scene / 1e3:.2f} s, of which ToF {t_tof / 1e3:.2f} s"
+        )
     else:
         print(head)
         for name, t, diff in rows:
-            print(f"  {name:45s} {t:8.1f} ms  {n_rays / t / 1e3:6.2f} Mrays/s  "
-                  f"vs it {t / t_ours:5.2f}x  |dz| {diff:.1e}")
+            print(
+                f"  {name:45s} {t:8.1f} ms  {n_rays / t / 1e3:6.2f} Mrays/s  "
+                f"vs it {t / t_ours:5.2f}x  |dz| {diff:.1e}"
+            )
         print(f"  synthetic scene: {t_scene / 1e3:.2f} s (ToF alone {t_tof / 1e3:.2f} s)")
 
 

@@ -6,6 +6,7 @@ import numpy.typing as npt
 
 __all__ = [
     "InvalidArgumentError",
+    "NativeScene",
     "RgbdError",
     "SegmentFits",
     "ShapeMismatchError",
@@ -17,6 +18,7 @@ __all__ = [
     "num_threads",
     "project_points",
     "remap",
+    "render_points",
     "reproject_depth",
     "undistort_image",
     "undistort_map",
@@ -115,3 +117,44 @@ class SegmentFits:
     def find(self, label: int) -> int: ...
     def labels(self) -> npt.NDArray[np.int32]: ...
     def maps(self, points: npt.NDArray[np.float32]) -> _Maps: ...
+
+_ViewArgs = tuple[str, float, float, float, float, int, int, _PoseArgs]
+_MaterialArgs = tuple[
+    list[float], float, float, str, list[float], int, npt.NDArray[np.float32] | None
+]
+_F32 = npt.NDArray[np.float32]
+_I32 = npt.NDArray[np.int32]
+
+@final
+class NativeScene:
+    def __new__(
+        cls,
+        vertices: _F32,
+        triangles: npt.NDArray[np.uint32],
+        object: npt.NDArray[np.uint32],
+        materials: list[_MaterialArgs],
+        lights: list[tuple[list[float], list[float]]],
+        ambient: list[float],
+    ) -> NativeScene: ...
+    @property
+    def triangle_count(self) -> int: ...
+    def depth(self, v: _ViewArgs) -> _F32: ...
+    def gbuffer(self, v: _ViewArgs) -> tuple[_F32, _F32, _I32, _I32, _F32]: ...
+    def color(self, v: _ViewArgs, supersample: int, shadows: bool) -> _F32: ...
+    def tof(
+        self,
+        v: _ViewArgs,
+        frequency_hz: float,
+        subsamples: int,
+        multipath_rays: int,
+        noise: bool,
+        power: float,
+        read_noise: float,
+        shot_noise: float,
+        ambient: float,
+        amplitude_threshold: float,
+        wrap_phase: bool,
+        seed: int,
+    ) -> tuple[_F32, _F32, _F32]: ...
+
+def render_points(points: _F32, radius: float, v: _ViewArgs) -> tuple[_F32, _I32]: ...

@@ -75,7 +75,11 @@ def _synth(args: argparse.Namespace) -> int:
     from rgbd_rs.data.synth import write_dataset
 
     path = write_dataset(
-        args.out, train=args.train, test=args.test, seed=args.seed, scale=args.scale,
+        args.out,
+        train=args.train,
+        test=args.test,
+        seed=args.seed,
+        scale=args.scale,
         quiet=args.quiet,
     )
     print(f"wrote {args.train} + {args.test} scenes; manifest {path}")

@@ -122,9 +122,13 @@ def cylinder(
     i = np.arange(n)
     j = (i + 1) % n
     side = np.concatenate([np.stack([i, j, i + n], 1), np.stack([j, j + n, i + n], 1)])
-    caps = np.concatenate([np.stack([i, np.full(n, 2 * n), j], 1), np.stack([i + n, j + n, np.full(n, 2 * n + 1)], 1)])
+    caps = np.concatenate(
+        [np.stack([i, np.full(n, 2 * n), j], 1), np.stack([i + n, j + n, np.full(n, 2 * n + 1)], 1)]
+    )
     v = np.roll(v, axis - 1, axis=1)  # the cylinder axis lands on `axis`
-    return Mesh((v + np.asarray(center)).astype(np.float32), np.concatenate([side, caps]).astype(np.uint32))
+    return Mesh(
+        (v + np.asarray(center)).astype(np.float32), np.concatenate([side, caps]).astype(np.uint32)
+    )
 
 
 def sphere(
@@ -192,7 +196,7 @@ def _read_ply(path: Path) -> Mesh:
 
     try:
         m = trimesh.load(path, file_type="ply", force="mesh", process=False)
-        v, f = np.asarray(m.vertices), np.asarray(m.faces)
+        v, f = np.asarray(getattr(m, "vertices", [])), np.asarray(getattr(m, "faces", []))
     except Exception as exc:  # trimesh raises many types for corrupt files
         raise RgbdError(f"{path}: not a valid PLY mesh ({exc})") from exc
     if len(v) == 0 or len(f) == 0:

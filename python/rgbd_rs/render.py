@@ -61,9 +61,10 @@ class Texture:
 
     @classmethod
     def stripes(cls, period: float, angle: float = 0.0) -> Texture:
-        """Sinusoidal stripes (repetitive: ambiguous for stereo) of ``period`` m at ``angle`` rad."""
+        """Sinusoidal stripes (repetitive, ambiguous for stereo): ``period`` m, ``angle`` rad."""
         return cls(
-            "stripes", (_validate.real("period", period, positive=True), _validate.real("angle", angle))
+            "stripes",
+            (_validate.real("period", period, positive=True), _validate.real("angle", angle)),
         )
 
     @classmethod
@@ -205,7 +206,9 @@ class GBuffer:
 Camera = PinholeCamera | OrthographicCamera
 
 
-def _view(camera: Camera, pose: Pose | None) -> tuple[str, float, float, float, float, int, int, tuple[list[float], list[float]]]:
+def _view(
+    camera: Camera, pose: Pose | None
+) -> tuple[str, float, float, float, float, int, int, tuple[list[float], list[float]]]:
     p = (pose or Pose.identity())._native()
     if isinstance(camera, OrthographicCamera):
         cx = (camera.width - 1) / 2 if camera.cx is None else float(camera.cx)

@@ -74,7 +74,9 @@ def load_rig(path: str | Path) -> ToFStereoRig:
         return ToFStereoRig(
             tof=cam(d["tof"]),
             stereo=StereoRig(cam(st["left"]), cam(st["right"]), float(st["baseline"])),
-            tof_to_reference=Pose(np.asarray(t["rotation"], float), np.asarray(t["translation"], float)),
+            tof_to_reference=Pose(
+                np.asarray(t["rotation"], float), np.asarray(t["translation"], float)
+            ),
             reference=d.get("reference", "right"),
         )
     except KeyError as exc:

@@ -49,7 +49,8 @@ def read_npz(path: str | Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
     if not path.is_file():
         raise RgbdError(f"{path}: file not found")
     try:
-        with np.load(path, allow_pickle=False) as z:
+        # From memory: np.load leaks its file handle when the archive is corrupt.
+        with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as z:
             missing = [k for k in keys if k not in z.files]
             if missing:
                 raise RgbdError(f"{path}: missing arrays {missing} (has {sorted(z.files)})")

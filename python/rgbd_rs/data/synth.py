@@ -34,7 +34,15 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.calibration import load_rig, save_rig
-from rgbd_rs.data.files import read_json, read_npz, read_png, sha256, write_json, write_npz, write_png
+from rgbd_rs.data.files import (
+    read_json,
+    read_npz,
+    read_png,
+    sha256,
+    write_json,
+    write_npz,
+    write_png,
+)
 from rgbd_rs.data.synth_scene import random_scene, shared_meshes
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.geometry import depth_to_disparity
@@ -98,7 +106,7 @@ def _poses(rig: ToFStereoRig) -> tuple[Pose, Pose, Pose]:
 def _expose(radiance: F32, gain: float, rng: np.random.Generator) -> U8:
     v = np.clip(radiance * gain, 0, 1) ** (1 / GAMMA) * 255
     v = v + rng.normal(0, COLOR_NOISE, v.shape)
-    return np.clip(np.round(v), 0, 255).astype(np.uint8)
+    return np.asarray(np.clip(np.round(v), 0, 255), dtype=np.uint8)
 
 
 def render_sample(
@@ -115,7 +123,7 @@ def render_sample(
     left = scene.color(rig.stereo.left, to_left, supersample=SUPERSAMPLE)
     # Auto-exposure on the reference image (median -> 40 % grey), the left one off by a bit.
     lum = right.mean(axis=2)
-    gain = 0.4 ** GAMMA / max(float(np.median(lum[lum > 0])) if (lum > 0).any() else 1.0, 1e-6)
+    gain = 0.4**GAMMA / max(float(np.median(lum[lum > 0])) if (lum > 0).any() else 1.0, 1e-6)
     left_gain = gain * float(1 + rng.uniform(-EXPOSURE_SPREAD, EXPOSURE_SPREAD))
     tof = scene.tof(rig.tof, to_tof, model or ToFModel(), seed=tof_seed)
     gt = scene.depth(rig.reference_camera, to_right)
@@ -185,8 +193,13 @@ def write_dataset(
     seed = _validate.integer("seed", seed, maximum=2**32 - 1)
     rig = synth3_rig(scale)
     meshes = shared_meshes()
-    params = {"seed": seed, "scale": float(scale), "train": n_train, "test": n_test,
-              "meshes": len(meshes)}
+    params = {
+        "seed": seed,
+        "scale": float(scale),
+        "train": n_train,
+        "test": n_test,
+        "meshes": len(meshes),
+    }
     manifest_path = out / "manifest.json"
     manifest: dict[str, Any] = {"format": FORMAT, "params": params, "complete": False, "scenes": {}}
     if manifest_path.exists():
@@ -205,9 +218,11 @@ def write_dataset(
         key = f"{split}/scene_{i:04d}"
         folder = out / key
         known = manifest["scenes"].get(key)
-        if known and all((folder / f).is_file() and sha256(folder / f) == h for f, h in known.items()):
+        if known and all(
+            (folder / f).is_file() and sha256(folder / f) == h for f, h in known.items()
+        ):
             continue
-        sample, _ = generate(seed, split, i, rig, meshes)  # type: ignore[arg-type]
+        sample, _ = generate(seed, split, i, rig, meshes)
         manifest["scenes"][key] = _write_scene(folder, sample)
         write_json(manifest_path, manifest)
     manifest["complete"] = True
@@ -237,7 +252,9 @@ class SynthDataset:
                 "to resume, or pass allow_partial=True"
             )
         if manifest.get("complete") and len(self.keys) != expected:
-            raise RgbdError(f"{self.root}: manifest lists {len(self.keys)} {split} scenes, expected {expected}")
+            raise RgbdError(
+                f"{self.root}: manifest lists {len(self.keys)} {split} scenes, expected {expected}"
+            )
         self.rig = load_rig(self.root / "calibration.json")
 
     def __len__(self) -> int:
@@ -252,13 +269,17 @@ class SynthDataset:
         left, right = read_png(folder / "left.png"), read_png(folder / "right.png")
         stereo = (self.rig.stereo.right.height, self.rig.stereo.right.width)
         tof = (self.rig.tof.height, self.rig.tof.width)
-        shapes = {"left.png": left.shape[:2], "right.png": right.shape[:2],
-                  "tof_depth": maps["tof_depth"].shape, "tof_amplitude": maps["tof_amplitude"].shape,
-                  "tof_gt_depth": maps["tof_gt_depth"].shape, "gt_depth": maps["gt_depth"].shape,
-                  "gt_disparity": maps["gt_disparity"].shape}
+        shapes = {
+            "left.png": left.shape[:2],
+            "right.png": right.shape[:2],
+            "tof_depth": maps["tof_depth"].shape,
+            "tof_amplitude": maps["tof_amplitude"].shape,
+            "tof_gt_depth": maps["tof_gt_depth"].shape,
+            "gt_depth": maps["gt_depth"].shape,
+            "gt_disparity": maps["gt_disparity"].shape,
+        }
         for name, shape in shapes.items():
             want = tof if name.startswith("tof") else stereo
             if tuple(shape) != want:
                 raise RgbdError(f"{folder}: {name} is {tuple(shape)}, calibration says {want}")
         return SynthSample(left, right, **{k: maps[k].astype(np.float32) for k in _MAP_KEYS})
-

@@ -1,7 +1,8 @@
 """Reader for SYNTH3 in its published, pre-reprojected MATLAB layout (Agresti et al. 2017, as
 used by the thesis §3.5; METHOD_NOTES §3)::
 
-    ROOT/{train,test}/stereo_disparity_maps/<p>scene_<i>_disparity_stereo_dx.mat       disparity_stereo_dx
+    ROOT/{train,test}/stereo_disparity_maps/<p>scene_<i>_disparity_stereo_dx.mat
+                                                                                     disparity_stereo_dx
     ROOT/{train,test}/tof_disparity_reprojected/<p>scene_<i>_MHz120_disparity_reprojected.mat
                                                                                      disparity_120_PU_rp
     ROOT/{train,test}/amplitude_reprojected/<p>scene_<i>_MHz120_amplitude_reprojected.mat
@@ -72,7 +73,9 @@ class Synth3Dataset:
         folder, suffix, _ = LAYOUT["stereo"]
         base = self.root / split / folder
         if not base.is_dir():
-            raise RgbdError(f"{base}: not found; expected the SYNTH3 layout (see rgbd_rs.data.synth3)")
+            raise RgbdError(
+                f"{base}: not found; expected the SYNTH3 layout (see rgbd_rs.data.synth3)"
+            )
         pattern = re.compile(rf"^{prefix}\s*(\d+)_{re.escape(suffix)}$")
         found = {}
         for p in base.iterdir():

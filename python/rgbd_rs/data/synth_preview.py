@@ -16,20 +16,38 @@ from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 ERROR_RANGE_M = 0.05
 
 
-def write_preview(path: str | Path, *, seed: int = 0, index: int = 0, scale: float = 0.5) -> dict[str, float]:
+def write_preview(
+    path: str | Path, *, seed: int = 0, index: int = 0, scale: float = 0.5
+) -> dict[str, float]:
     """Render test scene ``index`` and write the preview PNG; returns per-effect RMS errors (m)."""
     rig = synth3_rig(scale)
     sample, scene = generate(seed, "test", index, rig)
     _, _, to_tof = _poses(rig)
     model = ToFModel()
     noise_seed = tof_seed(seed, "test", index)
-    images = [as_bgr(sample.left), as_bgr(sample.right), colorize(sample.gt_depth),
-              colorize(sample.tof_gt_depth), colorize(sample.tof_depth), colorize(sample.tof_amplitude)]
-    labels = ["left", "right (reference)", "GT depth (reference)", "GT depth (ToF view)",
-              "ToF depth (all effects)", "ToF amplitude"]
+    images = [
+        as_bgr(sample.left),
+        as_bgr(sample.right),
+        colorize(sample.gt_depth),
+        colorize(sample.tof_gt_depth),
+        colorize(sample.tof_depth),
+        colorize(sample.tof_amplitude),
+    ]
+    labels = [
+        "left",
+        "right (reference)",
+        "GT depth (reference)",
+        "GT depth (ToF view)",
+        "ToF depth (all effects)",
+        "ToF amplitude",
+    ]
     rms: dict[str, float] = {}
-    cases = [("mixed", model.only("mixed")), ("multipath", model.only("multipath")),
-             ("noise", model.only("noise")), ("all", model)]
+    cases = [
+        ("mixed", model.only("mixed")),
+        ("multipath", model.only("multipath")),
+        ("noise", model.only("noise")),
+        ("all", model),
+    ]
     for name, m in cases:
         f = scene.tof(rig.tof, to_tof, m, seed=noise_seed)
         err = f.depth - f.truth
@@ -42,4 +60,3 @@ def write_preview(path: str | Path, *, seed: int = 0, index: int = 0, scale: flo
     labels.append(f"invalid ToF pixels ({100 * dropout.mean():.1f} %)")
     save_png(path, tile(images, labels, columns=4, width=400))
     return rms
-

@@ -37,7 +37,11 @@ def shared_meshes() -> list[Mesh]:
     root = data_root()
     if root is None or not (root / "meshes").is_dir():
         return []
-    return [load_mesh(p) for p in sorted(Path(root / "meshes").iterdir()) if p.suffix in (".off", ".ply")]
+    return [
+        load_mesh(p)
+        for p in sorted(Path(root / "meshes").iterdir())
+        if p.suffix in (".off", ".ply")
+    ]
 
 
 def _texture(rng: np.random.Generator, plain_ok: bool) -> tuple[Texture, float]:
@@ -46,9 +50,13 @@ def _texture(rng: np.random.Generator, plain_ok: bool) -> tuple[Texture, float]:
         return Texture.uniform(), 0.0
     r = rng.random()
     if r < 0.6:
-        return Texture.noise(float(rng.uniform(0.01, 0.08)), int(rng.integers(2**31))), float(rng.uniform(0.5, 0.9))
+        return Texture.noise(float(rng.uniform(0.01, 0.08)), int(rng.integers(2**31))), float(
+            rng.uniform(0.5, 0.9)
+        )
     if r < 0.8:
-        return Texture.stripes(float(rng.uniform(0.03, 0.2)), float(rng.uniform(0, np.pi))), float(rng.uniform(0.4, 0.8))
+        return Texture.stripes(float(rng.uniform(0.03, 0.2)), float(rng.uniform(0, np.pi))), float(
+            rng.uniform(0.4, 0.8)
+        )
     return Texture.checker(float(rng.uniform(0.05, 0.3))), float(rng.uniform(0.3, 0.7))
 
 
@@ -70,7 +78,9 @@ def _yaw(mesh: Mesh, angle: float) -> Mesh:
 
 def _on_floor(mesh: Mesh, x: float, z: float, floor_y: float) -> Mesh:
     lo, hi = mesh.bounds()
-    return mesh.transformed(translation=(x - (lo[0] + hi[0]) / 2, floor_y - hi[1], z - (lo[2] + hi[2]) / 2))
+    return mesh.transformed(
+        translation=(x - (lo[0] + hi[0]) / 2, floor_y - hi[1], z - (lo[2] + hi[2]) / 2)
+    )
 
 
 def _furniture(rng: np.random.Generator, meshes: Sequence[Mesh]) -> Mesh:
@@ -86,7 +96,14 @@ def _furniture(rng: np.random.Generator, meshes: Sequence[Mesh]) -> Mesh:
     if kind == "table":
         w, d, h = rng.uniform(0.6, 1.6), rng.uniform(0.5, 1.0), rng.uniform(0.45, 0.9)
         t = 0.04
-        legs = [box((0.05, h - t, 0.05), ((sx * (w / 2 - 0.05)), t / 2 + (h - t) / 2, sz * (d / 2 - 0.05))) for sx in (-1, 1) for sz in (-1, 1)]
+        legs = [
+            box(
+                (0.05, h - t, 0.05),
+                ((sx * (w / 2 - 0.05)), t / 2 + (h - t) / 2, sz * (d / 2 - 0.05)),
+            )
+            for sx in (-1, 1)
+            for sz in (-1, 1)
+        ]
         return box((w, t, d)).merged(*legs)
     return box(tuple(float(v) for v in rng.uniform([0.2, 0.2, 0.2], [1.2, 1.4, 1.0])))
 
@@ -117,6 +134,10 @@ def random_scene(rng: np.random.Generator, meshes: Sequence[Mesh] = ()) -> Scene
         x = float(rng.uniform(max(xl + 0.3, -half), min(xr - 0.3, half)))
         scene.add(_on_floor(m, x, z, cam_h), _material(rng, dark=rng.random() < P_DARK))
     for _ in range(int(rng.integers(1, 3))):
-        pos = (float(rng.uniform(xl + 0.3, xr - 0.3)), ceil + 0.2, float(rng.uniform(0.5, zb - 0.5)))
+        pos = (
+            float(rng.uniform(xl + 0.3, xr - 0.3)),
+            ceil + 0.2,
+            float(rng.uniform(0.5, zb - 0.5)),
+        )
         scene.lights.append(PointLight(pos, float(rng.uniform(2.0, 6.0))))
     return scene
