@@ -156,11 +156,6 @@ impl Bvh {
         self.tris.is_empty()
     }
 
-    /// Number of nodes (diagnostics).
-    pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
-
     /// The nearest hit with `t_min < t < t_max`.
     pub fn closest(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<Hit> {
         let mut best: Option<Hit> = None;

@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 
 use crate::bvh::Hit;
-use crate::scene::Scene;
+use crate::scene::{Scene, Surface};
 use crate::view::View;
 
 /// Per-pixel first-hit attributes, row-major `height x width` (x channels).
@@ -20,19 +20,6 @@ pub struct GBuffer {
     pub object: Vec<i32>,
     /// Barycentric coordinates (u, v) of vertices 1 and 2 of the hit triangle (NaN on misses).
     pub bary: Vec<f32>,
-}
-
-/// Casts one ray per pixel centre and keeps the nearest hit (`None` for misses).
-pub fn first_hits(scene: &Scene, view: &View) -> Vec<Option<Hit>> {
-    let w = view.width;
-    (0..view.len())
-        .into_par_iter()
-        .with_min_len(w)
-        .map(|i| {
-            let ray = view.ray((i % w) as f64, (i / w) as f64);
-            scene.cast(&ray, 0.0)
-        })
-        .collect()
 }
 
 /// Depth only (z in the camera frame; NaN for misses): the fast path for depth views.
@@ -52,7 +39,16 @@ pub fn render_depth(scene: &Scene, view: &View) -> Vec<f32> {
 
 /// All first-hit attributes.
 pub fn render_gbuffer(scene: &Scene, view: &View) -> GBuffer {
-    let hits = first_hits(scene, view);
+    let w = view.width;
+    // Resolve each hit where its ray is at hand (one ray per pixel, cast and shaded in parallel).
+    let hits: Vec<Option<(Hit, Surface)>> = (0..view.len())
+        .into_par_iter()
+        .with_min_len(w)
+        .map(|i| {
+            let ray = view.ray((i % w) as f64, (i / w) as f64);
+            scene.cast(&ray, 0.0).map(|h| (h, scene.surface(&ray, &h)))
+        })
+        .collect();
     let n = view.len();
     let mut g = GBuffer {
         depth: vec![f32::NAN; n],
@@ -61,11 +57,8 @@ pub fn render_gbuffer(scene: &Scene, view: &View) -> GBuffer {
         object: vec![-1; n],
         bary: vec![f32::NAN; 2 * n],
     };
-    let w = view.width;
     for (i, hit) in hits.iter().enumerate() {
-        let Some(h) = hit else { continue };
-        let ray = view.ray((i % w) as f64, (i / w) as f64);
-        let s = scene.surface(&ray, h);
+        let Some((h, s)) = hit else { continue };
         g.depth[i] = h.t;
         g.normal[3 * i..3 * i + 3].copy_from_slice(&view.to_camera(s.n));
         g.prim[i] = h.prim as i32;

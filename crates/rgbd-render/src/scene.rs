@@ -160,11 +160,6 @@ impl Scene {
         }
     }
 
-    /// Object index of triangle `prim`.
-    pub fn object_of(&self, prim: u32) -> u32 {
-        self.object[prim as usize]
-    }
-
     /// The material of a surface.
     #[inline]
     pub fn material(&self, s: &Surface) -> &Material {

@@ -131,6 +131,8 @@ struct Sample {
     ref_weight: f64,
     /// Depth z and normal of the surface at the pixel centre (NaN depth on a miss).
     z: f32,
+    /// Length of the centre ray's direction (its z is 1): radial range = z * ray_len.
+    ray_len: f32,
     n: [f32; 3],
     /// Indirect returns as phasors of their detour (path minus the direct round trip).
     indirect: (f64, f64),
@@ -187,6 +189,7 @@ fn first_pass(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize
     let centre_hit = scene.cast(&centre, 0.0);
     let mut out = Sample {
         z: centre_hit.map_or(f32::NAN, |h| h.t),
+        ray_len: norm(centre.d),
         ..Sample::default()
     };
     let add_phasor = |acc: &mut (f64, f64), a: f64, path: f64| {
@@ -230,6 +233,7 @@ fn first_pass(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize
     let (t, b) = basis(p.n);
     let mut rng = Rng::new(o.seed, (row * view.width + col) as u64, 0);
     let kk = o.multipath_rays;
+    let d_p = (hit.t * out.ray_len) as f64; // emitter (= camera centre) to p
     for j in 0..kk {
         // Stratified in azimuth, cosine-weighted in elevation.
         let phi = std::f32::consts::TAU * (j as f32 + rng.uniform()) / kk as f32;
@@ -261,7 +265,6 @@ fn first_pass(scene: &Scene, view: &View, o: &TofOptions, col: usize, row: usize
         let e_q = o.power as f64 * cos_q as f64 / (dist_e as f64 * dist_e as f64);
         let a = albedo_p * albedo_q * e_q / kk as f64;
         // Detour: emitter -> q -> p instead of emitter -> p (the last leg p -> camera is shared).
-        let d_p = norm(sub(p.p, emitter)) as f64;
         let detour = dist_e as f64 + h2.t as f64 * norm(dir) as f64 - d_p;
         add_phasor(&mut out.indirect, a, detour);
     }
@@ -299,7 +302,7 @@ fn finish(
     row: usize,
 ) -> (f32, f32) {
     let k = wavenumber(o);
-    let ray_len = norm(view.ray(col as f64, row as f64).d) as f64; // radial = z * |d| (d_z = 1)
+    let ray_len = s.ray_len as f64;
     let (mut re, mut im) = s.direct;
     if s.z.is_finite() {
         // Multiply the detour phasors by exp(-i k 2 d_p), the pixel's own direct round trip.
