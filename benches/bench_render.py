@@ -55,7 +55,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from rgbd_rs import Pose
-    from rgbd_rs.data.synth import _poses
+    from rgbd_rs.data.synth import rig_poses
     from rgbd_rs.render import ToFModel
 
     _, built, rig, d, verts, faces = scene_and_rays()
@@ -104,7 +104,7 @@ def main() -> None:
     except ImportError as exc:
         rows.append((f"Open3D unavailable ({exc})", float("nan"), float("nan")))
 
-    to_left, to_right, to_tof = _poses(rig)
+    to_left, to_right, to_tof = rig_poses(rig)
     model = ToFModel(subsamples=2, multipath_rays=8)
 
     def full_scene() -> None:

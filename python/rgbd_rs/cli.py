@@ -94,16 +94,15 @@ def _reproject(args: argparse.Namespace) -> int:
         load_azure_kinect_frame,
         reproject_to_color,
     )
+    from rgbd_rs.data.files import write_npz
     from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
     cal = load_azure_kinect_calibration(args.calib)
     frame = load_azure_kinect_frame(args.frame)
     rep = reproject_to_color(frame, cal, splat_radius=args.splat_radius)
     args.out.mkdir(parents=True, exist_ok=True)
-    tmp = args.out / "depth.npz.tmp.npz"
     assert rep.channels is not None  # amplitude was passed as a channel
-    np.savez_compressed(tmp, depth=rep.depth, amplitude=rep.channels)
-    tmp.replace(args.out / "depth.npz")
+    write_npz(args.out / "depth.npz", {"depth": rep.depth, "amplitude": rep.channels})
     mm = np.clip(np.nan_to_num(rep.depth * 1000.0, nan=0.0), 0, 65535).astype(np.uint16)
     save_png(args.out / "depth_mm.png", mm)
     save_png(

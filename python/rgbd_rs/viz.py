@@ -64,12 +64,6 @@ def tile(images: Sequence[U8], labels: Sequence[str], columns: int = 3, width: i
 
 def save_png(path: str | Path, image: U8) -> Path:
     """Write a BGR/grey uint8 image as PNG (creating parent folders), atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    ok, buf = cv2.imencode(".png", image)
-    if not ok:
-        raise OSError(f"could not encode {path} as PNG")
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(buf.tobytes())
-    tmp.replace(path)
-    return path
+    from rgbd_rs.data.files import write_png
+
+    return write_png(path, image, rgb=False)

@@ -96,8 +96,9 @@ class SynthSample:
     gt_disparity: F32
 
 
-def _poses(rig: ToFStereoRig) -> tuple[Pose, Pose, Pose]:
-    """World (= reference camera) to left, right and ToF camera."""
+def rig_poses(rig: ToFStereoRig) -> tuple[Pose, Pose, Pose]:
+    """World-to-camera poses of the left, right and ToF cameras; the world frame is the
+    reference (right) camera's."""
     b = rig.stereo.baseline
     to_left = Pose(np.eye(3), np.array([b, 0.0, 0.0]))
     return to_left, Pose.identity(), rig.tof_to_reference.inverse()
@@ -118,7 +119,7 @@ def render_sample(
 ) -> tuple[SynthSample, ToFFrame]:
     """Render the stereo pair, ToF frame and ground truth of a built scene (``rng`` draws the
     exposure and colour noise, ``tof_seed`` the ToF noise and multipath rays)."""
-    to_left, to_right, to_tof = _poses(rig)
+    to_left, to_right, to_tof = rig_poses(rig)
     right = scene.color(rig.stereo.right, to_right, supersample=SUPERSAMPLE)
     left = scene.color(rig.stereo.left, to_left, supersample=SUPERSAMPLE)
     # Auto-exposure on the reference image (median -> 40 % grey), the left one off by a bit.

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rgbd_rs.data.synth import _poses, generate, synth3_rig, tof_seed
+from rgbd_rs.data.synth import generate, rig_poses, synth3_rig, tof_seed
 from rgbd_rs.render import ToFModel
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
@@ -22,7 +22,7 @@ def write_preview(
     """Render test scene ``index`` and write the preview PNG; returns per-effect RMS errors (m)."""
     rig = synth3_rig(scale)
     sample, scene = generate(seed, "test", index, rig)
-    _, _, to_tof = _poses(rig)
+    _, _, to_tof = rig_poses(rig)
     model = ToFModel()
     noise_seed = tof_seed(seed, "test", index)
     images = [
@@ -46,11 +46,14 @@ def write_preview(
         ("mixed", model.only("mixed")),
         ("multipath", model.only("multipath")),
         ("noise", model.only("noise")),
-        ("all", model),
     ]
+    errors: dict[str, np.ndarray] = {}
     for name, m in cases:
         f = scene.tof(rig.tof, to_tof, m, seed=noise_seed)
-        err = f.depth - f.truth
+        errors[name] = f.depth - f.truth
+    # The sample's own ToF frame already has every effect (same default model, same seed).
+    errors["all"] = sample.tof_depth - sample.tof_gt_depth
+    for name, err in errors.items():
         rms[name] = float(np.sqrt(np.nanmean(err**2)))
         images.append(colorize(err, -ERROR_RANGE_M, ERROR_RANGE_M, colormap=cv2.COLORMAP_JET))
         labels.append(f"ToF error: {name} (rms {100 * rms[name]:.1f} cm)")
