@@ -1,0 +1,334 @@
+//! Locally consistent (LC) accumulation of disparity hypotheses (thesis eq. 2.16–2.19, 3.1).
+//!
+//! Every reference pixel q carrying a hypothesis `d` from source k (stereo, ToF, ...) with
+//! confidence `c_k(q)` lends `c_k(q) * P(q -> p | d)` to each p of its `(2r+1)^2` support window:
+//!
+//! `P(q->p|d) = e^{-Δ(p,q)/γs} e^{-Δψ(p,q)/γc} e^{-Δ(p_T,q_T)/γs} e^{-Δω(p_T,q_T)/γc} e^{-Δ(p,p_T)/γt}`
+//!
+//! with Δ the Euclidean pixel distance (equal in both views, so the two spatial terms are one
+//! `e^{-2Δ/γs}`), Δψ/Δω colour distances within the reference/target image, and the last term
+//! the photometric match of the receiving pixel p with its target pixel `p_T = p + s*d` at the
+//! lent disparity. Colour distances are mean absolute channel differences clipped at
+//! `truncation` (see `color`).
+//!
+//! Sub-pixel hypotheses: the target image is resampled at quarter-pixel phases (linear
+//! interpolation rounded to u8) and each hypothesis's target position is rounded to the nearest
+//! quarter pixel; the hypothesis itself keeps its full value. `Ω(p, ·)` is accumulated on
+//! disparity bins of `bin_width` together with the plausibility-weighted disparity; the winner
+//! (WTA) is the bin maximising the sum over itself and its two neighbours, and the output is the
+//! weighted mean disparity of those three bins (sub-pixel). `plausibility` is the winner's share
+//! of everything p received (the per-pixel normalisation). Memory is O(pixels x sources) plus
+//! one bin array per worker; the window is never materialised.
+//!
+//! Not done here: the target-view accumulation `Ω^T` and its cross-check product (eq. 2.18);
+//! the target-view colour and matching terms of eq. 2.16 are kept.
+
+use rayon::prelude::*;
+use rgbd_geom::error::{check_len, invalid, Result};
+
+use crate::color::{exp_table, sum_abs};
+
+/// Quarter-pixel resampling of the target rows.
+pub const PHASES: i64 = 4;
+
+/// Parameters of [`lc_fuse`] (eq. 2.16 constants and the window).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LcParams {
+    /// Support window half-size `r` (window `(2r+1)^2`).
+    pub radius: usize,
+    /// γs: spatial decay (pixels).
+    pub gamma_s: f32,
+    /// γc: colour decay within one view (8-bit levels).
+    pub gamma_c: f32,
+    /// γt: decay of the cross-view match (8-bit levels).
+    pub gamma_t: f32,
+    /// Colour distances are clipped at this value before the exponentials.
+    pub truncation: f32,
+    /// Width of the disparity bins Ω is accumulated on (pixels).
+    pub bin_width: f32,
+    /// `+1` when the target pixel of reference pixel x is `x + d` (reference = right camera of a
+    /// pair with d = u_left - u_right), `-1` when it is `x - d` (reference = left camera).
+    pub target_sign: i8,
+}
+
+impl Default for LcParams {
+    fn default() -> Self {
+        Self {
+            radius: 10,
+            gamma_s: 6.0,
+            gamma_c: 30.0,
+            gamma_t: 25.0,
+            truncation: 69.0,
+            bin_width: 0.25,
+            target_sign: 1,
+        }
+    }
+}
+
+impl LcParams {
+    fn validate(&self) -> Result<()> {
+        if self.radius == 0 || self.radius > 64 {
+            return Err(invalid("radius", self.radius, "1..=64 pixels"));
+        }
+        for (name, v) in [
+            ("gamma_s", self.gamma_s),
+            ("gamma_c", self.gamma_c),
+            ("gamma_t", self.gamma_t),
+            ("truncation", self.truncation),
+            ("bin_width", self.bin_width),
+        ] {
+            if !(v > 0.0) || !v.is_finite() {
+                return Err(invalid(name, v, "a finite value > 0"));
+            }
+        }
+        if self.target_sign != 1 && self.target_sign != -1 {
+            return Err(invalid("target_sign", self.target_sign, "+1 or -1"));
+        }
+        Ok(())
+    }
+}
+
+/// One disparity source: `H x W` disparities (NaN = none) and optional confidences in [0, 1]
+/// (None = 1 everywhere; NaN = 0).
+#[derive(Debug, Clone, Copy)]
+pub struct Source<'a> {
+    pub disparity: &'a [f32],
+    pub confidence: Option<&'a [f32]>,
+}
+
+/// Result of [`lc_fuse`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LcOutput {
+    /// Winning sub-pixel disparity, NaN where no hypothesis reached the pixel.
+    pub disparity: Vec<f32>,
+    /// Winner's share of the plausibility the pixel received, in [0, 1] (NaN where none).
+    pub plausibility: Vec<f32>,
+}
+
+/// A hypothesis prepared for the gather loop.
+#[derive(Debug, Clone, Copy, Default)]
+struct Hyp {
+    /// Target offset in quarter pixels (`round(4 s d)`); added to `4 x` of the receiving pixel.
+    shift: i32,
+    bin: u32,
+    d: f32,
+    /// Confidence; 0 marks "no hypothesis".
+    w: f32,
+    /// Target colour at the lending pixel's own target position.
+    col: [u8; 3],
+}
+
+/// Target rows resampled at quarter-pixel positions: `4 (W - 1) + 1` RGB samples per row.
+pub fn quarter_rows(target: &[u8], width: usize, height: usize) -> Vec<u8> {
+    let len = PHASES as usize * (width - 1) + 1;
+    let mut out = vec![0u8; height * len * 3];
+    out.par_chunks_mut(len * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let src = &target[y * width * 3..(y + 1) * width * 3];
+            for k in 0..len {
+                let (x0, f) = (k / PHASES as usize, (k % PHASES as usize) as f32 / PHASES as f32);
+                for c in 0..3 {
+                    let a = f32::from(src[3 * x0 + c]);
+                    let b = if f > 0.0 { f32::from(src[3 * x0 + 3 + c]) } else { a };
+                    row[3 * k + c] = ((1.0 - f) * a + f * b).round() as u8;
+                }
+            }
+        });
+    out
+}
+
+/// Global disparity range of all valid hypotheses, or None when there is none.
+fn disparity_range(sources: &[Source<'_>]) -> Option<(f32, f32)> {
+    let mut lo = f32::INFINITY;
+    let mut hi = f32::NEG_INFINITY;
+    for s in sources {
+        for &d in s.disparity.iter().filter(|d| d.is_finite()) {
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+fn check_inputs(
+    reference: &[u8],
+    target: &[u8],
+    width: usize,
+    height: usize,
+    sources: &[Source<'_>],
+) -> Result<()> {
+    if width < 2 || height == 0 {
+        return Err(invalid("reference", format!("{height}x{width}"), "an image at least 1x2"));
+    }
+    let n = width * height;
+    check_len("reference", reference, 3 * n, "H x W x 3")?;
+    check_len("target", target, 3 * n, "H x W x 3 of the reference's size")?;
+    if sources.is_empty() || sources.len() > 8 {
+        return Err(invalid("sources", sources.len(), "1..=8 disparity sources"));
+    }
+    for s in sources {
+        check_len("disparity", s.disparity, n, "H x W of the images' size")?;
+        if let Some(c) = s.confidence {
+            check_len("confidence", c, n, "H x W of the images' size")?;
+            if let Some(bad) = c.iter().find(|v| !v.is_nan() && !(0.0..=1.0).contains(*v)) {
+                return Err(invalid("confidence", bad, "values in [0, 1] (NaN = 0)"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Fuses `sources` on the reference image with the LC accumulation (module docs). With a single
+/// unit-confidence source this is the LC stereo refinement of §2.4.2.
+pub fn lc_fuse(
+    reference: &[u8],
+    target: &[u8],
+    width: usize,
+    height: usize,
+    sources: &[Source<'_>],
+    params: &LcParams,
+) -> Result<LcOutput> {
+    params.validate()?;
+    check_inputs(reference, target, width, height, sources)?;
+    let n = width * height;
+    let Some((dmin, dmax)) = disparity_range(sources) else {
+        return Ok(LcOutput {
+            disparity: vec![f32::NAN; n],
+            plausibility: vec![f32::NAN; n],
+        });
+    };
+    let nbins = ((dmax - dmin) / params.bin_width) as usize + 1;
+    if nbins > 1 << 22 {
+        return Err(invalid(
+            "bin_width",
+            params.bin_width,
+            format!("a bin width giving at most 2^22 bins over the disparity range [{dmin}, {dmax}]"),
+        ));
+    }
+    let t4 = quarter_rows(target, width, height);
+    let len = PHASES as usize * (width - 1) + 1;
+    let k = sources.len();
+    let sign = f32::from(params.target_sign) * PHASES as f32;
+    let mut hyps = vec![Hyp::default(); n * k];
+    hyps.par_chunks_mut(width * k)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..width {
+                let i = y * width + x;
+                for (j, s) in sources.iter().enumerate() {
+                    let d = s.disparity[i];
+                    let c = s.confidence.map_or(1.0, |c| c[i]);
+                    if !d.is_finite() || !(c > 0.0) {
+                        continue;
+                    }
+                    let shift = (sign * d).round() as i32;
+                    let pos = PHASES * x as i64 + i64::from(shift);
+                    if pos < 0 || pos >= len as i64 {
+                        continue;
+                    }
+                    let t = 3 * (y * len + pos as usize);
+                    row[x * k + j] = Hyp {
+                        shift,
+                        bin: ((d - dmin) / params.bin_width) as u32,
+                        d,
+                        w: c,
+                        col: [t4[t], t4[t + 1], t4[t + 2]],
+                    };
+                }
+            }
+        });
+    let side = 2 * params.radius + 1;
+    let r = params.radius as i64;
+    let spatial: Vec<f32> = (0..side * side)
+        .map(|i| {
+            let (dy, dx) = ((i / side) as f32 - r as f32, (i % side) as f32 - r as f32);
+            (-2.0 * (dx * dx + dy * dy).sqrt() / params.gamma_s).exp()
+        })
+        .collect();
+    let lut_c = exp_table(params.gamma_c, params.truncation);
+    let lut_t = exp_table(params.gamma_t, params.truncation);
+    let any: Vec<bool> = hyps.chunks(k).map(|h| h.iter().any(|h| h.w > 0.0)).collect();
+
+    let mut disparity = vec![f32::NAN; n];
+    let mut plausibility = vec![f32::NAN; n];
+    disparity
+        .par_chunks_mut(width)
+        .zip(plausibility.par_chunks_mut(width))
+        .enumerate()
+        .for_each(|(y, (d_row, p_row))| {
+            let mut acc = vec![0.0f32; nbins + 2];
+            let mut accd = vec![0.0f32; nbins + 2];
+            let mut touched: Vec<u32> = Vec::new();
+            let trow = &t4[3 * y * len..3 * (y + 1) * len];
+            let y0 = (y as i64 - r).max(0) as usize;
+            let y1 = (y as i64 + r).min(height as i64 - 1) as usize;
+            for x in 0..width {
+                let p = y * width + x;
+                let cp = &reference[3 * p..3 * p + 3];
+                let x0 = (x as i64 - r).max(0) as usize;
+                let x1 = (x as i64 + r).min(width as i64 - 1) as usize;
+                let px4 = PHASES as i32 * x as i32;
+                for yq in y0..=y1 {
+                    let srow = &spatial[(yq + params.radius - y) * side..];
+                    for xq in x0..=x1 {
+                        let q = yq * width + xq;
+                        if !any[q] {
+                            continue;
+                        }
+                        let base = srow[xq + params.radius - x]
+                            * lut_c[sum_abs(cp, &reference[3 * q..3 * q + 3])];
+                        for h in &hyps[q * k..(q + 1) * k] {
+                            if h.w <= 0.0 {
+                                continue;
+                            }
+                            let pos = px4 + h.shift;
+                            if pos < 0 || pos as usize >= len {
+                                continue;
+                            }
+                            let t = &trow[3 * pos as usize..3 * pos as usize + 3];
+                            let v = base * h.w * lut_c[sum_abs(t, &h.col)] * lut_t[sum_abs(cp, t)];
+                            // Bins are offset by one so the WTA can read both neighbours.
+                            let b = h.bin as usize + 1;
+                            if acc[b] == 0.0 && accd[b] == 0.0 {
+                                touched.push(b as u32);
+                            }
+                            acc[b] += v;
+                            accd[b] += v * h.d;
+                        }
+                    }
+                }
+                (d_row[x], p_row[x]) = winner(&acc, &accd, &touched);
+                for &b in &touched {
+                    acc[b as usize] = 0.0;
+                    accd[b as usize] = 0.0;
+                }
+                touched.clear();
+            }
+        });
+    Ok(LcOutput {
+        disparity,
+        plausibility,
+    })
+}
+
+/// WTA over the touched bins: the bin maximising its 3-bin sum (ties: lowest bin); returns the
+/// weighted mean disparity of those bins and their share of the total.
+fn winner(acc: &[f32], accd: &[f32], touched: &[u32]) -> (f32, f32) {
+    let mut total = 0.0f32;
+    let mut best = (f32::NEG_INFINITY, usize::MAX);
+    for &b in touched {
+        let b = b as usize;
+        total += acc[b];
+        let s = acc[b - 1] + acc[b] + acc[b + 1];
+        if s > best.0 || (s == best.0 && b < best.1) {
+            best = (s, b);
+        }
+    }
+    if !(total > 0.0) {
+        return (f32::NAN, f32::NAN);
+    }
+    let (s, b) = best;
+    let d = (accd[b - 1] + accd[b] + accd[b + 1]) / s;
+    (d, (s / total).min(1.0))
+}
