@@ -14,6 +14,8 @@ __all__ = [
     "depth_to_points",
     "distort_pixels",
     "fit_surface",
+    "label_regions",
+    "lc_fuse",
     "normals_from_points",
     "num_threads",
     "project_points",
@@ -23,6 +25,7 @@ __all__ = [
     "undistort_image",
     "undistort_map",
     "undistort_pixels",
+    "upsample_depth",
 ]
 
 _CameraArgs = tuple[float, float, float, float, int, int, list[float]]
@@ -158,3 +161,30 @@ class NativeScene:
     ) -> tuple[_F32, _F32, _F32]: ...
 
 def render_points(points: _F32, radius: float, v: _ViewArgs) -> tuple[_F32, _I32]: ...
+
+_U8 = npt.NDArray[np.uint8]
+
+def label_regions(image: _U8, tolerance: float) -> tuple[_I32, int]: ...
+def upsample_depth(
+    sparse: _F32,
+    image: _U8,
+    labels: _I32 | None,
+    radius: int,
+    sigma_s: float,
+    sigma_c: float,
+    sigma_r: float,
+) -> _F32: ...
+def lc_fuse(
+    reference: _U8,
+    target: _U8,
+    disparities: list[_F32],
+    confidences: list[_F32 | None],
+    radius: int,
+    gamma_s: float,
+    gamma_c: float,
+    gamma_t: float,
+    truncation: float,
+    bin_width: float,
+    stride: int,
+    target_sign: int,
+) -> tuple[_F32, _F32]: ...

@@ -32,7 +32,11 @@ pub fn label_regions(
     tolerance: f32,
 ) -> Result<(Vec<i32>, usize)> {
     if width == 0 || height == 0 {
-        return Err(invalid("image", format!("{height}x{width}"), "a non-empty image"));
+        return Err(invalid(
+            "image",
+            format!("{height}x{width}"),
+            "a non-empty image",
+        ));
     }
     check_len("image", image, width * height * 3, "H x W x 3")?;
     if !(tolerance >= 0.0) {
@@ -85,7 +89,11 @@ mod tests {
         assert_eq!(lab[0], 0);
         assert_eq!(lab[3], 1);
         assert_eq!(lab[w + 1], 2);
-        assert_eq!(lab[(h - 1) * w], 0, "the left half is one region around the island");
+        assert_eq!(
+            lab[(h - 1) * w],
+            0,
+            "the left half is one region around the island"
+        );
     }
 
     #[test]

@@ -46,6 +46,9 @@ pub struct LcParams {
     pub truncation: f32,
     /// Width of the disparity bins Ω is accumulated on (pixels).
     pub bin_width: f32,
+    /// Window sampling step: 1 uses every pixel of the window, 2 every other row and column
+    /// (same extent, a quarter of the work).
+    pub stride: usize,
     /// `+1` when the target pixel of reference pixel x is `x + d` (reference = right camera of a
     /// pair with d = u_left - u_right), `-1` when it is `x - d` (reference = left camera).
     pub target_sign: i8,
@@ -60,6 +63,7 @@ impl Default for LcParams {
             gamma_t: 25.0,
             truncation: 69.0,
             bin_width: 0.25,
+            stride: 1,
             target_sign: 1,
         }
     }
@@ -80,6 +84,13 @@ impl LcParams {
             if !(v > 0.0) || !v.is_finite() {
                 return Err(invalid(name, v, "a finite value > 0"));
             }
+        }
+        if self.stride == 0 || self.stride > self.radius.max(1) {
+            return Err(invalid(
+                "stride",
+                self.stride,
+                format!("1..={}", self.radius.max(1)),
+            ));
         }
         if self.target_sign != 1 && self.target_sign != -1 {
             return Err(invalid("target_sign", self.target_sign, "+1 or -1"));
@@ -127,10 +138,17 @@ pub fn quarter_rows(target: &[u8], width: usize, height: usize) -> Vec<u8> {
         .for_each(|(y, row)| {
             let src = &target[y * width * 3..(y + 1) * width * 3];
             for k in 0..len {
-                let (x0, f) = (k / PHASES as usize, (k % PHASES as usize) as f32 / PHASES as f32);
+                let (x0, f) = (
+                    k / PHASES as usize,
+                    (k % PHASES as usize) as f32 / PHASES as f32,
+                );
                 for c in 0..3 {
                     let a = f32::from(src[3 * x0 + c]);
-                    let b = if f > 0.0 { f32::from(src[3 * x0 + 3 + c]) } else { a };
+                    let b = if f > 0.0 {
+                        f32::from(src[3 * x0 + 3 + c])
+                    } else {
+                        a
+                    };
                     row[3 * k + c] = ((1.0 - f) * a + f * b).round() as u8;
                 }
             }
@@ -159,7 +177,11 @@ fn check_inputs(
     sources: &[Source<'_>],
 ) -> Result<()> {
     if width < 2 || height == 0 {
-        return Err(invalid("reference", format!("{height}x{width}"), "an image at least 1x2"));
+        return Err(invalid(
+            "reference",
+            format!("{height}x{width}"),
+            "an image at least 1x2",
+        ));
     }
     let n = width * height;
     check_len("reference", reference, 3 * n, "H x W x 3")?;
@@ -203,41 +225,18 @@ pub fn lc_fuse(
         return Err(invalid(
             "bin_width",
             params.bin_width,
-            format!("a bin width giving at most 2^22 bins over the disparity range [{dmin}, {dmax}]"),
+            format!(
+                "a bin width giving at most 2^22 bins over the disparity range [{dmin}, {dmax}]"
+            ),
         ));
     }
-    let t4 = quarter_rows(target, width, height);
+    let t4 = rgb_pixels(&quarter_rows(target, width, height));
+    let refc = rgb_pixels(reference);
     let len = PHASES as usize * (width - 1) + 1;
-    let k = sources.len();
-    let sign = f32::from(params.target_sign) * PHASES as f32;
-    let mut hyps = vec![Hyp::default(); n * k];
-    hyps.par_chunks_mut(width * k)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for x in 0..width {
-                let i = y * width + x;
-                for (j, s) in sources.iter().enumerate() {
-                    let d = s.disparity[i];
-                    let c = s.confidence.map_or(1.0, |c| c[i]);
-                    if !d.is_finite() || !(c > 0.0) {
-                        continue;
-                    }
-                    let shift = (sign * d).round() as i32;
-                    let pos = PHASES * x as i64 + i64::from(shift);
-                    if pos < 0 || pos >= len as i64 {
-                        continue;
-                    }
-                    let t = 3 * (y * len + pos as usize);
-                    row[x * k + j] = Hyp {
-                        shift,
-                        bin: ((d - dmin) / params.bin_width) as u32,
-                        d,
-                        w: c,
-                        col: [t4[t], t4[t + 1], t4[t + 2]],
-                    };
-                }
-            }
-        });
+    let hyps: Vec<Vec<Hyp>> = sources
+        .iter()
+        .map(|s| prepare(s, &t4, width, height, dmin, params))
+        .collect();
     let side = 2 * params.radius + 1;
     let r = params.radius as i64;
     let spatial: Vec<f32> = (0..side * side)
@@ -246,9 +245,8 @@ pub fn lc_fuse(
             (-2.0 * (dx * dx + dy * dy).sqrt() / params.gamma_s).exp()
         })
         .collect();
-    let lut_c = exp_table(params.gamma_c, params.truncation);
-    let lut_t = exp_table(params.gamma_t, params.truncation);
-    let any: Vec<bool> = hyps.chunks(k).map(|h| h.iter().any(|h| h.w > 0.0)).collect();
+    let lut_c = padded(exp_table(params.gamma_c, params.truncation));
+    let lut_t = padded(exp_table(params.gamma_t, params.truncation));
 
     let mut disparity = vec![f32::NAN; n];
     let mut plausibility = vec![f32::NAN; n];
@@ -257,59 +255,168 @@ pub fn lc_fuse(
         .zip(plausibility.par_chunks_mut(width))
         .enumerate()
         .for_each(|(y, (d_row, p_row))| {
-            let mut acc = vec![0.0f32; nbins + 2];
-            let mut accd = vec![0.0f32; nbins + 2];
-            let mut touched: Vec<u32> = Vec::new();
-            let trow = &t4[3 * y * len..3 * (y + 1) * len];
-            let y0 = (y as i64 - r).max(0) as usize;
-            let y1 = (y as i64 + r).min(height as i64 - 1) as usize;
+            let mut bins = Bins::new(nbins);
+            // Spatial x reference-colour weight of each window pixel, computed once per p and
+            // shared by all sources.
+            let mut base = vec![0.0f32; side * side];
+            let trow = &t4[y * len..(y + 1) * len];
+            let st = params.stride;
+            let (y0, y1) = span(y, params.radius, st, height);
             for x in 0..width {
-                let p = y * width + x;
-                let cp = &reference[3 * p..3 * p + 3];
-                let x0 = (x as i64 - r).max(0) as usize;
-                let x1 = (x as i64 + r).min(width as i64 - 1) as usize;
+                let cp = refc[y * width + x];
+                let (x0, x1) = span(x, params.radius, st, width);
+                let cols = (x1 - x0) / st + 1;
+                for (j, yq) in (y0..=y1).step_by(st).enumerate() {
+                    let srow = &spatial[(yq + params.radius - y) * side + x0 + params.radius - x..];
+                    let crow = &refc[yq * width + x0..=yq * width + x1];
+                    for ((b, &sp), &cq) in base[j * cols..(j + 1) * cols]
+                        .iter_mut()
+                        .zip(srow.iter().step_by(st))
+                        .zip(crow.iter().step_by(st))
+                    {
+                        *b = sp * lut_c[sum_abs(&cp, &cq) & LUT_MASK];
+                    }
+                }
                 let px4 = PHASES as i32 * x as i32;
-                for yq in y0..=y1 {
-                    let srow = &spatial[(yq + params.radius - y) * side..];
-                    for xq in x0..=x1 {
-                        let q = yq * width + xq;
-                        if !any[q] {
-                            continue;
-                        }
-                        let base = srow[xq + params.radius - x]
-                            * lut_c[sum_abs(cp, &reference[3 * q..3 * q + 3])];
-                        for h in &hyps[q * k..(q + 1) * k] {
+                for hs in &hyps {
+                    // Consecutive window pixels mostly lend to the same bin: sum in registers and
+                    // touch memory only when the bin changes (breaks the store-load chain).
+                    let (mut rb, mut rw, mut rwd) = (0u32, 0.0f32, 0.0f32);
+                    for (j, yq) in (y0..=y1).step_by(st).enumerate() {
+                        let hrow = &hs[yq * width + x0..=yq * width + x1];
+                        for (h, &bw) in hrow.iter().step_by(st).zip(&base[j * cols..(j + 1) * cols])
+                        {
                             if h.w <= 0.0 {
                                 continue;
                             }
-                            let pos = px4 + h.shift;
-                            if pos < 0 || pos as usize >= len {
+                            // A negative position wraps to a huge index: one check for both ends.
+                            let Some(t) = trow.get((px4 + h.shift) as usize) else {
                                 continue;
+                            };
+                            let v = bw
+                                * h.w
+                                * lut_c[sum_abs(t, &h.col) & LUT_MASK]
+                                * lut_t[sum_abs(&cp, t) & LUT_MASK];
+                            if h.bin != rb {
+                                bins.add(rb, rw, rwd);
+                                (rb, rw, rwd) = (h.bin, 0.0, 0.0);
                             }
-                            let t = &trow[3 * pos as usize..3 * pos as usize + 3];
-                            let v = base * h.w * lut_c[sum_abs(t, &h.col)] * lut_t[sum_abs(cp, t)];
-                            // Bins are offset by one so the WTA can read both neighbours.
-                            let b = h.bin as usize + 1;
-                            if acc[b] == 0.0 && accd[b] == 0.0 {
-                                touched.push(b as u32);
-                            }
-                            acc[b] += v;
-                            accd[b] += v * h.d;
+                            rw += v;
+                            rwd += v * h.d;
                         }
                     }
+                    bins.add(rb, rw, rwd);
                 }
-                (d_row[x], p_row[x]) = winner(&acc, &accd, &touched);
-                for &b in &touched {
-                    acc[b as usize] = 0.0;
-                    accd[b as usize] = 0.0;
-                }
-                touched.clear();
+                (d_row[x], p_row[x]) = bins.winner_and_clear();
             }
         });
     Ok(LcOutput {
         disparity,
         plausibility,
     })
+}
+
+/// First and last window coordinates around `c` that lie on the stride grid through `c`.
+fn span(c: usize, radius: usize, stride: usize, n: usize) -> (usize, usize) {
+    let k = radius / stride;
+    (
+        c - stride * k.min(c / stride),
+        c + stride * k.min((n - 1 - c) / stride),
+    )
+}
+
+/// Colour tables padded to a power of two, so `s & LUT_MASK` indexes them without a bounds check.
+const LUT_MASK: usize = 1023;
+
+fn padded(mut t: Vec<f32>) -> Box<[f32; LUT_MASK + 1]> {
+    t.resize(LUT_MASK + 1, 0.0);
+    t.into_boxed_slice()
+        .try_into()
+        .expect("padded to LUT_MASK + 1")
+}
+
+/// RGB triples of an interleaved image.
+fn rgb_pixels(img: &[u8]) -> Vec<[u8; 3]> {
+    img.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+}
+
+/// One source's hypotheses, one per pixel (`w == 0` marks none).
+fn prepare(
+    s: &Source<'_>,
+    t4: &[[u8; 3]],
+    width: usize,
+    height: usize,
+    dmin: f32,
+    params: &LcParams,
+) -> Vec<Hyp> {
+    let len = PHASES as usize * (width - 1) + 1;
+    let sign = f32::from(params.target_sign) * PHASES as f32;
+    let mut out = vec![Hyp::default(); width * height];
+    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        for (x, h) in row.iter_mut().enumerate() {
+            let i = y * width + x;
+            let d = s.disparity[i];
+            let c = s.confidence.map_or(1.0, |c| c[i]);
+            if !d.is_finite() || !(c > 0.0) {
+                continue;
+            }
+            let shift = (sign * d).round() as i32;
+            let pos = PHASES * x as i64 + i64::from(shift);
+            if pos < 0 || pos >= len as i64 {
+                continue;
+            }
+            *h = Hyp {
+                shift,
+                // Bins are offset by one so the WTA can read both neighbours.
+                bin: ((d - dmin) / params.bin_width) as u32 + 1,
+                d,
+                w: c,
+                col: t4[y * len + pos as usize],
+            };
+        }
+    });
+    out
+}
+
+/// Per-worker Ω(p, ·) accumulator over disparity bins, with the list of bins touched.
+struct Bins {
+    acc: Vec<f32>,
+    accd: Vec<f32>,
+    touched: Vec<u32>,
+}
+
+impl Bins {
+    fn new(nbins: usize) -> Self {
+        Self {
+            acc: vec![0.0; nbins + 2],
+            accd: vec![0.0; nbins + 2],
+            touched: Vec::new(),
+        }
+    }
+
+    /// Kept out of line so the hot loop's running sums stay in registers.
+    #[inline(never)]
+    fn add(&mut self, bin: u32, w: f32, wd: f32) {
+        if w == 0.0 && wd == 0.0 {
+            return;
+        }
+        let b = bin as usize;
+        if self.acc[b] == 0.0 && self.accd[b] == 0.0 {
+            self.touched.push(bin);
+        }
+        self.acc[b] += w;
+        self.accd[b] += wd;
+    }
+
+    fn winner_and_clear(&mut self) -> (f32, f32) {
+        let out = winner(&self.acc, &self.accd, &self.touched);
+        for &b in &self.touched {
+            self.acc[b as usize] = 0.0;
+            self.accd[b as usize] = 0.0;
+        }
+        self.touched.clear();
+        out
+    }
 }
 
 /// WTA over the touched bins: the bin maximising its 3-bin sum (ties: lowest bin); returns the

@@ -86,7 +86,11 @@ pub fn upsample_depth(
 ) -> Result<Vec<f32>> {
     params.validate()?;
     if width == 0 || height == 0 {
-        return Err(invalid("sparse", format!("{height}x{width}"), "a non-empty map"));
+        return Err(invalid(
+            "sparse",
+            format!("{height}x{width}"),
+            "a non-empty map",
+        ));
     }
     let n = width * height;
     check_len("sparse", sparse, n, "H x W")?;
@@ -228,7 +232,11 @@ mod tests {
             for y in 0..h {
                 for x in 0..w {
                     let want = if x >= w / 2 { 2.0 } else { 1.0 };
-                    assert!((out[y * w + x] - want).abs() < 1e-3, "{x},{y}: {}", out[y * w + x]);
+                    assert!(
+                        (out[y * w + x] - want).abs() < 1e-3,
+                        "{x},{y}: {}",
+                        out[y * w + x]
+                    );
                 }
             }
         }
@@ -241,10 +249,14 @@ mod tests {
         let (w, h) = (12, 4);
         let (mut sparse, img, lab) = step(w, h);
         for (i, z) in sparse.iter_mut().enumerate() {
-            *z = if i % w < w / 2 && z.is_finite() { 1.5 } else { f32::NAN };
+            *z = if i % w < w / 2 && z.is_finite() {
+                1.5
+            } else {
+                f32::NAN
+            };
         }
-        let out = upsample_depth(&sparse, &img, Some(&lab), w, h, &UpsampleParams::default())
-            .unwrap();
+        let out =
+            upsample_depth(&sparse, &img, Some(&lab), w, h, &UpsampleParams::default()).unwrap();
         assert!((out[w - 1 - 4] - 1.5).abs() < 1e-4);
         assert!(out[w - 1].is_nan(), "more than radius from every sample");
     }

@@ -19,7 +19,9 @@ fn target_at(target: &[u8], w: usize, y: usize, pos: i64, c: usize) -> u8 {
 }
 
 fn dist(a: [u8; 3], b: [u8; 3], trunc: f64) -> f64 {
-    let s: f64 = (0..3).map(|c| (f64::from(a[c]) - f64::from(b[c])).abs()).sum();
+    let s: f64 = (0..3)
+        .map(|c| (f64::from(a[c]) - f64::from(b[c])).abs())
+        .sum();
     (s / 3.0).min(trunc)
 }
 
@@ -32,7 +34,10 @@ fn reference_lc(
     sources: &[(Vec<f32>, Vec<f32>)],
     p: &LcParams,
 ) -> Vec<(f32, f64, f64)> {
-    let ds = sources.iter().flat_map(|s| s.0.iter()).filter(|d| d.is_finite());
+    let ds = sources
+        .iter()
+        .flat_map(|s| s.0.iter())
+        .filter(|d| d.is_finite());
     let dmin = ds.clone().fold(f32::INFINITY, |a, &b| a.min(b));
     let px = |img: &[u8], i: usize| [img[3 * i], img[3 * i + 1], img[3 * i + 2]];
     let len = 4 * (w as i64 - 1) + 1;
@@ -44,6 +49,10 @@ fn reference_lc(
             let mut omega: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
             for yq in (y - rr).max(0)..=(y + rr).min(h as i64 - 1) {
                 for xq in (x - rr).max(0)..=(x + rr).min(w as i64 - 1) {
+                    let st = p.stride as i64;
+                    if (yq - y) % st != 0 || (xq - x) % st != 0 {
+                        continue;
+                    }
                     let qi = (yq * w as i64 + xq) as usize;
                     for (disp, conf) in sources {
                         let (d, c) = (disp[qi], conf[qi]);
@@ -139,6 +148,7 @@ proptest! {
             .collect();
         let params = LcParams {
             radius,
+            stride: 1 + (seed as usize / 3) % radius,
             bin_width: 0.25 + (seed % 3) as f32 * 0.25,
             target_sign: if left { -1 } else { 1 },
             gamma_c: 5.0 + (seed % 7) as f32 * 5.0,
@@ -174,13 +184,30 @@ fn refinement_recovers_a_slanted_plane_from_noisy_outliers() {
     let noisy: Vec<f32> = (0..w * h)
         .map(|i| {
             let x = i % w;
-            let e = if i % 7 == 0 { 3.0 } else { 0.2 * ((i * 37 % 11) as f32 / 5.0 - 1.0) };
+            let e = if i % 7 == 0 {
+                3.0
+            } else {
+                0.2 * ((i * 37 % 11) as f32 / 5.0 - 1.0)
+            };
             truth(x) + e
         })
         .collect();
-    let src = [Source { disparity: &noisy, confidence: None }];
-    let out = lc_fuse(&r_img, &t_img, w, h, &src, &LcParams { radius: 4, ..LcParams::default() })
-        .unwrap();
+    let src = [Source {
+        disparity: &noisy,
+        confidence: None,
+    }];
+    let out = lc_fuse(
+        &r_img,
+        &t_img,
+        w,
+        h,
+        &src,
+        &LcParams {
+            radius: 4,
+            ..LcParams::default()
+        },
+    )
+    .unwrap();
     let (mut before, mut after, mut cnt) = (0.0f32, 0.0f32, 0);
     for y in 4..h - 4 {
         for x in 4..w - 12 {
@@ -202,26 +229,56 @@ fn confidence_decides_between_disagreeing_sources() {
     let good = vec![6.0f32; w * h];
     let bad = vec![9.0f32; w * h];
     let (hi, lo) = (vec![1.0f32; w * h], vec![0.05f32; w * h]);
-    let p = LcParams { radius: 3, gamma_t: 1000.0, ..LcParams::default() };
+    let p = LcParams {
+        radius: 3,
+        gamma_t: 1000.0,
+        ..LcParams::default()
+    };
     // With the photometric term switched off (huge γt) only the confidences separate the two.
     for (cg, cb, want) in [(&hi, &lo, 6.0), (&lo, &hi, 9.0)] {
         let srcs = [
-            Source { disparity: &good, confidence: Some(cg) },
-            Source { disparity: &bad, confidence: Some(cb) },
+            Source {
+                disparity: &good,
+                confidence: Some(cg),
+            },
+            Source {
+                disparity: &bad,
+                confidence: Some(cb),
+            },
         ];
         let out = lc_fuse(&r_img, &t_img, w, h, &srcs, &p).unwrap();
         assert!((out.disparity[8 * w + 20] - want).abs() < 1e-3);
     }
     // With equal confidences the colour-consistent one wins.
     let srcs = [
-        Source { disparity: &good, confidence: None },
-        Source { disparity: &bad, confidence: None },
+        Source {
+            disparity: &good,
+            confidence: None,
+        },
+        Source {
+            disparity: &bad,
+            confidence: None,
+        },
     ];
     let out = lc_fuse(&r_img, &t_img, w, h, &srcs, &LcParams { radius: 3, ..p }).unwrap();
     assert!((out.disparity[8 * w + 20] - 6.0).abs() < 1e-3);
-    let out =
-        lc_fuse(&r_img, &t_img, w, h, &srcs, &LcParams { radius: 3, ..LcParams::default() }).unwrap();
-    assert!((out.disparity[8 * w + 20] - 6.0).abs() < 1e-3, "{}", out.disparity[8 * w + 20]);
+    let out = lc_fuse(
+        &r_img,
+        &t_img,
+        w,
+        h,
+        &srcs,
+        &LcParams {
+            radius: 3,
+            ..LcParams::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        (out.disparity[8 * w + 20] - 6.0).abs() < 1e-3,
+        "{}",
+        out.disparity[8 * w + 20]
+    );
 }
 
 #[test]
@@ -230,12 +287,28 @@ fn holes_fill_from_neighbours_and_empty_input_is_nan() {
     let (r_img, t_img) = textured_pair(w, h, 2, |_| 3.0);
     let mut d = vec![3.0f32; w * h];
     d[4 * w + 8] = f32::NAN;
-    let src = [Source { disparity: &d, confidence: None }];
-    let out = lc_fuse(&r_img, &t_img, w, h, &src, &LcParams { radius: 2, ..LcParams::default() })
-        .unwrap();
+    let src = [Source {
+        disparity: &d,
+        confidence: None,
+    }];
+    let out = lc_fuse(
+        &r_img,
+        &t_img,
+        w,
+        h,
+        &src,
+        &LcParams {
+            radius: 2,
+            ..LcParams::default()
+        },
+    )
+    .unwrap();
     assert!((out.disparity[4 * w + 8] - 3.0).abs() < 1e-5);
     let none = vec![f32::NAN; w * h];
-    let src = [Source { disparity: &none, confidence: None }];
+    let src = [Source {
+        disparity: &none,
+        confidence: None,
+    }];
     let out = lc_fuse(&r_img, &t_img, w, h, &src, &LcParams::default()).unwrap();
     assert!(out.disparity.iter().all(|v| v.is_nan()));
 }
@@ -245,26 +318,44 @@ fn bad_arguments_name_themselves() {
     let (w, h) = (8, 4);
     let img = vec![0u8; w * h * 3];
     let d = vec![1.0f32; w * h];
-    let src = [Source { disparity: &d, confidence: None }];
+    let src = [Source {
+        disparity: &d,
+        confidence: None,
+    }];
     let p = LcParams::default();
     let err = |r: Result<_, rgbd_geom::GeomError>| r.unwrap_err().to_string();
     assert!(err(lc_fuse(&img[1..], &img, w, h, &src, &p)).starts_with("reference"));
     assert!(err(lc_fuse(&img, &img[1..], w, h, &src, &p)).starts_with("target"));
     assert!(err(lc_fuse(&img, &img, w, h, &[], &p)).starts_with("sources"));
     let c = vec![2.0f32; w * h];
-    let bad = [Source { disparity: &d, confidence: Some(&c) }];
+    let bad = [Source {
+        disparity: &d,
+        confidence: Some(&c),
+    }];
     assert!(err(lc_fuse(&img, &img, w, h, &bad, &p)).starts_with("confidence"));
-    let short = [Source { disparity: &d[1..], confidence: None }];
+    let short = [Source {
+        disparity: &d[1..],
+        confidence: None,
+    }];
     assert!(err(lc_fuse(&img, &img, w, h, &short, &p)).starts_with("disparity"));
     for bad in [
         LcParams { radius: 0, ..p },
         LcParams { gamma_s: 0.0, ..p },
-        LcParams { bin_width: f32::NAN, ..p },
-        LcParams { target_sign: 0, ..p },
+        LcParams {
+            bin_width: f32::NAN,
+            ..p
+        },
+        LcParams {
+            target_sign: 0,
+            ..p
+        },
     ] {
         assert!(lc_fuse(&img, &img, w, h, &src, &bad).is_err());
     }
     let wide = vec![0.0f32, 1e9].repeat(w * h / 2);
-    let src = [Source { disparity: &wide, confidence: None }];
+    let src = [Source {
+        disparity: &wide,
+        confidence: None,
+    }];
     assert!(err(lc_fuse(&img, &img, w, h, &src, &p)).starts_with("bin_width"));
 }

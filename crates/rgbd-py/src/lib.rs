@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod errors;
+mod fusion;
 mod geom;
 mod render;
 mod spline;
@@ -53,5 +54,8 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<spline::PySegmentFits>()?;
     m.add_class::<render::PyScene>()?;
     m.add_function(wrap_pyfunction!(render::render_points, m)?)?;
+    m.add_function(wrap_pyfunction!(fusion::label_regions, m)?)?;
+    m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;
+    m.add_function(wrap_pyfunction!(fusion::lc_fuse, m)?)?;
     Ok(())
 }
