@@ -136,13 +136,16 @@ def test_middlebury_reader(shared_data: Path) -> None:
     assert cones.scale == 4.0 and cones.left.shape[2] == 3
     assert np.nanmax(cones.disparity_left) <= 255 / 4 and np.isnan(cones.disparity_left).any()
     wood = load_middlebury(shared_data / "middlebury" / "Wood2")
-    assert wood.scale == 3.0 and wood.left.shape[:2] == wood.disparity_right.shape
-    # A left pixel and its GT match in the right image look alike (the scale is right).
-    v, u = np.nonzero(np.isfinite(cones.disparity_left))
-    ur = np.round(u - cones.disparity_left[v, u]).astype(int)
-    ok = ur >= 0
-    diff = np.abs(cones.left[v[ok], u[ok]].astype(int) - cones.right[v[ok], ur[ok]].astype(int))
-    assert np.median(diff) < 10
+    # 686 px wide: the 2005/2006 half-size images (/2), not third size (/3) as the README says.
+    assert wood.scale == 2.0 and wood.left.shape[:2] == wood.disparity_right.shape
+    for pair in (cones, wood, load_middlebury(shared_data / "middlebury" / "Reindeer")):
+        # A left pixel and its GT match in the right image look alike (the scale is right):
+        # with the old /3 scale Wood2 and Reindeer fail this.
+        v, u = np.nonzero(np.isfinite(pair.disparity_left))
+        ur = np.round(u - pair.disparity_left[v, u]).astype(int)
+        ok = ur >= 0
+        diff = np.abs(pair.left[v[ok], u[ok]].astype(int) - pair.right[v[ok], ur[ok]].astype(int))
+        assert np.median(diff) < 10, pair.name
     with pytest.raises(RgbdError, match="Middlebury"):
         load_middlebury(shared_data / "tof")
 

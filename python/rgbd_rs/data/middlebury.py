@@ -1,6 +1,11 @@
 """Reader for the Middlebury stereo pairs in ``../shared/data/middlebury`` (2003 quarter-size
-``im2/im6/disp2/disp6`` with disparity = PNG / 4; 2005/2006 third-size ``view1/view5/disp1/disp5``
-with disparity = PNG / 3; 0 = unknown, returned as NaN)."""
+``im2/im6/disp2/disp6`` with disparity = PNG / 4; 2005/2006 ``view1/view5/disp1/disp5`` with
+disparity = PNG / 2 for the half-size images (>= 600 px wide) and PNG / 3 for the third-size ones;
+0 = unknown, returned as NaN).
+
+The shared data README calls Reindeer and Wood2 third-size (/3), but they are 671 and 686 px wide,
+the 2005/2006 *half*-size images: SGBM's disparities were a median 1.50x the /3 values, and agree
+with /2 (see ``tests/test_datasets.py``)."""
 
 from __future__ import annotations
 
@@ -16,11 +21,14 @@ from rgbd_rs.errors import RgbdError
 F32 = npt.NDArray[np.float32]
 U8 = npt.NDArray[np.uint8]
 
-#: (left, right, left GT, right GT, PNG value per pixel of disparity) of each naming scheme.
+#: (left, right, left GT, right GT, PNG value per pixel of disparity) of each naming scheme;
+#: 0 = by image width (2005/2006 half size /2, third size /3).
 SCHEMES = (
-    ("view1.png", "view5.png", "disp1.png", "disp5.png", 3.0),
+    ("view1.png", "view5.png", "disp1.png", "disp5.png", 0.0),
     ("im2.png", "im6.png", "disp2.png", "disp6.png", 4.0),
 )
+#: 2005/2006 images at least this wide are half size (full size is 1240-1396 px wide).
+HALF_SIZE_MIN_WIDTH = 600
 
 
 @dataclass(frozen=True)
@@ -41,6 +49,8 @@ def load_middlebury(folder: str | Path) -> MiddleburyPair:
     for left, right, dl, dr, scale in SCHEMES:
         if (folder / left).is_file():
             imgs = [read_png(folder / f) for f in (left, right)]
+            if scale == 0.0:
+                scale = 2.0 if imgs[0].shape[1] >= HALF_SIZE_MIN_WIDTH else 3.0
             disp = []
             for f in (dl, dr):
                 raw = read_png(folder / f)

@@ -1,0 +1,42 @@
+"""ToF–stereo fusion (thesis ch. 2.4.2 and 3): each stage is callable alone.
+
+1. :func:`tof_to_reference` — reproject + upsample ToF onto the reference camera
+   (:func:`segment_mean_shift`, :func:`upsample_depth`);
+2. :func:`sgm` — OpenCV SGBM as in the thesis;
+3. :func:`tof_confidence`, :func:`stereo_confidence` — deterministic confidences (or your own);
+4. :func:`lc_fuse` — confidence-weighted locally consistent fusion; :func:`lc_refine` — plain LC.
+
+:func:`fuse` runs them all.
+
+Example:
+    >>> from rgbd_rs.fusion import fuse  # doctest: +SKIP
+    >>> out = fuse(left, right, tof_depth, tof_amplitude, rig)  # doctest: +SKIP
+    >>> out.disparity, out.depth  # doctest: +SKIP
+"""
+
+from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
+from rgbd_rs.fusion.fuse import FusionResult, fuse
+from rgbd_rs.fusion.lc import LcParams, lc_fuse, lc_refine
+from rgbd_rs.fusion.stereo import cost_curve_stats, sgm
+from rgbd_rs.fusion.upsample import (
+    ToFOnReference,
+    segment_mean_shift,
+    tof_to_reference,
+    upsample_depth,
+)
+
+__all__ = [
+    "FusionResult",
+    "LcParams",
+    "ToFOnReference",
+    "cost_curve_stats",
+    "fuse",
+    "lc_fuse",
+    "lc_refine",
+    "segment_mean_shift",
+    "sgm",
+    "stereo_confidence",
+    "tof_confidence",
+    "tof_to_reference",
+    "upsample_depth",
+]

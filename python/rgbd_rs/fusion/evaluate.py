@@ -1,0 +1,224 @@
+"""Evaluation of the fusion pipeline (thesis Table 3.2 protocol and Fig. 3.4).
+
+RMS disparity error against ground truth on the pixels that are non-occluded (visible in the
+other stereo view) and valid in every compared map, per scene and averaged over scenes, for:
+interpolated ToF, SGM, LC uniform, LC heuristic, and LC with given confidences — here the
+GT-derived "oracle" confidences ``1 - min(|err|, T) / T`` (the ConvNet's training target, so an
+upper bound for a learned confidence; T = ``ORACLE_T``).
+
+Datasets: the synthetic test set (:mod:`rgbd_rs.data.synth`), and the Middlebury pairs of
+``../shared/data`` with a ToF frame simulated from their ground truth (:func:`middlebury_sample`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+from tqdm import tqdm
+
+from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
+from rgbd_rs.data.files import write_png
+from rgbd_rs.data.middlebury import load_middlebury
+from rgbd_rs.data.synth import SynthDataset
+from rgbd_rs.errors import RgbdError
+from rgbd_rs.fusion._inputs import F32, U8, views
+from rgbd_rs.fusion.fuse import fuse
+from rgbd_rs.fusion.lc import LcParams, lc_fuse
+from rgbd_rs.meshes import Mesh
+from rgbd_rs.render import Material, Scene, ToFModel
+from rgbd_rs.viz import as_bgr, colorize, tile
+
+METHODS = ("Interpolated ToF", "SGM", "LC uniform", "LC heuristic", "LC oracle confidence")
+#: Error (px) at which the oracle confidence reaches 0. Chosen (METHOD_NOTES §3: T unknown).
+ORACLE_T = 3.0
+#: Middlebury virtual rig: the 2005/2006 sets' focal (3740 px at full size, here scaled with the
+#: image width) and 160 mm baseline; the ToF 512x424 sits 4 cm below, as in the synthetic rig.
+MIDDLEBURY_FOCAL_PER_WIDTH = 3740.0 / 1390.0
+MIDDLEBURY_BASELINE = 0.16
+#: Mesh triangles spanning a depth ratio above this are depth edges and are dropped.
+EDGE_RATIO = 1.03
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One evaluation input: the pair, the ToF frame, the rig and GT on the reference view."""
+
+    name: str
+    left: U8
+    right: U8
+    tof_depth: F32
+    tof_amplitude: F32
+    rig: ToFStereoRig
+    gt_disparity: F32
+
+
+@dataclass
+class SceneResult:
+    name: str
+    rms: dict[str, float]
+    pixels: int
+    maps: dict[str, F32] = field(default_factory=dict, repr=False)
+
+
+def non_occluded(disparity: npt.ArrayLike, target_sign: int) -> npt.NDArray[np.bool_]:
+    """Pixels of the reference view visible in the target view: no nearer reference pixel
+    (larger disparity) lands on the same target pixel (within 1 px of disparity)."""
+    d = np.asarray(disparity, np.float32)
+    h, w = d.shape
+    ys, xs = np.nonzero(np.isfinite(d))
+    tx = np.rint(xs + target_sign * d[ys, xs]).astype(np.int64)
+    inside = (tx >= 0) & (tx < w)
+    zbuf = np.full((h, w), -np.inf, np.float32)
+    np.maximum.at(zbuf, (ys[inside], tx[inside]), d[ys, xs][inside])
+    out = np.zeros((h, w), bool)
+    ok = np.zeros(ys.shape, bool)
+    ok[inside] = d[ys, xs][inside] >= zbuf[ys[inside], tx[inside]] - 1.0
+    out[ys, xs] = ok
+    return out
+
+
+def depth_mesh(depth: F32, camera: PinholeCamera) -> Mesh:
+    """A triangle mesh of a depth map (two triangles per pixel quad; depth edges dropped)."""
+    h, w = depth.shape
+    pts = camera.depth_to_points(depth).reshape(-1, 3)
+    idx = np.arange(h * w).reshape(h, w)
+    quads = [idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]]
+    tris = np.concatenate(
+        [np.stack([quads[0], quads[2], quads[1]], -1), np.stack([quads[1], quads[2], quads[3]], -1)]
+    ).reshape(-1, 3)
+    z = depth.reshape(-1)[tris]
+    ok = np.isfinite(z).all(1)
+    zmin = np.where(ok, z.min(1), 1.0)
+    ok &= np.where(ok, z.max(1), 1.0) / zmin < EDGE_RATIO
+    return Mesh(np.nan_to_num(pts).astype(np.float32), tris[ok].astype(np.uint32))
+
+
+def middlebury_sample(folder: str | Path, seed: int = 0, model: ToFModel | None = None) -> Sample:
+    """A Middlebury pair with a simulated ToF frame (reference = left view, where GT lives).
+
+    The left GT disparity becomes depth on a virtual rig (f = 3740 px x width / 1390, b = 160 mm,
+    the 2005 sets' full-size values scaled), is meshed (depth edges cut), and rendered by the
+    ToF simulator (:class:`~rgbd_rs.render.ToFModel` defaults: mixed pixels, multipath, noise,
+    dropout) from a 512x424 ToF camera 4 cm below the left camera whose field of view covers it.
+    """
+    pair = load_middlebury(folder)
+    h, w = pair.left.shape[:2]
+    f = MIDDLEBURY_FOCAL_PER_WIDTH * w
+    cam = PinholeCamera(f, f, (w - 1) / 2, (h - 1) / 2, w, h)
+    z = np.where(pair.disparity_left > 0, MIDDLEBURY_BASELINE * f / pair.disparity_left, np.nan)
+    tof_f = f * 512 / w * 1.1  # ToF sees slightly more than the colour camera
+    tof_cam = PinholeCamera(tof_f, tof_f, 255.5, 211.5, 512, 424)
+    to_ref = Pose(np.eye(3), np.array([0.0, 0.04, 0.0]))
+    scene = Scene().add(depth_mesh(z.astype(np.float32), cam), Material(albedo_ir=0.5)).build()
+    model = model or ToFModel()
+    frame = scene.tof(tof_cam, to_ref.inverse(), model, seed=seed)
+    rig = ToFStereoRig(tof_cam, StereoRig(cam, cam, MIDDLEBURY_BASELINE), to_ref, "left")
+    return Sample(
+        pair.name, pair.left, pair.right, frame.depth, frame.amplitude, rig, pair.disparity_left
+    )
+
+
+def synth_samples(root: str | Path, split: str = "test") -> Iterator[Sample]:
+    """The synthetic dataset's scenes as evaluation samples."""
+    ds = SynthDataset(root, "test" if split == "test" else "train")
+    rig = ds.rig
+    for i in range(len(ds)):
+        s = ds[i]
+        yield Sample(
+            f"{split}_{i:02d}", s.left, s.right, s.tof_depth, s.tof_amplitude, rig, s.gt_disparity
+        )
+
+
+def evaluate_sample(s: Sample, params: LcParams | None = None) -> SceneResult:
+    """All five methods on one sample, RMS on the common valid non-occluded pixels."""
+    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, params=params)
+    ref, tgt, sign = views(s.left, s.right, s.rig.reference)
+    tof_d, st_d = out.tof.disparity, out.stereo_disparity
+    uni, _ = lc_fuse(ref, tgt, [tof_d, st_d], None, target_sign=sign, params=params)
+    gt = s.gt_disparity
+
+    def oracle(d: F32) -> F32:
+        e = np.abs(d - gt)
+        return np.where(np.isfinite(e), 1 - np.minimum(e, ORACLE_T) / ORACLE_T, 0).astype(
+            np.float32
+        )
+
+    orc, _ = lc_fuse(
+        ref, tgt, [tof_d, st_d], [oracle(tof_d), oracle(st_d)], target_sign=sign, params=params
+    )
+    maps = dict(zip(METHODS, (tof_d, st_d, uni, out.disparity, orc), strict=True))
+    mask = np.isfinite(gt) & non_occluded(gt, sign)
+    for m in maps.values():
+        mask &= np.isfinite(m)
+    if not mask.any():
+        raise RgbdError(f"{s.name}: no pixel is valid in every map; nothing to evaluate")
+    rms = {k: float(np.sqrt(np.mean((v[mask] - gt[mask]) ** 2))) for k, v in maps.items()}
+    maps["gt"] = gt
+    maps["mask"] = mask.astype(np.float32)
+    return SceneResult(s.name, rms, int(mask.sum()), maps)
+
+
+def markdown_table(results: list[SceneResult], title: str) -> str:
+    """Per-scene RMS and the average over scenes (thesis Table 3.2 layout, transposed)."""
+    head = "| scene | pixels | " + " | ".join(METHODS) + " |"
+    rule = "|---|---:|" + "---:|" * len(METHODS)
+    rows = [
+        f"| {r.name} | {r.pixels} | " + " | ".join(f"{r.rms[k]:.3f}" for k in METHODS) + " |"
+        for r in results
+    ]
+    avg = {k: float(np.mean([r.rms[k] for r in results])) for k in METHODS}
+    rows.append("| **mean** | | " + " | ".join(f"**{avg[k]:.3f}**" for k in METHODS) + " |")
+    return f"### {title}\n\nRMS disparity error (px)\n\n" + "\n".join([head, rule, *rows]) + "\n"
+
+
+def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
+    """Thesis Fig. 3.4 layout: colour, GT, ToF, ToF error, stereo, stereo error, fused, error
+    (grey = excluded, red intensity = |error| up to ``ORACLE_T`` px)."""
+    cells, labels = [], []
+    for s, r in zip(samples, results, strict=True):
+        gt, mask = r.maps["gt"], r.maps["mask"] > 0
+        lo, hi = np.nanpercentile(gt, 1), np.nanpercentile(gt, 99)
+        ref = s.right if s.rig.reference == "right" else s.left
+        cells += [as_bgr(ref), colorize(gt, lo, hi)]
+        labels += [f"{s.name} colour", "ground truth"]
+        for key, short in (("Interpolated ToF", "ToF"), ("SGM", "stereo"), ("LC heuristic", "LC")):
+            d = r.maps[key]
+            err = np.clip(np.abs(d - gt) / ORACLE_T, 0, 1)
+            red = np.zeros((*gt.shape, 3), np.uint8)
+            red[..., 2] = np.where(mask, 255 * err, 128).astype(np.uint8)
+            red[..., 1] = np.where(mask, 0, 128).astype(np.uint8)
+            red[..., 0] = red[..., 1]
+            cells += [colorize(d, lo, hi), red]
+            labels += [short, f"{short} error (RMS {r.rms[key]:.2f})"]
+    return tile(cells, labels, columns=8, width=240)
+
+
+def evaluate(
+    samples: Iterable[Sample],
+    out: str | Path | None,
+    *,
+    title: str,
+    figure_rows: int = 5,
+    params: LcParams | None = None,
+    quiet: bool = False,
+) -> list[SceneResult]:
+    """Evaluate every sample; with ``out``, write ``OUT/table.md`` and ``OUT/figure.png``."""
+    results: list[SceneResult] = []
+    shown: list[Sample] = []
+    for s in tqdm(list(samples), desc=title, disable=quiet, unit="scene"):
+        r = evaluate_sample(s, params)
+        if len(shown) < figure_rows:
+            shown.append(s)
+        else:
+            r.maps = {}
+        results.append(r)
+    if out is not None:
+        folder = Path(out)
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "table.md").write_text(markdown_table(results, title))
+        write_png(folder / "figure.png", figure(shown, results[: len(shown)]))
+    return results

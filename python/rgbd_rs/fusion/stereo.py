@@ -1,0 +1,142 @@
+"""Stage 2: semi-global matching on the rectified pair (thesis §3.7: OpenCV SGBM with the
+Birchfield–Tomasi pixel cost, 8 paths, 7x7 window, left-right check), expressed on the
+reference camera, plus the pointwise matching-cost curve used by the stereo confidence.
+
+OpenCV computes disparities for its left input. For a right reference both images are mirrored
+and swapped (mirrored right = a "left" view whose match lies at x - d), then the result is
+mirrored back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.fusion._inputs import F32, rgb8
+
+#: SGBM block size (thesis §3.7) and smoothness penalties (OpenCV's documented 8/32 x 3 x n^2).
+BLOCK_SIZE = 7
+P1_FACTOR = 8
+P2_FACTOR = 32
+#: Left-right check tolerance (px) and uniqueness margin (%); chosen.
+DISP12_MAX_DIFF = 1
+UNIQUENESS = 5
+
+
+def _num_disparities(min_disparity: int, max_disparity: int) -> int:
+    span = max_disparity - min_disparity
+    return 16 * max(1, -(-span // 16))
+
+
+def sgm(
+    left: npt.ArrayLike,
+    right: npt.ArrayLike,
+    *,
+    reference: str = "right",
+    max_disparity: int = 128,
+    min_disparity: int = 0,
+    block_size: int = BLOCK_SIZE,
+) -> F32:
+    """SGBM disparity (``d = u_left - u_right``) on the ``reference`` view; NaN = invalid.
+
+    Args:
+        left, right: the rectified pair, uint8 RGB (or grey) of equal size.
+        reference: ``"right"`` (the thesis' output camera) or ``"left"``.
+        max_disparity, min_disparity: search range in pixels (rounded up to a multiple of 16).
+        block_size: odd matching window (7 as in the thesis).
+    """
+    lft = rgb8("left", left)
+    rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
+    ref = _validate.choice("reference", reference, ("left", "right"))
+    lo = _validate.integer("min_disparity", min_disparity, minimum=0)
+    hi = _validate.integer("max_disparity", max_disparity, minimum=lo + 1)
+    if hi >= lft.shape[1]:
+        raise InvalidArgumentError(
+            f"max_disparity: got {hi}, expected less than the image width {lft.shape[1]}"
+        )
+    bs = _validate.integer("block_size", block_size, minimum=1, maximum=11)
+    if bs % 2 == 0:
+        raise InvalidArgumentError(f"block_size: got {bs}, expected an odd number")
+    matcher = cv2.StereoSGBM.create(
+        minDisparity=lo,
+        numDisparities=_num_disparities(lo, hi),
+        blockSize=bs,
+        P1=P1_FACTOR * 3 * bs * bs,
+        P2=P2_FACTOR * 3 * bs * bs,
+        disp12MaxDiff=DISP12_MAX_DIFF,
+        uniquenessRatio=UNIQUENESS,
+        mode=cv2.STEREO_SGBM_MODE_HH,
+    )
+    if ref == "left":
+        raw = matcher.compute(lft, rgt)
+    else:
+        raw = matcher.compute(np.ascontiguousarray(rgt[:, ::-1]), np.ascontiguousarray(lft[:, ::-1]))
+        raw = raw[:, ::-1]
+    disp = raw.astype(np.float32) / 16.0
+    disp[raw < lo * 16] = np.nan
+    return np.ascontiguousarray(disp)
+
+
+def _cost_slices(
+    r_img: F32, t_img: F32, sign: int, dmax: int, block: int
+) -> Iterator[tuple[int, F32]]:
+    """Box-aggregated absolute grey difference at each integer disparity (inf off-image)."""
+    h, w = r_img.shape
+    for d in range(dmax + 1):
+        diff = np.full((h, w), 255.0, np.float32)
+        if sign > 0:  # target x + d
+            diff[:, : w - d] = np.abs(r_img[:, : w - d] - t_img[:, d:])
+        else:  # target x - d
+            diff[:, d:] = np.abs(r_img[:, d:] - t_img[:, : w - d])
+        cost = cv2.blur(diff, (block, block), borderType=cv2.BORDER_REPLICATE)
+        if sign > 0:
+            cost[:, w - d :] = np.inf
+        else:
+            cost[:, :d] = np.inf
+        yield d, cost
+
+
+def cost_curve_stats(
+    reference_image: npt.ArrayLike,
+    target_image: npt.ArrayLike,
+    disparity: npt.ArrayLike,
+    *,
+    target_sign: int = 1,
+    max_disparity: int = 128,
+    block_size: int = BLOCK_SIZE,
+) -> tuple[F32, F32, F32]:
+    """Reads the pointwise cost curve (mean absolute grey difference over a ``block_size`` box,
+    integer disparities ``0..max_disparity``) that SGBM keeps internal.
+
+    Returns ``(c1, c2, c_at)``: the curve's minimum, its second minimum away from the first
+    (|d - argmin| > 1) and its value at ``disparity`` (rounded; NaN where that is NaN). Streams
+    the curve twice instead of storing the ``D x H x W`` volume.
+    """
+    ref = rgb8("reference_image", reference_image)
+    tgt = rgb8("target_image", target_image, (ref.shape[1], ref.shape[0]))
+    h, w = ref.shape[:2]
+    disp = np.asarray(_validate.array("disparity", disparity, shape=(h, w)), np.float32)
+    dmax = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
+    bs = _validate.integer("block_size", block_size, minimum=1, maximum=31)
+    r_img = cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    t_img = cv2.cvtColor(tgt, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    c1 = np.full((h, w), np.inf, np.float32)
+    arg = np.zeros((h, w), np.int32)
+    at = np.full((h, w), np.nan, np.float32)
+    want = np.where(np.isfinite(disp), np.rint(disp), -1).astype(np.int32)
+    for d, cost in _cost_slices(r_img, t_img, target_sign, dmax, bs):
+        better = cost < c1
+        c1[better] = cost[better]
+        arg[better] = d
+        hit = want == d
+        at[hit] = cost[hit]
+    c2 = np.full((h, w), np.inf, np.float32)
+    for d, cost in _cost_slices(r_img, t_img, target_sign, dmax, bs):
+        far = np.abs(arg - d) > 1
+        np.minimum(c2, np.where(far, cost, np.inf), out=c2)
+    return c1, c2, at
