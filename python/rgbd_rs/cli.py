@@ -7,7 +7,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from rgbd_rs import __version__
+from rgbd_rs import __version__, cli_fusion
 from rgbd_rs.errors import RgbdError
 
 
@@ -58,6 +58,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     syn.add_argument("--preview", action="store_true", help="write OUT/preview.png only")
     syn.add_argument("--quiet", action="store_true", help="no progress bar")
+    cli_fusion.add_parsers(sub)
     return p
 
 
@@ -127,6 +128,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _reproject(args)
         if args.command == "synth":
             return _synth(args)
+        if args.command == "fuse":
+            return cli_fusion.run_fuse(args)
+        if args.command == "eval":
+            return cli_fusion.run_eval(args)
         _parser().print_help()
         return 2
     except RgbdError as exc:

@@ -31,9 +31,10 @@ STRIDE = 2
 class LcParams:
     """LC constants (eq. 2.16) and the support window.
 
-    ``radius``/``gamma_s`` default (None) to the literature's 39 x 39 window and γs = 12 at
-    1920 px width, scaled to the image (960 px -> radius 10, γs = 6). ``stride`` samples every
-    ``stride``-th row and column of the window (same extent, 1/stride^2 of the work).
+    ``radius`` defaults (None) to the literature's 39 x 39 window at 1920 px width, scaled to
+    the image (960 px -> radius 10); ``gamma_s`` to γs = 12 at radius 19, scaled with the
+    radius (radius 10 -> 6.3). ``stride`` samples every ``stride``-th row and column of the
+    window (same extent, 1/stride^2 of the work); it is capped at the radius.
     """
 
     radius: int | None = None
@@ -46,9 +47,11 @@ class LcParams:
 
     def resolved(self, width: int) -> tuple[int, float]:
         """``(radius, gamma_s)`` for an image ``width`` pixels wide."""
-        scale = width / FULL_RES_WIDTH
-        r = self.radius if self.radius is not None else max(1, round(WINDOW_FULL_RES // 2 * scale))
-        g = self.gamma_s if self.gamma_s is not None else GAMMA_S_FULL_RES * scale
+        half = WINDOW_FULL_RES // 2
+        r = self.radius
+        if r is None:
+            r = max(1, round(half * width / FULL_RES_WIDTH))
+        g = self.gamma_s if self.gamma_s is not None else GAMMA_S_FULL_RES * r / half
         return r, g
 
 
@@ -100,6 +103,10 @@ def lc_fuse(
                 "expected values in [0, 1]"
             )
         cs.append(m)
+    if not any(np.isfinite(d).any() for d in ds):
+        raise InvalidArgumentError(
+            "disparities: got only NaN, expected at least one valid disparity to fuse"
+        )
     if target_sign not in (1, -1):
         raise InvalidArgumentError(f"target_sign: got {target_sign!r}, expected +1 or -1")
     p = params or LcParams()
@@ -117,7 +124,7 @@ def lc_fuse(
         _validate.real("gamma_t", p.gamma_t, positive=True),
         _validate.real("truncation", p.truncation, positive=True),
         _validate.real("bin_width", p.bin_width, positive=True),
-        _validate.integer("stride", p.stride, minimum=1, maximum=radius),
+        min(_validate.integer("stride", p.stride, minimum=1), radius),
         target_sign,
     )
 

@@ -75,7 +75,9 @@ def sgm(
     if ref == "left":
         raw = matcher.compute(lft, rgt)
     else:
-        raw = matcher.compute(np.ascontiguousarray(rgt[:, ::-1]), np.ascontiguousarray(lft[:, ::-1]))
+        raw = matcher.compute(
+            np.ascontiguousarray(rgt[:, ::-1]), np.ascontiguousarray(lft[:, ::-1])
+        )
         raw = raw[:, ::-1]
     disp = raw.astype(np.float32) / 16.0
     disp[raw < lo * 16] = np.nan

@@ -135,6 +135,4 @@ def tof_to_reference(
         np.where(sparse_amp > 0, sparse_amp, np.nan), img, lab, radius=radius
     )
     disp = depth_to_disparity(dense, r.stereo.baseline, r.stereo.focal)
-    return ToFOnReference(
-        rep.depth, dense, disp, dense_amp, np.asarray(lab, dtype=np.int32)
-    )
+    return ToFOnReference(rep.depth, dense, disp, dense_amp, np.asarray(lab, dtype=np.int32))
