@@ -96,7 +96,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     from rgbd_rs.data.calibration import load_rig
     from rgbd_rs.data.files import read_png, write_npz, write_png
     from rgbd_rs.fusion import LcParams, fuse
-    from rgbd_rs.viz import as_bgr, colorize, tile
+    from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
     if (args.tof_confidence is None) != (args.stereo_confidence is None):
         raise InvalidArgumentError(
@@ -140,7 +140,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     ref = right if rig.reference == "right" else left
     d = out.disparity[np.isfinite(out.disparity)]
     lo, hi = (np.percentile(d, 1), np.percentile(d, 99)) if d.size else (0.0, 1.0)
-    write_png(
+    save_png(
         args.out / "preview.png",
         tile(
             [
@@ -153,7 +153,7 @@ def run_fuse(args: argparse.Namespace) -> int:
             ["reference colour", "ToF disparity", "SGM disparity", "LC fused", "LC plausibility"],
             columns=5,
             width=320,
-        )[:, :, ::-1],
+        ),
     )
     print(
         f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s: "

@@ -21,7 +21,6 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
-from rgbd_rs.data.files import write_png
 from rgbd_rs.data.middlebury import load_middlebury
 from rgbd_rs.data.synth import SynthDataset
 from rgbd_rs.errors import RgbdError
@@ -30,7 +29,7 @@ from rgbd_rs.fusion.fuse import fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.render import Material, Scene, ToFModel
-from rgbd_rs.viz import as_bgr, colorize, tile
+from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
 METHODS = ("Interpolated ToF", "SGM", "LC uniform", "LC heuristic", "LC oracle confidence")
 #: Error (px) at which the oracle confidence reaches 0. Chosen (METHOD_NOTES §3: T unknown).
@@ -176,7 +175,7 @@ def markdown_table(results: list[SceneResult], title: str) -> str:
 
 
 def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
-    """Thesis Fig. 3.4 layout: colour, GT, ToF, ToF error, stereo, stereo error, fused, error
+    """BGR picture in the thesis Fig. 3.4 layout: colour, GT, ToF, ToF error, stereo, stereo error, fused, error
     (grey = excluded, red intensity = |error| up to ``ORACLE_T`` px)."""
     cells, labels = [], []
     for s, r in zip(samples, results, strict=True):
@@ -220,5 +219,5 @@ def evaluate(
         folder = Path(out)
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "table.md").write_text(markdown_table(results, title))
-        write_png(folder / "figure.png", figure(shown, results[: len(shown)]))
+        save_png(folder / "figure.png", figure(shown, results[: len(shown)]))
     return results
