@@ -61,14 +61,37 @@ impl UpsampleParams {
 }
 
 /// Valid samples of each row as `(x, z)`, sorted by x.
-fn sample_rows(sparse: &[f32], width: usize) -> Vec<Vec<(u32, f32)>> {
+/// A ToF sample with what the filter reads of its pixel, stored contiguously per row.
+#[derive(Clone, Copy)]
+struct Tap {
+    x: u32,
+    z: f32,
+    color: [u8; 3],
+    label: i32,
+}
+
+fn sample_rows(
+    sparse: &[f32],
+    image: &[u8],
+    labels: Option<&[i32]>,
+    width: usize,
+) -> Vec<Vec<Tap>> {
     sparse
         .chunks(width)
-        .map(|row| {
+        .enumerate()
+        .map(|(y, row)| {
             row.iter()
                 .enumerate()
                 .filter(|(_, z)| z.is_finite() && **z > 0.0)
-                .map(|(x, &z)| (x as u32, z))
+                .map(|(x, &z)| {
+                    let q = y * width + x;
+                    Tap {
+                        x: x as u32,
+                        z,
+                        color: [image[3 * q], image[3 * q + 1], image[3 * q + 2]],
+                        label: labels.map_or(0, |l| l[q]),
+                    }
+                })
                 .collect()
         })
         .collect()
@@ -98,7 +121,7 @@ pub fn upsample_depth(
     if let Some(l) = labels {
         check_len("labels", l, n, "H x W of the depth map's size")?;
     }
-    let rows = sample_rows(sparse, width);
+    let rows = sample_rows(sparse, image, labels, width);
     let r = params.radius as i64;
     let side = 2 * params.radius + 1;
     let spatial: Vec<f32> = (0..side * side)
@@ -116,88 +139,74 @@ pub fn upsample_depth(
             let y0 = (y as i64 - r).max(0) as usize;
             let y1 = (y as i64 + r).min(height as i64 - 1) as usize;
             let mut cursor = vec![0usize; y1 - y0 + 1];
-            // (Gs, Gc, z, same segment) of the window's samples, reused across pixels.
-            let mut win: Vec<Sample> = Vec::with_capacity(side * side);
+            // Samples of other segments as (Gs, z): only they need a second look.
+            let mut others: Vec<(f32, f32)> = Vec::with_capacity(side * side);
             for (x, o) in out_row.iter_mut().enumerate() {
                 let p = y * width + x;
                 let cp = &image[3 * p..3 * p + 3];
-                let lp = labels.map(|l| l[p]);
-                win.clear();
+                let lp = labels.map_or(0, |l| l[p]);
+                others.clear();
+                let mut same = Sums::default();
+                let mut all = Sums::default();
                 let lo = (x as i64 - r).max(0) as u32;
                 let hi = (x as i64 + r) as u32;
                 for (k, yq) in (y0..=y1).enumerate() {
                     let row = &rows[yq];
                     let mut c = cursor[k];
-                    while c < row.len() && row[c].0 < lo {
+                    while c < row.len() && row[c].x < lo {
                         c += 1;
                     }
                     cursor[k] = c;
                     let srow = (yq as i64 - y as i64 + r) as usize * side;
-                    for &(xq, z) in row[c..].iter().take_while(|s| s.0 <= hi) {
-                        let q = yq * width + xq as usize;
-                        win.push(Sample {
-                            ws: spatial[srow + (xq as i64 - x as i64 + r) as usize],
-                            wc: gc[sum_abs(cp, &image[3 * q..3 * q + 3])],
-                            z,
-                            same: match (labels, lp) {
-                                (Some(l), Some(lp)) => l[q] == lp,
-                                _ => true,
-                            },
-                        });
+                    for t in row[c..].iter().take_while(|t| t.x <= hi) {
+                        let ws = spatial[srow + (t.x as i64 - x as i64 + r) as usize];
+                        all.add(ws, t.z);
+                        // Without labels every tap carries label 0 like p: one segment.
+                        if t.label == lp {
+                            same.add(ws * gc[sum_abs(cp, &t.color)], t.z);
+                        } else {
+                            others.push((ws, t.z));
+                        }
                     }
                 }
-                *o = estimate(&win, labels.is_some(), inv_2r2);
+                *o = estimate(&same, &all, &others, inv_2r2);
             }
         });
     Ok(out)
 }
 
-/// One ToF sample in a pixel's window.
-struct Sample {
-    ws: f32,
-    wc: f32,
-    z: f32,
-    same: bool,
+/// Running weighted sums.
+#[derive(Default, Clone, Copy)]
+struct Sums {
+    w: f32,
+    wz: f32,
 }
 
-/// Weighted mean of the samples under `weight`, None when they weigh nothing.
-fn weighted_mean(win: &[Sample], weight: impl Fn(&Sample) -> f32) -> Option<f32> {
-    let (mut sw, mut sz) = (0.0f32, 0.0f32);
-    for s in win {
-        let w = weight(s);
-        sw += w;
-        sz += w * s.z;
+impl Sums {
+    #[inline]
+    fn add(&mut self, w: f32, z: f32) {
+        self.w += w;
+        self.wz += w * z;
     }
-    (sw > 0.0).then(|| sz / sw)
+
+    fn mean(&self) -> Option<f32> {
+        (self.w > 0.0).then(|| self.wz / self.w)
+    }
 }
 
-/// The two-pass estimate of one pixel from its window's samples.
-fn estimate(win: &[Sample], segmented: bool, inv_2r2: f32) -> f32 {
-    // Where p's segment holds no sample, colour across segments means little: Gs alone.
-    let z0 = weighted_mean(win, |s| if s.same { s.ws * s.wc } else { 0.0 })
-        .or_else(|| weighted_mean(win, |s| s.ws));
-    let Some(z0) = z0 else {
+/// The two-pass estimate: `z0` from the same-segment samples (Gs Gc), or from all samples (Gs)
+/// where p's segment holds none — colour across segments means little; then the same-segment
+/// sums plus the other segments' samples weighted by depth agreement with `z0` (Gs Gr).
+fn estimate(same: &Sums, all: &Sums, others: &[(f32, f32)], inv_2r2: f32) -> f32 {
+    let Some(z0) = same.mean().or_else(|| all.mean()) else {
         return f32::NAN;
     };
-    if !segmented {
-        return z0;
+    let mut sums = *same;
+    for &(ws, z) in others {
+        let dz = (z - z0) / z0;
+        sums.add(ws * (-dz * dz * inv_2r2).exp(), z);
     }
-    let (mut sw, mut sz) = (0.0f32, 0.0f32);
-    for s in win {
-        let w = if s.same {
-            s.ws * s.wc
-        } else {
-            let dz = (s.z - z0) / z0;
-            s.ws * (-dz * dz * inv_2r2).exp()
-        };
-        sw += w;
-        sz += w * s.z;
-    }
-    if sw > 0.0 {
-        sz / sw
-    } else {
-        z0
-    }
+    sums.mean().unwrap_or(z0)
 }
 
 #[cfg(test)]

@@ -352,7 +352,7 @@ fn bad_arguments_name_themselves() {
     ] {
         assert!(lc_fuse(&img, &img, w, h, &src, &bad).is_err());
     }
-    let wide = vec![0.0f32, 1e9].repeat(w * h / 2);
+    let wide = [0.0f32, 1e9].repeat(w * h / 2);
     let src = [Source {
         disparity: &wide,
         confidence: None,
