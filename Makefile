@@ -71,10 +71,11 @@ wheel: env ## build the wheel, install it into a fresh venv, smoke-test it there
 
 bench: build ## run the benchmarks (criterion + Python vs OpenCV, scipy, trimesh/embree, Open3D)
 	$(PY) tools/deps.py --only bench | xargs $(PY) -m pip install -q
-	cargo bench -p rgbd-geom -p rgbd-spline -p rgbd-render
+	cargo bench -p rgbd-geom -p rgbd-spline -p rgbd-render -p rgbd-fusion
 	$(PY) benches/bench_geom.py
 	$(PY) benches/bench_spline.py
 	$(PY) benches/bench_render.py
+	$(PY) benches/bench_fusion.py
 
 clean: ## remove build outputs (keeps the cached venv)
 	cargo clean

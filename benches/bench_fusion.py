@@ -129,8 +129,18 @@ def main() -> None:
         gs = LcParams(radius=10).resolved(960)[1]
         t = time.perf_counter()
         ref_out = numpy_lc(
-            s.right, s.left, list(zip(disps, confs, strict=True)), 10, gs, 30.0, 25.0, 69.0,
-            0.25, stride, 1, strip,
+            s.right,
+            s.left,
+            list(zip(disps, confs, strict=True)),
+            10,
+            gs,
+            30.0,
+            25.0,
+            69.0,
+            0.25,
+            stride,
+            1,
+            strip,
         )
         np_strip = time.perf_counter() - t
         np_ms = np_strip * 1e3 * 540 / STRIP_ROWS
@@ -138,9 +148,13 @@ def main() -> None:
         both = np.isfinite(a) & np.isfinite(b)
         agree = float(np.mean(np.abs(a[both] - b[both]) < 1e-3))
         rows.append(
-            ("LC fusion 960x540, 21x21 window (= 39x39 at full res), stride "
-             f"{stride}", ms, np_ms, f"numpy strip {np_strip:.1f} s x {540 // STRIP_ROWS}; "
-             f"outputs agree on {agree:.1%} of the strip")
+            (
+                f"LC fusion 960x540, 21x21 window (= 39x39 at full res), stride {stride}",
+                ms,
+                np_ms,
+                f"numpy strip {np_strip:.1f} s x {540 // STRIP_ROWS}; "
+                f"outputs agree on {agree:.1%} of the strip",
+            )
         )
     # Scaling with the window.
     scale_rows = []
@@ -168,12 +182,21 @@ def main() -> None:
     ours = upsample_depth(rep.depth, s.right, labels)
     both = np.isfinite(ours) & np.isfinite(np_up)
     dev = np.abs(ours[both] - np_up[both]) / np_up[both]
-    rows.append(("Upsampling 960x540 (radius 5, segmentation term)", up_ms, np_up_ms,
-                 f"{np.mean(dev < 1e-4):.2%} of pixels within 1e-4 relative (f32 vs f64)"))
+    rows.append(
+        (
+            "Upsampling 960x540 (radius 5, segmentation term)",
+            up_ms,
+            np_up_ms,
+            f"{np.mean(dev < 1e-4):.2%} of pixels within 1e-4 relative (f32 vs f64)",
+        )
+    )
     rows.append(("Upsampling 960x540 without labels (joint bilateral)", plain_ms, None, ""))
-    rows.append(("Mean-shift segmentation (OpenCV pyrMeanShiftFiltering + labels)", ms_ms, None, ""))
+    rows.append(
+        ("Mean-shift segmentation (OpenCV pyrMeanShiftFiltering + labels)", ms_ms, None, "")
+    )
     if args.markdown:
-        print("| stage | rgbd_rs (ms) | numpy reference (ms) | vs numpy | note |\n|---|---:|---:|---:|---|")
+        print("| stage | rgbd_rs (ms) | numpy reference (ms) | vs numpy | note |")
+        print("|---|---:|---:|---:|---|")
         for name, ms, ref, note in rows:
             r = f"{ref:.0f}" if ref else "-"
             x = f"{ref / ms:.0f}x" if ref else "-"
@@ -208,18 +231,23 @@ def numpy_upsample(sparse, image, labels, radius=5, ss=3.0, sc=10.0, sr=0.02):  
         gc = np.exp(-dc * dc / (2 * sc * sc))
         return zq, ok, gs, gc, lab[sl] == labels
 
-    sw_same = np.zeros((h, w)); sz_same = np.zeros((h, w))
-    sw_all = np.zeros((h, w)); sz_all = np.zeros((h, w))
+    sw_same = np.zeros((h, w))
+    sz_same = np.zeros((h, w))
+    sw_all = np.zeros((h, w))
+    sz_all = np.zeros((h, w))
     for dy, dx in offs:
         zq, ok, gs, gc, same = window(dy, dx)
         zq0 = np.where(ok, zq, 0)
         wsame = np.where(ok & same, gs * gc, 0)
-        sw_same += wsame; sz_same += wsame * zq0
+        sw_same += wsame
+        sz_same += wsame * zq0
         wall = np.where(ok, gs, 0)
-        sw_all += wall; sz_all += wall * zq0
+        sw_all += wall
+        sz_all += wall * zq0
     with np.errstate(invalid="ignore", divide="ignore"):
         z0 = np.where(sw_same > 0, sz_same / sw_same, sz_all / sw_all)
-    sw = np.zeros((h, w)); sz = np.zeros((h, w))
+    sw = np.zeros((h, w))
+    sz = np.zeros((h, w))
     for dy, dx in offs:
         zq, ok, gs, gc, same = window(dy, dx)
         zq0 = np.where(ok, zq, 0)
@@ -227,7 +255,8 @@ def numpy_upsample(sparse, image, labels, radius=5, ss=3.0, sc=10.0, sr=0.02):  
             dz = (zq0 - z0) / z0
             wgt = np.where(same, gs * gc, gs * np.exp(-dz * dz / (2 * sr * sr)))
         wgt = np.where(ok, wgt, 0)
-        sw += wgt; sz += wgt * zq0
+        sw += wgt
+        sz += wgt * zq0
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(sw > 0, sz / sw, z0).astype(np.float32)
 

@@ -65,8 +65,15 @@ def test_stages_on_a_rendered_scene(scene: SynthSample) -> None:
 
 def test_fusion_accuracy_on_a_rendered_scene(scene: SynthSample) -> None:
     r = evaluate_sample(
-        Sample("s", scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG,
-               scene.gt_disparity)
+        Sample(
+            "s",
+            scene.left,
+            scene.right,
+            scene.tof_depth,
+            scene.tof_amplitude,
+            RIG,
+            scene.gt_disparity,
+        )
     )
     tof, st = r.rms["Interpolated ToF"], r.rms["SGM"]
     assert r.pixels > 50_000
@@ -86,7 +93,7 @@ def test_fuse_result_and_no_tof_warning(scene: SynthSample) -> None:
     assert ok.mean() > 0.9
     np.testing.assert_allclose(z[ok] * d[ok], RIG.stereo.baseline * RIG.stereo.focal, rtol=1e-5)
     assert out.tof_confidence is not None and out.stereo_confidence is not None
-    assert 0 <= out.tof_confidence.min() and out.tof_confidence.max() <= 1
+    assert out.tof_confidence.min() >= 0 and out.tof_confidence.max() <= 1
     # A dark / dead ToF frame: stereo-only LC with a warning, never a crash.
     nan = np.full_like(scene.tof_depth, np.nan)
     with pytest.warns(RuntimeWarning, match="no valid ToF pixel"):
@@ -97,10 +104,12 @@ def test_fuse_result_and_no_tof_warning(scene: SynthSample) -> None:
 
 def test_given_confidences_steer_the_result(scene: SynthSample) -> None:
     ones, zeros = np.ones((270, 480), np.float32), np.zeros((270, 480), np.float32)
-    tof_only = fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG,
-                    confidence=(ones, zeros))
-    st_only = fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG,
-                   confidence=(zeros, ones))
+    tof_only = fuse(
+        scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, confidence=(ones, zeros)
+    )
+    st_only = fuse(
+        scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, confidence=(zeros, ones)
+    )
     gt = scene.gt_disparity
     m = np.isfinite(gt) & np.isfinite(tof_only.disparity) & np.isfinite(st_only.disparity)
     assert _rms(tof_only.disparity, gt, m) < 0.5 * _rms(st_only.disparity, gt, m)
@@ -127,8 +136,13 @@ def test_lc_refine_removes_outliers() -> None:
     out = lc_refine(noisy, left, right, reference="right", params=LcParams(radius=4, stride=1))
     assert np.mean(np.abs(out[core] - 6) > 0.5) < 0.01
     # The same pair mirrored is a left-reference pair (left' x matches right' x - d).
-    mirrored = lc_refine(noisy[:, ::-1], right[:, ::-1], left[:, ::-1], reference="left",
-                         params=LcParams(radius=4, stride=1))
+    mirrored = lc_refine(
+        noisy[:, ::-1],
+        right[:, ::-1],
+        left[:, ::-1],
+        reference="left",
+        params=LcParams(radius=4, stride=1),
+    )
     assert np.mean(np.abs(mirrored[core] - 6) > 0.5) < 0.01
     with pytest.raises(InvalidArgumentError, match="only NaN"):
         lc_refine(np.full_like(noisy, np.nan), left, right)
@@ -172,15 +186,23 @@ def test_non_occluded_mask() -> None:
         ({"tof_amplitude": np.zeros((424, 511), np.float32)}, ShapeMismatchError, "tof_amplitude"),
         ({"rig": "rig"}, InvalidArgumentError, "rig: got str"),
         ({"confidence": "learned"}, InvalidArgumentError, "confidence: got 'learned'"),
-        ({"confidence": (np.full((270, 480), 2.0), np.ones((270, 480)))},
-         InvalidArgumentError, r"confidences\[0\]"),
+        (
+            {"confidence": (np.full((270, 480), 2.0), np.ones((270, 480)))},
+            InvalidArgumentError,
+            r"confidences\[0\]",
+        ),
         ({"max_disparity": 480}, InvalidArgumentError, "max_disparity: got 480"),
     ],
 )
-def test_fuse_bad_input(scene: SynthSample, kwargs: dict[str, object], error: type, match: str) -> None:
+def test_fuse_bad_input(
+    scene: SynthSample, kwargs: dict[str, object], error: type, match: str
+) -> None:
     args: dict[str, object] = {
-        "left": scene.left, "right": scene.right, "tof_depth": scene.tof_depth,
-        "tof_amplitude": scene.tof_amplitude, "rig": RIG,
+        "left": scene.left,
+        "right": scene.right,
+        "tof_depth": scene.tof_depth,
+        "tof_amplitude": scene.tof_amplitude,
+        "rig": RIG,
     }
     extra = {k: kwargs.pop(k) for k in ("confidence", "max_disparity") if k in kwargs}
     args |= kwargs
@@ -219,9 +241,21 @@ def test_cli_fuse(scene: SynthSample, tmp_path: Path, capsys: pytest.CaptureFixt
     np.save(tmp_path / "d.npy", scene.tof_depth)
     np.save(tmp_path / "a.npy", scene.tof_amplitude)
     save_rig(tmp_path / "c.json", RIG)
-    argv = ["fuse", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png"),
-            "--tof-depth", str(tmp_path / "d.npy"), "--tof-amplitude", str(tmp_path / "a.npy"),
-            "--calib", str(tmp_path / "c.json"), "--out", str(tmp_path / "out")]
+    argv = [
+        "fuse",
+        "--left",
+        str(tmp_path / "l.png"),
+        "--right",
+        str(tmp_path / "r.png"),
+        "--tof-depth",
+        str(tmp_path / "d.npy"),
+        "--tof-amplitude",
+        str(tmp_path / "a.npy"),
+        "--calib",
+        str(tmp_path / "c.json"),
+        "--out",
+        str(tmp_path / "out"),
+    ]
     assert cli.main(argv) == 0
     maps = read_npz(tmp_path / "out" / "fused.npz", ("disparity", "depth"))
     png = read_png(tmp_path / "out" / "disparity.png")

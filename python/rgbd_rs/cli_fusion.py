@@ -139,7 +139,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     write_png(args.out / "depth_mm.png", mm.astype(np.uint16))
     ref = right if rig.reference == "right" else left
     d = out.disparity[np.isfinite(out.disparity)]
-    lo, hi = (np.percentile(d, 1), np.percentile(d, 99)) if d.size else (0.0, 1.0)
+    lo, hi = (float(np.percentile(d, 1)), float(np.percentile(d, 99))) if d.size else (0.0, 1.0)
     save_png(
         args.out / "preview.png",
         tile(

@@ -1,4 +1,4 @@
-"""ToF–stereo fusion (thesis ch. 2.4.2 and 3): each stage is callable alone.
+"""ToF-stereo fusion (thesis ch. 2.4.2 and 3): each stage is callable alone.
 
 1. :func:`tof_to_reference` — reproject + upsample ToF onto the reference camera
    (:func:`segment_mean_shift`, :func:`upsample_depth`);

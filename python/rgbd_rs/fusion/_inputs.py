@@ -19,9 +19,7 @@ def rgb8(name: str, value: object, size: tuple[int, int] | None = None) -> U8:
     if arr.ndim == 2:
         arr = np.repeat(arr[:, :, None], 3, axis=2)
     if arr.ndim != 3 or arr.shape[2] != 3:
-        raise ShapeMismatchError(
-            f"{name}: got shape {tuple(np.shape(value))}, expected (H, W, 3) or (H, W)"
-        )
+        raise ShapeMismatchError(f"{name}: got shape {arr.shape}, expected (H, W, 3) or (H, W)")
     if arr.dtype != np.uint8:
         raise InvalidArgumentError(f"{name}: got dtype {arr.dtype}, expected uint8 (0-255)")
     if arr.size == 0:

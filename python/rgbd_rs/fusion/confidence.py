@@ -80,7 +80,7 @@ def _local_std(d: F32, window: int) -> F32:
     s2 = cv2.boxFilter(v * v, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
     n = np.maximum(n, 1)
     var = np.maximum(s2 / n - (s1 / n) ** 2, 0)
-    return np.sqrt(var).astype(np.float32)
+    return np.asarray(np.sqrt(var), np.float32)
 
 
 def stereo_confidence(

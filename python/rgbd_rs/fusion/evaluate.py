@@ -175,12 +175,12 @@ def markdown_table(results: list[SceneResult], title: str) -> str:
 
 
 def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
-    """BGR picture in the thesis Fig. 3.4 layout: colour, GT, ToF, ToF error, stereo, stereo error, fused, error
-    (grey = excluded, red intensity = |error| up to ``ORACLE_T`` px)."""
+    """BGR picture in the thesis Fig. 3.4 layout: colour, GT, ToF, ToF error, stereo, stereo
+    error, fused, error (grey = excluded, red intensity = |error| up to ``ORACLE_T`` px)."""
     cells, labels = [], []
     for s, r in zip(samples, results, strict=True):
         gt, mask = r.maps["gt"], r.maps["mask"] > 0
-        lo, hi = np.nanpercentile(gt, 1), np.nanpercentile(gt, 99)
+        lo, hi = float(np.nanpercentile(gt, 1)), float(np.nanpercentile(gt, 99))
         ref = s.right if s.rig.reference == "right" else s.left
         cells += [as_bgr(ref), colorize(gt, lo, hi)]
         labels += [f"{s.name} colour", "ground truth"]

@@ -1,4 +1,4 @@
-"""The whole ToF–stereo pipeline of thesis ch. 3: :func:`fuse`."""
+"""The whole ToF-stereo pipeline of thesis ch. 3: :func:`fuse`."""
 
 from __future__ import annotations
 

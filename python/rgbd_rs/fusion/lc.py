@@ -16,8 +16,8 @@ from rgbd_rs.fusion._inputs import F32, map2d, rgb8
 WINDOW_FULL_RES = 39
 FULL_RES_WIDTH = 1920
 #: eq. 2.16 constants. Mattoccia's published values were not available (METHOD_NOTES §1); these
-#: are the checked reimplementation's (γs = 12 at a 39 x 39 window, γc = 30, γt = 25, clip 69),
-#: γs scaled with the window.
+#: are the checked reimplementation's (gamma_s = 12 at a 39 x 39 window, gamma_c = 30,
+#: gamma_t = 25, clip 69), gamma_s scaled with the window.
 GAMMA_S_FULL_RES = 12.0
 GAMMA_C = 30.0
 GAMMA_T = 25.0
@@ -32,7 +32,7 @@ class LcParams:
     """LC constants (eq. 2.16) and the support window.
 
     ``radius`` defaults (None) to the literature's 39 x 39 window at 1920 px width, scaled to
-    the image (960 px -> radius 10); ``gamma_s`` to γs = 12 at radius 19, scaled with the
+    the image (960 px -> radius 10); ``gamma_s`` to gamma_s = 12 at radius 19, scaled with the
     radius (radius 10 -> 6.3). ``stride`` samples every ``stride``-th row and column of the
     window (same extent, 1/stride^2 of the work); it is capped at the radius.
     """
@@ -137,7 +137,7 @@ def lc_refine(
     reference: str = "left",
     params: LcParams | None = None,
 ) -> F32:
-    """Mattoccia's LC refinement of a disparity map (thesis §2.4.2, eq. 2.16–2.19).
+    """Mattoccia's LC refinement of a disparity map (thesis §2.4.2, eq. 2.16-2.19).
 
     ``disparity`` lies on the ``reference`` view of the rectified pair ``left``/``right``
     (``d = u_left - u_right``); every pixel's disparity is re-decided from the plausibilities

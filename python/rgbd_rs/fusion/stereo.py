@@ -1,5 +1,5 @@
 """Stage 2: semi-global matching on the rectified pair (thesis §3.7: OpenCV SGBM with the
-Birchfield–Tomasi pixel cost, 8 paths, 7x7 window, left-right check), expressed on the
+Birchfield-Tomasi pixel cost, 8 paths, 7x7 window, left-right check), expressed on the
 reference camera, plus the pointwise matching-cost curve used by the stereo confidence.
 
 OpenCV computes disparities for its left input. For a right reference both images are mirrored
@@ -95,7 +95,9 @@ def _cost_slices(
             diff[:, : w - d] = np.abs(r_img[:, : w - d] - t_img[:, d:])
         else:  # target x - d
             diff[:, d:] = np.abs(r_img[:, d:] - t_img[:, : w - d])
-        cost = cv2.blur(diff, (block, block), borderType=cv2.BORDER_REPLICATE)
+        cost = np.asarray(
+            cv2.blur(diff, (block, block), borderType=cv2.BORDER_REPLICATE), np.float32
+        )
         if sign > 0:
             cost[:, w - d :] = np.inf
         else:

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
-from rgbd_rs.fusion._inputs import F32, U8, map2d, rgb8, rig_arg
+from rgbd_rs.fusion._inputs import F32, map2d, rgb8, rig_arg
 from rgbd_rs.geometry import depth_to_disparity, reproject_depth
 
 #: Mean-shift bandwidths (spatial px, colour levels) at 960 px width, and the colour tolerance
