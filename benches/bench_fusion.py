@@ -7,6 +7,7 @@
 - LC scaling with the window radius, the window stride and the image size.
 - Upsampling (extended cross bilateral, segmentation term) against a numpy implementation of the
   same filter; mean-shift segmentation (OpenCV) timed separately.
+- The stages of ``fuse()`` and its total.
 
     python benches/bench_fusion.py             # tables on stdout
     python benches/bench_fusion.py --markdown  # README tables
@@ -96,6 +97,7 @@ def main() -> None:
     from rgbd_rs.data.synth import generate, synth3_rig
     from rgbd_rs.fusion import (
         LcParams,
+        fuse,
         lc_fuse,
         segment_mean_shift,
         sgm,
@@ -194,6 +196,28 @@ def main() -> None:
     rows.append(
         ("Mean-shift segmentation (OpenCV pyrMeanShiftFiltering + labels)", ms_ms, None, "")
     )
+    # The stages of fuse() on this scene (one run each).
+    stages = [
+        ("mean-shift segmentation", lambda: segment_mean_shift(s.right)),
+        (
+            "reprojection + mean shift + both upsamplings",
+            lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right),
+        ),
+        ("SGBM (8 paths, 7x7, LR check)", lambda: sgm(s.left, s.right, max_disparity=96)),
+        (
+            "stereo confidence (cost curve)",
+            lambda: stereo_confidence(s.right, s.left, st, max_disparity=96),
+        ),
+        (
+            "ToF confidence",
+            lambda: tof_confidence(
+                tof.disparity, tof.amplitude, rig.stereo.baseline, rig.stereo.focal
+            ),
+        ),
+        ("LC fusion (defaults)", lambda: lc_fuse(s.right, s.left, disps, confs)),
+        ("fuse() total", lambda: fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, rig)),
+    ]
+    stage_rows = [(name, timeit(fn, 1)) for name, fn in stages]
     if args.markdown:
         print("| stage | rgbd_rs (ms) | numpy reference (ms) | vs numpy | note |")
         print("|---|---:|---:|---:|---|")
@@ -204,12 +228,17 @@ def main() -> None:
         print("\n| LC scaling | ms |\n|---|---:|")
         for name, ms in scale_rows:
             print(f"| {name} | {ms:.0f} |")
+        print("\n| fuse() stage, 960x540 | ms |\n|---|---:|")
+        for name, ms in stage_rows:
+            print(f"| {name} | {ms:.0f} |")
     else:
         for name, ms, ref, note in rows:
             x = f"  numpy {ref:.0f} ms ({ref / ms:.0f}x)" if ref else ""
             print(f"{name:70s} {ms:8.0f} ms{x}  {note}")
         for name, ms in scale_rows:
             print(f"  scaling: {name:48s} {ms:8.0f} ms")
+        for name, ms in stage_rows:
+            print(f"  fuse() stage: {name:48s} {ms:8.0f} ms")
 
 
 def numpy_upsample(sparse, image, labels, radius=5, ss=3.0, sc=10.0, sr=0.02):  # type: ignore[no-untyped-def]
