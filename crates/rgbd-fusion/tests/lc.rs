@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use proptest::prelude::*;
-use rgbd_fusion::{lc_fuse, LcParams, Source};
+use rgbd_fusion::{lc_fuse, LcOutput, LcParams, Source};
 
 /// Target colour at quarter-pixel position `pos` of row `y` (linear, rounded), as the definition.
 fn target_at(target: &[u8], w: usize, y: usize, pos: i64, c: usize) -> u8 {
@@ -105,6 +105,19 @@ fn reference_lc(
     out
 }
 
+/// LC with one unit-confidence source (the §2.4.2 refinement) and a `radius` window.
+fn refine(r_img: &[u8], t_img: &[u8], w: usize, h: usize, d: &[f32], radius: usize) -> LcOutput {
+    let src = [Source {
+        disparity: d,
+        confidence: None,
+    }];
+    let p = LcParams {
+        radius,
+        ..LcParams::default()
+    };
+    lc_fuse(r_img, t_img, w, h, &src, &p).unwrap()
+}
+
 /// A textured pair whose true disparity is `d(x)`; reference = right camera (target = x + d).
 fn textured_pair(w: usize, h: usize, seed: u64, d: impl Fn(usize) -> f32) -> (Vec<u8>, Vec<u8>) {
     let tex = |u: f32, y: usize, c: usize| {
@@ -192,22 +205,7 @@ fn refinement_recovers_a_slanted_plane_from_noisy_outliers() {
             truth(x) + e
         })
         .collect();
-    let src = [Source {
-        disparity: &noisy,
-        confidence: None,
-    }];
-    let out = lc_fuse(
-        &r_img,
-        &t_img,
-        w,
-        h,
-        &src,
-        &LcParams {
-            radius: 4,
-            ..LcParams::default()
-        },
-    )
-    .unwrap();
+    let out = refine(&r_img, &t_img, w, h, &noisy, 4);
     let (mut before, mut after, mut cnt) = (0.0f32, 0.0f32, 0);
     for y in 4..h - 4 {
         for x in 4..w - 12 {
@@ -287,22 +285,7 @@ fn holes_fill_from_neighbours_and_empty_input_is_nan() {
     let (r_img, t_img) = textured_pair(w, h, 2, |_| 3.0);
     let mut d = vec![3.0f32; w * h];
     d[4 * w + 8] = f32::NAN;
-    let src = [Source {
-        disparity: &d,
-        confidence: None,
-    }];
-    let out = lc_fuse(
-        &r_img,
-        &t_img,
-        w,
-        h,
-        &src,
-        &LcParams {
-            radius: 2,
-            ..LcParams::default()
-        },
-    )
-    .unwrap();
+    let out = refine(&r_img, &t_img, w, h, &d, 2);
     assert!((out.disparity[4 * w + 8] - 3.0).abs() < 1e-5);
     let none = vec![f32::NAN; w * h];
     let src = [Source {

@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion._inputs import F32, map2d, rgb8
+from rgbd_rs.fusion._inputs import F32, map2d, rgb8, views
 
 #: Window at full (1920 px) resolution: 39 x 39 as in the literature; scaled with image width.
 WINDOW_FULL_RES = 39
@@ -146,6 +146,6 @@ def lc_refine(
     ref_name = _validate.choice("reference", reference, ("left", "right"))
     lft = rgb8("left", left)
     rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
-    ref, tgt, sign = (rgt, lft, 1) if ref_name == "right" else (lft, rgt, -1)
+    ref, tgt, sign = views(lft, rgt, ref_name)
     out, _ = lc_fuse(ref, tgt, [disparity], None, target_sign=sign, params=params)
     return out
