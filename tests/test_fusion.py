@@ -148,6 +148,25 @@ def test_lc_refine_removes_outliers() -> None:
         lc_refine(np.full_like(noisy, np.nan), left, right)
 
 
+def test_cross_check_keeps_agreeing_pixels(scene: SynthSample) -> None:
+    out = fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG)
+    srcs = [out.tof.disparity, out.stereo_disparity]
+    confs = [out.tof_confidence, out.stereo_confidence]
+    plain, _ = lc_fuse(scene.right, scene.left, srcs, confs)
+    checked, share = lc_fuse(
+        scene.right, scene.left, srcs, confs, params=LcParams(cross_check=True)
+    )
+    kept = np.isfinite(checked)
+    assert 0.8 < kept.mean() < np.isfinite(plain).mean(), "drops some pixels, not most"
+    np.testing.assert_array_equal(checked[kept], plain[kept])
+    assert np.isnan(share[~kept]).all()
+    gt = scene.gt_disparity
+    dropped = np.isfinite(plain) & ~kept & np.isfinite(gt)
+    err = np.abs(plain - gt)
+    # What it drops is worse than what it keeps.
+    assert np.median(err[dropped]) > 3 * np.median(err[kept & np.isfinite(gt)])
+
+
 def test_upsampling_and_segmentation() -> None:
     img = np.zeros((20, 30, 3), np.uint8)
     img[:, 15:] = 200

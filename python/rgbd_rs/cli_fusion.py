@@ -46,6 +46,9 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     fz.add_argument("--max-disparity", type=int, help="SGM search range (default from the ToF)")
     fz.add_argument("--radius", type=int, help="LC window half-size (default: 39x39 at 1920 px)")
     fz.add_argument("--stride", type=int, default=2, help="LC window sampling step (default 2)")
+    fz.add_argument(
+        "--cross-check", action="store_true", help="keep only pixels both views agree on (eq. 2.18)"
+    )
 
     ev = sub.add_parser(
         "eval",
@@ -66,6 +69,7 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     )
     ef.add_argument("--limit", type=int, help="first N synthetic scenes only")
     ef.add_argument("--stride", type=int, default=2, help="LC window sampling step (default 2)")
+    ef.add_argument("--cross-check", action="store_true", help="LC with the two-view cross-check")
     ef.add_argument("--out", type=Path, default=Path("out/eval_fusion"), help="output folder")
     ef.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -109,7 +113,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     conf: object = args.confidence
     if args.tof_confidence is not None:
         conf = (load_map(args.tof_confidence), load_map(args.stereo_confidence))
-    params = LcParams(radius=args.radius, stride=args.stride)
+    params = LcParams(radius=args.radius, stride=args.stride, cross_check=args.cross_check)
     t0 = time.perf_counter()
     out = fuse(
         left,
@@ -170,7 +174,7 @@ def run_eval(args: argparse.Namespace) -> int:
 
     if args.synth is None and not args.middlebury:
         raise InvalidArgumentError("--synth/--middlebury: got neither, expected at least one")
-    params = LcParams(stride=args.stride)
+    params = LcParams(stride=args.stride, cross_check=args.cross_check)
     if args.synth is not None:
         samples = list(synth_samples(args.synth, args.split))[: args.limit]
         res = evaluate(
