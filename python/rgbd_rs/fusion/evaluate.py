@@ -25,6 +25,7 @@ from rgbd_rs.data.middlebury import load_middlebury
 from rgbd_rs.data.synth import SynthDataset
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, U8, views
+from rgbd_rs.fusion.crosscheck import warp_to_target
 from rgbd_rs.fusion.fuse import fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.meshes import Mesh
@@ -67,16 +68,13 @@ def non_occluded(disparity: npt.ArrayLike, target_sign: int) -> npt.NDArray[np.b
     """Pixels of the reference view visible in the target view: no nearer reference pixel
     (larger disparity) lands on the same target pixel (within 1 px of disparity)."""
     d = np.asarray(disparity, np.float32)
-    h, w = d.shape
+    front, _ = warp_to_target(d, None, target_sign)  # the nearest disparity per target pixel
     ys, xs = np.nonzero(np.isfinite(d))
     tx = np.rint(xs + target_sign * d[ys, xs]).astype(np.int64)
-    inside = (tx >= 0) & (tx < w)
-    zbuf = np.full((h, w), -np.inf, np.float32)
-    np.maximum.at(zbuf, (ys[inside], tx[inside]), d[ys, xs][inside])
-    out = np.zeros((h, w), bool)
-    ok = np.zeros(ys.shape, bool)
-    ok[inside] = d[ys, xs][inside] >= zbuf[ys[inside], tx[inside]] - 1.0
-    out[ys, xs] = ok
+    inside = (tx >= 0) & (tx < d.shape[1])
+    out = np.zeros(d.shape, bool)
+    ys, xs, tx = ys[inside], xs[inside], tx[inside]
+    out[ys, xs] = d[ys, xs] >= front[ys, tx] - 1.0
     return out
 
 
