@@ -24,7 +24,8 @@ def _parser() -> argparse.ArgumentParser:
         "demo",
         help="run the demo on synthetic and real data",
         description="Camera geometry on an analytic scene and on the real Azure "
-        "Kinect frame; prints measurements and writes PNGs.",
+        "Kinect frame, then ToF-stereo fusion of a rendered SYNTH3-style scene; prints "
+        "measurements and writes PNGs.",
     )
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="folder for the pictures")
     demo.add_argument("--no-pictures", action="store_true", help="print only")
