@@ -26,6 +26,7 @@
 use rayon::prelude::*;
 use rgbd_geom::error::{check_len, invalid, Result};
 
+use crate::check::window_and_positive;
 use crate::color::{exp_table, sum_abs};
 
 /// Quarter-pixel resampling of the target rows.
@@ -71,20 +72,16 @@ impl Default for LcParams {
 
 impl LcParams {
     fn validate(&self) -> Result<()> {
-        if self.radius == 0 || self.radius > 64 {
-            return Err(invalid("radius", self.radius, "1..=64 pixels"));
-        }
-        for (name, v) in [
-            ("gamma_s", self.gamma_s),
-            ("gamma_c", self.gamma_c),
-            ("gamma_t", self.gamma_t),
-            ("truncation", self.truncation),
-            ("bin_width", self.bin_width),
-        ] {
-            if !(v > 0.0) || !v.is_finite() {
-                return Err(invalid(name, v, "a finite value > 0"));
-            }
-        }
+        window_and_positive(
+            self.radius,
+            &[
+                ("gamma_s", self.gamma_s),
+                ("gamma_c", self.gamma_c),
+                ("gamma_t", self.gamma_t),
+                ("truncation", self.truncation),
+                ("bin_width", self.bin_width),
+            ],
+        )?;
         if self.stride == 0 || self.stride > self.radius.max(1) {
             return Err(invalid(
                 "stride",
@@ -130,29 +127,27 @@ struct Hyp {
 }
 
 /// Target rows resampled at quarter-pixel positions: `4 (W - 1) + 1` RGB samples per row.
-pub fn quarter_rows(target: &[u8], width: usize, height: usize) -> Vec<u8> {
+pub fn quarter_rows(target: &[u8], width: usize, height: usize) -> Vec<[u8; 3]> {
     let len = PHASES as usize * (width - 1) + 1;
-    let mut out = vec![0u8; height * len * 3];
-    out.par_chunks_mut(len * 3)
-        .enumerate()
-        .for_each(|(y, row)| {
-            let src = &target[y * width * 3..(y + 1) * width * 3];
-            for k in 0..len {
-                let (x0, f) = (
-                    k / PHASES as usize,
-                    (k % PHASES as usize) as f32 / PHASES as f32,
-                );
-                for c in 0..3 {
-                    let a = f32::from(src[3 * x0 + c]);
-                    let b = if f > 0.0 {
-                        f32::from(src[3 * x0 + 3 + c])
-                    } else {
-                        a
-                    };
-                    row[3 * k + c] = ((1.0 - f) * a + f * b).round() as u8;
-                }
+    let mut out = vec![[0u8; 3]; height * len];
+    out.par_chunks_mut(len).enumerate().for_each(|(y, row)| {
+        let src = &target[y * width * 3..(y + 1) * width * 3];
+        for (k, px) in row.iter_mut().enumerate() {
+            let (x0, f) = (
+                k / PHASES as usize,
+                (k % PHASES as usize) as f32 / PHASES as f32,
+            );
+            for (c, v) in px.iter_mut().enumerate() {
+                let a = f32::from(src[3 * x0 + c]);
+                let b = if f > 0.0 {
+                    f32::from(src[3 * x0 + 3 + c])
+                } else {
+                    a
+                };
+                *v = ((1.0 - f) * a + f * b).round() as u8;
             }
-        });
+        }
+    });
     out
 }
 
@@ -230,7 +225,7 @@ pub fn lc_fuse(
             ),
         ));
     }
-    let t4 = rgb_pixels(&quarter_rows(target, width, height));
+    let t4 = quarter_rows(target, width, height);
     let refc = rgb_pixels(reference);
     let len = PHASES as usize * (width - 1) + 1;
     let hyps: Vec<Vec<Hyp>> = sources

@@ -12,6 +12,7 @@
 //! Images are `H x W x 3` row-major `u8`; maps are `H x W` `f32` with NaN for "no value".
 //! Errors reuse `rgbd_geom::GeomError` so the binding maps them unchanged.
 
+mod check;
 pub mod color;
 pub mod labels;
 pub mod lc;

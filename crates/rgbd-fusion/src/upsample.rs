@@ -16,6 +16,7 @@
 use rayon::prelude::*;
 use rgbd_geom::error::{check_len, invalid, Result};
 
+use crate::check::window_and_positive;
 use crate::color::{gauss_table, sum_abs};
 
 /// Parameters of [`upsample_depth`].
@@ -44,19 +45,14 @@ impl Default for UpsampleParams {
 
 impl UpsampleParams {
     fn validate(&self) -> Result<()> {
-        if self.radius == 0 || self.radius > 64 {
-            return Err(invalid("radius", self.radius, "1..=64 pixels"));
-        }
-        for (name, v) in [
-            ("sigma_s", self.sigma_s),
-            ("sigma_c", self.sigma_c),
-            ("sigma_r", self.sigma_r),
-        ] {
-            if !(v > 0.0) || !v.is_finite() {
-                return Err(invalid(name, v, "a finite value > 0"));
-            }
-        }
-        Ok(())
+        window_and_positive(
+            self.radius,
+            &[
+                ("sigma_s", self.sigma_s),
+                ("sigma_c", self.sigma_c),
+                ("sigma_r", self.sigma_r),
+            ],
+        )
     }
 }
 
