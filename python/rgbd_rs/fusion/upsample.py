@@ -129,10 +129,10 @@ def tof_to_reference(
         )
     rep = reproject_depth(np.where(valid, z, np.nan), r.tof, ref, r.tof_to_reference, channels=amp)
     assert rep.channels is not None
-    sparse_amp = np.where(np.isfinite(rep.depth), rep.channels, np.nan).astype(np.float32)
+    with np.errstate(invalid="ignore"):
+        landed = np.isfinite(rep.depth) & (rep.channels > 0)
+    sparse_amp = np.where(landed, rep.channels, np.nan).astype(np.float32)
     dense = upsample_depth(rep.depth, img, lab, radius=radius)
-    dense_amp = upsample_depth(
-        np.where(sparse_amp > 0, sparse_amp, np.nan), img, lab, radius=radius
-    )
+    dense_amp = upsample_depth(sparse_amp, img, lab, radius=radius)
     disp = depth_to_disparity(dense, r.stereo.baseline, r.stereo.focal)
     return ToFOnReference(rep.depth, dense, disp, dense_amp, np.asarray(lab, dtype=np.int32))
