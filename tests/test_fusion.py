@@ -10,7 +10,6 @@ import pytest
 
 from rgbd_rs import InvalidArgumentError, ShapeMismatchError, StereoRig, cli
 from rgbd_rs.data.calibration import save_rig
-from rgbd_rs.data.files import read_npz, read_png, write_png
 from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
 from rgbd_rs.fusion import (
     LcParams,
@@ -29,6 +28,8 @@ from rgbd_rs.fusion.evaluate import (
     middlebury_sample,
     non_occluded,
 )
+from rgbd_rs.io import read_npz, read_png, write_png
+from rgbd_rs.metrics import rms_error
 
 RIG = synth3_rig(0.25)  # 480 x 270: the thesis rig at a quarter of full resolution
 
@@ -36,10 +37,6 @@ RIG = synth3_rig(0.25)  # 480 x 270: the thesis rig at a quarter of full resolut
 @pytest.fixture(scope="module")
 def scene() -> SynthSample:
     return generate(0, "test", 1, RIG)[0]
-
-
-def _rms(d: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> float:
-    return float(np.sqrt(np.mean((d[mask] - gt[mask]) ** 2)))
 
 
 def test_stages_on_a_rendered_scene(scene: SynthSample) -> None:
@@ -112,7 +109,7 @@ def test_given_confidences_steer_the_result(scene: SynthSample) -> None:
     )
     gt = scene.gt_disparity
     m = np.isfinite(gt) & np.isfinite(tof_only.disparity) & np.isfinite(st_only.disparity)
-    assert _rms(tof_only.disparity, gt, m) < 0.5 * _rms(st_only.disparity, gt, m)
+    assert rms_error(tof_only.disparity, gt, m) < 0.5 * rms_error(st_only.disparity, gt, m)
 
 
 def _textured_pair(d: float, w: int = 96, h: int = 40) -> tuple[np.ndarray, np.ndarray]:

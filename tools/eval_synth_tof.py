@@ -13,6 +13,7 @@ import argparse
 import numpy as np
 
 from rgbd_rs.data import SynthDataset
+from rgbd_rs.metrics import rms_error
 
 
 def main() -> None:
@@ -25,7 +26,7 @@ def main() -> None:
         err = s.tof_depth - s.tof_gt_depth
         valid.append(np.isfinite(s.tof_depth).mean())
         med.append(np.nanmedian(np.abs(err)))
-        rms.append(np.sqrt(np.nanmean(err**2)))
+        rms.append(rms_error(s.tof_depth, s.tof_gt_depth))
     print(
         f"{args.split}: {len(valid)} scenes, ToF valid {100 * np.mean(valid):.1f} %, "
         f"median |err| {100 * np.mean(med):.2f} cm, RMS {100 * np.mean(rms):.2f} cm"

@@ -8,6 +8,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import os
 import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -17,10 +18,40 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs.errors import RgbdError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
+
+__all__ = [
+    "read_json",
+    "read_npy",
+    "read_npz",
+    "read_png",
+    "sha256",
+    "write_json",
+    "write_npz",
+    "write_png",
+]
 
 #: Timestamp stored in every npz member, so equal arrays give equal bytes.
 _ZIP_TIME = (1980, 1, 1, 0, 0, 0)
+#: PNG sample types and channel counts OpenCV writes.
+_PNG_DTYPES = (np.uint8, np.uint16)
+_PNG_CHANNELS = (1, 3, 4)
+
+
+def _path(value: object, name: str = "path") -> Path:
+    if isinstance(value, (str, os.PathLike)) and str(value):
+        return Path(value)
+    raise InvalidArgumentError(f"{name}: got {value!r}, expected a file path (str or Path)")
+
+
+def _read_bytes(path: Path) -> bytes:
+    """The file's bytes; a missing or empty file raises RgbdError naming it."""
+    if not path.is_file():
+        raise RgbdError(f"{path}: file not found")
+    data = path.read_bytes()
+    if not data:
+        raise RgbdError(f"{path}: empty file")
+    return data
 
 
 def _atomic_bytes(path: Path, data: bytes) -> Path:
@@ -33,51 +64,98 @@ def _atomic_bytes(path: Path, data: bytes) -> Path:
 
 def write_npz(path: str | Path, arrays: Mapping[str, npt.ArrayLike]) -> Path:
     """Write a compressed ``.npz`` atomically; identical arrays give identical bytes."""
+    out = _path(path)
+    if not isinstance(arrays, Mapping):
+        raise InvalidArgumentError(
+            f"arrays: got {type(arrays).__name__}, expected a mapping of names to arrays"
+        )
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         for key, value in arrays.items():
+            if not isinstance(key, str) or not key:
+                raise InvalidArgumentError(f"arrays: got key {key!r}, expected non-empty names")
+            arr = np.asarray(value)
+            if arr.dtype.kind not in "biuf":
+                raise InvalidArgumentError(
+                    f"arrays[{key!r}]: got dtype {arr.dtype}, expected a bool/int/float array"
+                )
             member = io.BytesIO()
-            np.lib.format.write_array(member, np.asarray(value), allow_pickle=False)
+            np.lib.format.write_array(member, arr, allow_pickle=False)
             info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_TIME)
             info.compress_type = zipfile.ZIP_DEFLATED
             zf.writestr(info, member.getvalue())
-    return _atomic_bytes(Path(path), buf.getvalue())
+    return _atomic_bytes(out, buf.getvalue())
 
 
-def read_npz(path: str | Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
-    """Read ``keys`` from an npz; a missing, truncated or incomplete file raises RgbdError."""
-    path = Path(path)
-    if not path.is_file():
-        raise RgbdError(f"{path}: file not found")
+def read_npz(path: str | Path, keys: Sequence[str] | None = None) -> dict[str, np.ndarray]:
+    """Read ``keys`` (default: every array) from an npz; a missing, truncated or incomplete file
+    raises RgbdError."""
+    path = _path(path)
+    if keys is not None and (
+        isinstance(keys, str)
+        or not isinstance(keys, Sequence)
+        or not all(isinstance(k, str) for k in keys)
+    ):
+        raise InvalidArgumentError(f"keys: got {keys!r}, expected a sequence of array names")
+    data = _read_bytes(path)
     try:
         # From memory: np.load leaks its file handle when the archive is corrupt.
-        with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as z:
-            missing = [k for k in keys if k not in z.files]
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            wanted = z.files if keys is None else keys
+            missing = [k for k in wanted if k not in z.files]
             if missing:
                 raise RgbdError(f"{path}: missing arrays {missing} (has {sorted(z.files)})")
-            return {k: z[k] for k in keys}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            return {k: z[k] for k in wanted}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, AttributeError) as exc:
+        if isinstance(exc, RgbdError):
+            raise
+        # AttributeError: np.load returned a plain array (an .npy, not an archive).
         raise RgbdError(f"{path}: corrupt or truncated npz ({exc})") from exc
 
 
+def read_npy(path: str | Path) -> np.ndarray:
+    """Read one array from an ``.npy`` file (no pickles); a missing, empty, truncated or
+    non-``.npy`` file raises RgbdError naming it."""
+    path = _path(path)
+    data = _read_bytes(path)
+    try:
+        arr = np.load(io.BytesIO(data), allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:
+        raise RgbdError(f"{path}: corrupt or truncated .npy ({exc})") from exc
+    if not isinstance(arr, np.ndarray):
+        arr.close()
+        raise RgbdError(f"{path}: is an npz archive, expected a single-array .npy")
+    return arr
+
+
 def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
-    """Write an 8/16-bit image as PNG atomically (``rgb``: 3-channel input is RGB)."""
+    """Write an 8/16-bit image as PNG atomically (``rgb``: 3-channel input is RGB).
+
+    ``image`` is ``H x W`` or ``H x W x C`` (C = 1, 3 or 4) of uint8 or uint16.
+    """
+    out = _path(path)
     img = np.asarray(image)
-    if rgb and img.ndim == 3:
-        img = img[:, :, ::-1]
+    if img.dtype not in _PNG_DTYPES:
+        raise InvalidArgumentError(f"image: got dtype {img.dtype}, expected uint8 or uint16")
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in _PNG_CHANNELS):
+        raise ShapeMismatchError(
+            f"image: got shape {img.shape}, expected (H, W) or (H, W, C) with C in 1, 3, 4"
+        )
+    if img.size == 0:
+        raise ShapeMismatchError(f"image: got shape {img.shape}, expected at least one pixel")
+    if rgb and img.ndim == 3 and img.shape[2] >= 3:
+        img = np.concatenate([img[:, :, 2::-1], img[:, :, 3:]], axis=2)
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(img))
     if not ok:
-        raise RgbdError(f"{path}: could not encode the image as PNG")
-    return _atomic_bytes(Path(path), buf.tobytes())
+        raise RgbdError(f"{out}: could not encode the image as PNG")
+    return _atomic_bytes(out, buf.tobytes())
 
 
 def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     """Read a PNG unchanged (8/16 bit; 3 channels returned as RGB); bad files raise RgbdError."""
-    path = Path(path)
-    if not path.is_file():
-        raise RgbdError(f"{path}: file not found")
-    data = np.frombuffer(path.read_bytes(), np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    path = _path(path)
+    data = np.frombuffer(_read_bytes(path), np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if img is None:
         raise RgbdError(f"{path}: corrupt or truncated image")
     if rgb and img.ndim == 3:
@@ -87,20 +165,27 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
 
 def write_json(path: str | Path, obj: Any) -> Path:
     """Write JSON (sorted keys, indented) atomically."""
-    return _atomic_bytes(Path(path), (json.dumps(obj, indent=1, sort_keys=True) + "\n").encode())
+    out = _path(path)
+    try:
+        text = json.dumps(obj, indent=1, sort_keys=True)
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(f"obj: got a value JSON cannot hold ({exc})") from None
+    return _atomic_bytes(out, (text + "\n").encode())
 
 
 def read_json(path: str | Path) -> Any:
     """Read JSON; a missing or malformed file raises RgbdError naming it."""
-    path = Path(path)
-    if not path.is_file():
-        raise RgbdError(f"{path}: file not found")
+    path = _path(path)
+    data = _read_bytes(path)
     try:
-        return json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        return json.loads(data.decode())
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         raise RgbdError(f"{path}: malformed JSON ({exc})") from exc
 
 
 def sha256(path: str | Path) -> str:
     """Hex SHA-256 of a file's bytes."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    path = _path(path)
+    if not path.is_file():
+        raise RgbdError(f"{path}: file not found")
+    return hashlib.sha256(path.read_bytes()).hexdigest()

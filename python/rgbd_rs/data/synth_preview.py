@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from rgbd_rs.data.synth import generate, rig_poses, synth3_rig, tof_seed
+from rgbd_rs.metrics import rms_error
 from rgbd_rs.render import ToFModel
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
@@ -47,14 +48,15 @@ def write_preview(
         ("multipath", model.only("multipath")),
         ("noise", model.only("noise")),
     ]
-    errors: dict[str, np.ndarray] = {}
+    frames: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for name, m in cases:
         f = scene.tof(rig.tof, to_tof, m, seed=noise_seed)
-        errors[name] = f.depth - f.truth
+        frames[name] = (f.depth, f.truth)
     # The sample's own ToF frame already has every effect (same default model, same seed).
-    errors["all"] = sample.tof_depth - sample.tof_gt_depth
-    for name, err in errors.items():
-        rms[name] = float(np.sqrt(np.nanmean(err**2)))
+    frames["all"] = (sample.tof_depth, sample.tof_gt_depth)
+    for name, (depth, truth) in frames.items():
+        rms[name] = rms_error(depth, truth)
+        err = depth - truth
         images.append(colorize(err, -ERROR_RANGE_M, ERROR_RANGE_M, colormap=cv2.COLORMAP_JET))
         labels.append(f"ToF error: {name} (rms {100 * rms[name]:.1f} cm)")
     dropout = np.isnan(sample.tof_depth) & np.isfinite(sample.tof_gt_depth)

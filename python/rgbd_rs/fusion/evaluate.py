@@ -29,6 +29,7 @@ from rgbd_rs.fusion.crosscheck import warp_to_target
 from rgbd_rs.fusion.fuse import fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.meshes import Mesh
+from rgbd_rs.metrics import rms_error
 from rgbd_rs.render import Material, Scene, ToFModel
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
@@ -153,7 +154,7 @@ def evaluate_sample(s: Sample, params: LcParams | None = None) -> SceneResult:
         mask &= np.isfinite(m)
     if not mask.any():
         raise RgbdError(f"{s.name}: no pixel is valid in every map; nothing to evaluate")
-    rms = {k: float(np.sqrt(np.mean((v[mask] - gt[mask]) ** 2))) for k, v in maps.items()}
+    rms = {k: rms_error(v, gt, mask) for k, v in maps.items()}
     maps["gt"] = gt
     maps["mask"] = mask.astype(np.float32)
     return SceneResult(s.name, rms, int(mask.sum()), maps)
