@@ -1,0 +1,68 @@
+"""The ``rgbd`` command line. ``rgbd --help`` lists the commands; each has its own ``--help``.
+
+This module parses and dispatches; each pipeline's module registers its own commands through
+:class:`~rgbd_rs.cli._args.Commands` (``register(commands)``), top-level ones such as
+``rgbd fuse`` and the ``WHAT`` of the shared groups (``rgbd eval fusion``, later
+``rgbd eval segmentation``, ``rgbd train shapes``), so a new pipeline adds one module and one
+line in :data:`PIPELINES`.
+
+Every failure ends in one line on stderr, ``rgbd: error: ...`` naming the argument or file,
+and exit status 2: bad command lines (argparse, with range checks on the numbers), bad files
+and bad values (:class:`~rgbd_rs.RgbdError`), unreadable or unwritable paths (``OSError``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from rgbd_rs import __version__
+from rgbd_rs.cli import data, demo, fusion
+from rgbd_rs.cli._args import Commands, Parser, fail, os_message
+from rgbd_rs.errors import RgbdError
+
+__all__ = ["PIPELINES", "build_parser", "main"]
+
+#: The modules whose ``register(commands)`` adds commands, in ``rgbd --help`` order.
+PIPELINES = (demo, data, fusion)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``rgbd`` parser with every pipeline's commands."""
+    p = Parser(
+        prog="rgbd",
+        description="rgbd_rs: ToF-stereo fusion, RGB-D segmentation and 3-D shape classification "
+        "with a fast Rust core.",
+    )
+    p.add_argument("--version", action="version", version=f"rgbd_rs {__version__}")
+    commands = Commands(p.add_subparsers(dest="command", metavar="COMMAND"))
+    for pipeline in PIPELINES:
+        pipeline.register(commands)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``rgbd`` script; returns the exit status (0 ok, 2 error)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    run = getattr(args, "run", None)
+    if run is None:
+        parser.print_help()
+        return 2
+    try:
+        status: int = run(args)
+    except RgbdError as exc:
+        return fail(str(exc))
+    except OSError as exc:
+        return fail(os_message(exc))
+    except MemoryError:
+        return fail("out of memory (try smaller images or fewer scenes)")
+    except KeyboardInterrupt:
+        print("rgbd: interrupted", file=sys.stderr)
+        return 130
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

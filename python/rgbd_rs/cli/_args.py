@@ -1,0 +1,126 @@
+"""What every pipeline's commands share (private): the parser class that reports a bad command
+line in one line, argparse types that reject nonsense values while parsing, the registry each
+pipeline adds its commands to, and the wrapper that names the flag when its file is bad."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from typing import NoReturn, TypeVar
+
+from rgbd_rs.errors import RgbdError
+
+T = TypeVar("T")
+Run = Callable[[argparse.Namespace], int]
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line: ``rgbd: error: ... (see `PROG --help`)``."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"rgbd: error: {one_line(message)} (see `{self.prog} --help`)\n")
+
+
+def one_line(message: str) -> str:
+    """``message`` with its line breaks folded, so an error is always one line."""
+    return " ".join(message.split())
+
+
+def fail(message: str) -> int:
+    """Print ``rgbd: error: MESSAGE`` (one line) on stderr; the exit status of a failed run."""
+    print(f"rgbd: error: {one_line(message)}", file=sys.stderr)
+    return 2
+
+
+def integer(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
+    """An argparse type: an integer in ``[minimum, maximum]``."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"got {text!r}, expected an integer") from None
+        if v < minimum or (maximum is not None and v > maximum):
+            hi = "" if maximum is None else f" and <= {maximum}"
+            raise argparse.ArgumentTypeError(f"got {v}, expected an integer >= {minimum}{hi}")
+        return v
+
+    return parse
+
+
+def real(minimum: float, maximum: float, *, low_open: bool = True) -> Callable[[str], float]:
+    """An argparse type: a finite number in ``(minimum, maximum]`` (``[minimum, ...`` when not
+    ``low_open``)."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"got {text!r}, expected a number") from None
+        low_ok = v > minimum if low_open else v >= minimum
+        if not (low_ok and v <= maximum):  # also refuses nan
+            lo = f"> {minimum:g}" if low_open else f">= {minimum:g}"
+            raise argparse.ArgumentTypeError(
+                f"got {text}, expected a number {lo} and <= {maximum:g}"
+            )
+        return v
+
+    return parse
+
+
+def named(flag: str, load: Callable[[], T]) -> T:
+    """``load()``, with a bad file's error prefixed by the ``flag`` that named the file."""
+    try:
+        return load()
+    except RgbdError as exc:
+        raise type(exc)(f"{flag}: {exc}") from None
+    except OSError as exc:
+        raise RgbdError(f"{flag}: {os_message(exc)}") from None
+
+
+def os_message(exc: OSError) -> str:
+    """``FILE: reason`` of an OSError (permission denied, a folder where a file belongs, ...)."""
+    reason = exc.strerror or str(exc)
+    return f"{exc.filename}: {reason}" if exc.filename else reason
+
+
+#: The shared command groups: name -> (help, description). A group appears in ``rgbd --help``
+#: once a pipeline adds a ``WHAT`` to it.
+GROUPS: dict[str, tuple[str, str]] = {
+    "eval": (
+        "evaluate a pipeline against ground truth",
+        "Evaluate a pipeline; each WHAT is one pipeline's evaluation protocol.",
+    ),
+    "train": (
+        "train a pipeline's network",
+        "Train a pipeline's network; each WHAT is one pipeline's trainer.",
+    ),
+}
+
+
+class Commands:
+    """What a pipeline registers its commands with: top-level commands (``rgbd fuse``) and the
+    ``WHAT`` of a shared group (``rgbd eval fusion``, ``rgbd train segmentation``)."""
+
+    def __init__(self, sub: argparse._SubParsersAction[Parser]) -> None:
+        self._sub = sub
+        self._groups: dict[str, argparse._SubParsersAction[Parser]] = {}
+
+    def command(self, name: str, run: Run, *, help: str, description: str) -> Parser:
+        """Add ``rgbd NAME``; ``run(args)`` returns the exit status."""
+        p = self._sub.add_parser(name, help=help, description=description)
+        p.set_defaults(run=run)
+        return p
+
+    def group_command(
+        self, group: str, what: str, run: Run, *, help: str, description: str
+    ) -> Parser:
+        """Add ``rgbd GROUP WHAT`` (``group`` is ``"eval"`` or ``"train"``)."""
+        if group not in self._groups:
+            group_help, group_description = GROUPS[group]
+            g = self._sub.add_parser(group, help=group_help, description=group_description)
+            self._groups[group] = g.add_subparsers(dest=group, metavar="WHAT", required=True)
+        p = self._groups[group].add_parser(what, help=help, description=description)
+        p.set_defaults(run=run)
+        return p

@@ -1,0 +1,120 @@
+"""``rgbd reproject`` and ``rgbd synth``: the dataset commands."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rgbd_rs.cli._args import Commands, integer, named, real
+from rgbd_rs.geometry import MAX_SPLAT_RADIUS
+
+
+def register(commands: Commands) -> None:
+    # The bounds live with the generator; importing it here would load the renderer for every
+    # command, so the --scale check reads them when it runs.
+    rep = commands.command(
+        "reproject",
+        run_reproject,
+        help="reproject a ToF depth map onto a colour camera",
+        description="Reproject an Azure Kinect depth frame (npz with depth_mm, "
+        "ir, color) onto its colour camera using the device calibration JSON; "
+        "writes depth.npz, a 16-bit PNG (mm) and a preview.",
+    )
+    rep.add_argument("--frame", type=Path, required=True, help="npz with depth_mm, ir, color")
+    rep.add_argument("--calib", type=Path, required=True, help="Azure Kinect calibration JSON")
+    rep.add_argument("--out", type=Path, required=True, help="output folder")
+    rep.add_argument(
+        "--splat-radius",
+        type=integer(0, MAX_SPLAT_RADIUS),
+        default=1,
+        help=f"splat radius in pixels (0..{MAX_SPLAT_RADIUS})",
+    )
+    syn = commands.command(
+        "synth",
+        run_synth,
+        help="generate a SYNTH3-style synthetic ToF + stereo dataset",
+        description="Render procedural rooms with the SYNTH3 rig (thesis Table 3.1): stereo "
+        "pair, ToF depth + amplitude with mixed pixels, multipath, noise and dropout, and ground "
+        "truth. Resumable and bit-reproducible for a given seed. With --preview, only writes "
+        "OUT/preview.png (one test scene with per-effect ToF error maps).",
+    )
+    syn.add_argument("--out", type=Path, required=True, help="dataset folder")
+    syn.add_argument("--train", type=_scenes, default=40, help="training scenes (default 40)")
+    syn.add_argument("--test", type=_scenes, default=15, help="test scenes (default 15)")
+    syn.add_argument(
+        "--seed", type=integer(0, 2**32 - 1), default=0, help="random seed (default 0)"
+    )
+    syn.add_argument(
+        "--scale",
+        type=_scale,
+        default=0.5,
+        help="stereo size relative to 1920x1080 (default 0.5; at most 4, 7680x4320)",
+    )
+    syn.add_argument("--preview", action="store_true", help="write OUT/preview.png only")
+    syn.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _scale(text: str) -> float:
+    from rgbd_rs.data.synth import FULL_HEIGHT, MAX_SCALE, MIN_SIDE
+
+    return real(MIN_SIDE / FULL_HEIGHT, MAX_SCALE, low_open=False)(text)
+
+
+def _scenes(text: str) -> int:
+    from rgbd_rs.data.synth import MAX_SCENES
+
+    return integer(0, MAX_SCENES)(text)
+
+
+def run_synth(args: argparse.Namespace) -> int:
+    if args.preview:
+        from rgbd_rs.data.synth_preview import write_preview
+
+        rms = write_preview(args.out / "preview.png", seed=args.seed, scale=args.scale)
+        parts = ", ".join(
+            f"{k} {100 * v:.2f} cm" for k, v in rms.items() if k != "dropout_fraction"
+        )
+        print(f"ToF rms error by source: {parts}; invalid {100 * rms['dropout_fraction']:.1f} %")
+        print(f"wrote {args.out / 'preview.png'}")
+        return 0
+    from rgbd_rs.data.synth import write_dataset
+
+    path = write_dataset(
+        args.out,
+        train=args.train,
+        test=args.test,
+        seed=args.seed,
+        scale=args.scale,
+        quiet=args.quiet,
+    )
+    print(f"wrote {args.train} + {args.test} scenes; manifest {path}")
+    return 0
+
+
+def run_reproject(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from rgbd_rs.data import (
+        load_azure_kinect_calibration,
+        load_azure_kinect_frame,
+        reproject_to_color,
+    )
+    from rgbd_rs.io import write_npz
+    from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+
+    cal = named("--calib", lambda: load_azure_kinect_calibration(args.calib))
+    frame = named("--frame", lambda: load_azure_kinect_frame(args.frame))
+    rep = reproject_to_color(frame, cal, splat_radius=args.splat_radius)
+    args.out.mkdir(parents=True, exist_ok=True)
+    assert rep.channels is not None  # amplitude was passed as a channel
+    write_npz(args.out / "depth.npz", {"depth": rep.depth, "amplitude": rep.channels})
+    mm = np.clip(np.nan_to_num(rep.depth * 1000.0, nan=0.0), 0, 65535).astype(np.uint16)
+    save_png(args.out / "depth_mm.png", mm)
+    save_png(
+        args.out / "preview.png",
+        tile(
+            [as_bgr(frame.color), colorize(rep.depth)], ["colour", "ToF depth on colour"], columns=2
+        ),
+    )
+    print(f"coverage {rep.coverage:.1%}; wrote {args.out}/depth.npz, depth_mm.png, preview.png")
+    return 0

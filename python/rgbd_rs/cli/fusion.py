@@ -1,0 +1,229 @@
+"""``rgbd fuse`` and ``rgbd eval fusion``: the fusion pipeline's commands."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from itertools import islice
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs.cli._args import Commands, integer, named
+from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
+
+#: 16-bit disparity PNGs store disparity x 256 (the KITTI convention); 0 = invalid.
+DISPARITY_PNG_SCALE = 256.0
+
+
+def register(commands: Commands) -> None:
+    fz = commands.command(
+        "fuse",
+        run_fuse,
+        help="fuse a ToF frame with a stereo pair (thesis ch. 3)",
+        description="Reproject + upsample the ToF depth onto the reference camera, run SGM on "
+        "the pair, weight both with confidences and fuse them with the locally consistent (LC) "
+        "method. Writes OUT/fused.npz (float32 maps), OUT/disparity.png (16-bit, disparity x "
+        "256), OUT/depth_mm.png (16-bit millimetres) and OUT/preview.png. Maps: .npy/.npz in "
+        "metres, or 16-bit PNG in millimetres (depth).",
+    )
+    fz.add_argument("--left", type=Path, required=True, help="left colour image (PNG)")
+    fz.add_argument("--right", type=Path, required=True, help="right colour image (PNG)")
+    fz.add_argument(
+        "--tof-depth", type=Path, required=True, help="ToF depth (.npy/.npz m, .png mm)"
+    )
+    fz.add_argument(
+        "--tof-amplitude", type=Path, required=True, help="ToF amplitude (.npy/.npz/.png)"
+    )
+    fz.add_argument("--calib", type=Path, required=True, help="rig calibration JSON")
+    fz.add_argument("--out", type=Path, required=True, help="output folder")
+    fz.add_argument(
+        "--confidence",
+        choices=("uniform", "heuristic"),
+        default="heuristic",
+        help="confidence weights (default heuristic); see also --tof-confidence",
+    )
+    fz.add_argument("--tof-confidence", type=Path, help="ToF confidence map (.npy, [0, 1])")
+    fz.add_argument("--stereo-confidence", type=Path, help="stereo confidence map (.npy, [0, 1])")
+    fz.add_argument(
+        "--max-disparity", type=integer(1), help="SGM search range (default from the ToF)"
+    )
+    fz.add_argument(
+        "--radius", type=integer(1), help="LC window half-size (default: 39x39 at 1920 px)"
+    )
+    fz.add_argument(
+        "--stride", type=integer(1), default=2, help="LC window sampling step (default 2)"
+    )
+    fz.add_argument(
+        "--cross-check", action="store_true", help="keep only pixels both views agree on (eq. 2.18)"
+    )
+
+    ef = commands.group_command(
+        "eval",
+        "fusion",
+        run_eval,
+        help="RMS disparity error of ToF, SGM and LC fusion (Table 3.2) + Fig. 3.4",
+        description="Reproduces the thesis Table 3.2 protocol on the synthetic test set and on "
+        "the Middlebury pairs (ToF simulated). Writes OUT/<dataset>/table.md and figure.png for "
+        "each dataset.",
+    )
+    ef.add_argument("--synth", type=Path, help="synthetic dataset folder (from `rgbd synth`)")
+    ef.add_argument("--split", choices=("test", "train"), default="test", help="default test")
+    ef.add_argument(
+        "--middlebury", action="store_true", help="also the Middlebury pairs of the shared data"
+    )
+    ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes only")
+    ef.add_argument(
+        "--stride", type=integer(1), default=2, help="LC window sampling step (default 2)"
+    )
+    ef.add_argument("--cross-check", action="store_true", help="LC with the two-view cross-check")
+    ef.add_argument("--out", type=Path, default=Path("out/eval_fusion"), help="output folder")
+    ef.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def load_map(flag: str, path: Path, *, png_scale: float = 1.0) -> npt.NDArray[np.float32]:
+    """The ``H x W`` map of ``flag``'s file: .npy, a single-array .npz, or a PNG (values x
+    ``png_scale``, 0 = invalid). Bad files raise an RgbdError naming ``flag`` and the file."""
+    from rgbd_rs.io import read_npy, read_npz, read_png
+
+    suffix = path.suffix.lower()
+    if suffix == ".png":
+        raw = named(flag, lambda: read_png(path))
+        if raw.ndim != 2:
+            raise ShapeMismatchError(
+                f"{flag}: {path}: got a PNG of shape {raw.shape}, expected a single channel"
+            )
+        return np.where(raw > 0, raw * png_scale, np.nan).astype(np.float32)
+    if suffix == ".npy":
+        arr = named(flag, lambda: read_npy(path))
+    elif suffix == ".npz":
+        arrays = named(flag, lambda: read_npz(path))
+        if len(arrays) != 1:
+            raise InvalidArgumentError(
+                f"{flag}: {path}: got arrays {sorted(arrays)}, expected exactly one array"
+            )
+        (arr,) = arrays.values()
+    else:
+        raise InvalidArgumentError(
+            f"{flag}: {path}: got suffix {suffix!r}, expected .npy, .npz or .png"
+        )
+    if arr.dtype.kind not in "biuf":
+        raise InvalidArgumentError(f"{flag}: {path}: got dtype {arr.dtype}, expected a numeric map")
+    if arr.ndim != 2 or arr.size == 0:
+        raise ShapeMismatchError(
+            f"{flag}: {path}: got shape {arr.shape}, expected a non-empty H x W map"
+        )
+    return np.asarray(arr, np.float32)
+
+
+def run_fuse(args: argparse.Namespace) -> int:
+    from rgbd_rs.data.calibration import load_rig
+    from rgbd_rs.fusion import LcParams, fuse
+    from rgbd_rs.io import read_png, write_npz, write_png
+    from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+
+    if (args.tof_confidence is None) != (args.stereo_confidence is None):
+        raise InvalidArgumentError(
+            "--tof-confidence/--stereo-confidence: got one, expected both or neither"
+        )
+    rig = named("--calib", lambda: load_rig(args.calib))
+    left = named("--left", lambda: read_png(args.left))
+    right = named("--right", lambda: read_png(args.right))
+    depth = load_map("--tof-depth", args.tof_depth, png_scale=1e-3)
+    amp = load_map("--tof-amplitude", args.tof_amplitude)
+    conf: object = args.confidence
+    if args.tof_confidence is not None:
+        conf = (
+            load_map("--tof-confidence", args.tof_confidence),
+            load_map("--stereo-confidence", args.stereo_confidence),
+        )
+    params = LcParams(radius=args.radius, stride=args.stride, cross_check=args.cross_check)
+    t0 = time.perf_counter()
+    out = fuse(
+        left,
+        right,
+        depth,
+        amp,
+        rig,
+        confidence=conf,  # type: ignore[arg-type]
+        params=params,
+        max_disparity=args.max_disparity,
+    )
+    elapsed = time.perf_counter() - t0
+    maps = {
+        "disparity": out.disparity,
+        "depth": out.depth,
+        "plausibility": out.plausibility,
+        "tof_disparity": out.tof.disparity,
+        "stereo_disparity": out.stereo_disparity,
+    }
+    if out.tof_confidence is not None and out.stereo_confidence is not None:
+        maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_npz(args.out / "fused.npz", maps)
+    disp16 = np.clip(np.nan_to_num(out.disparity * DISPARITY_PNG_SCALE, nan=0), 0, 65535)
+    write_png(args.out / "disparity.png", disp16.astype(np.uint16))
+    mm = np.clip(np.nan_to_num(out.depth * 1000.0, nan=0), 0, 65535)
+    write_png(args.out / "depth_mm.png", mm.astype(np.uint16))
+    ref = right if rig.reference == "right" else left
+    d = out.disparity[np.isfinite(out.disparity)]
+    lo, hi = (float(np.percentile(d, 1)), float(np.percentile(d, 99))) if d.size else (0.0, 1.0)
+    save_png(
+        args.out / "preview.png",
+        tile(
+            [
+                as_bgr(ref),
+                colorize(out.tof.disparity, lo, hi),
+                colorize(out.stereo_disparity, lo, hi),
+                colorize(out.disparity, lo, hi),
+                colorize(out.plausibility, 0, 1),
+            ],
+            ["reference colour", "ToF disparity", "SGM disparity", "LC fused", "LC plausibility"],
+            columns=5,
+            width=320,
+        ),
+    )
+    print(
+        f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s: "
+        f"{np.isfinite(out.disparity).mean():.1%} valid; wrote {args.out}/fused.npz, "
+        "disparity.png, depth_mm.png, preview.png"
+    )
+    return 0
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    from rgbd_rs.data.paths import data_root
+    from rgbd_rs.fusion import LcParams
+    from rgbd_rs.fusion.evaluate import evaluate, markdown_table, middlebury_sample, synth_samples
+
+    if args.synth is None and not args.middlebury:
+        raise InvalidArgumentError("--synth/--middlebury: got neither, expected at least one")
+    params = LcParams(stride=args.stride, cross_check=args.cross_check)
+    if args.synth is not None:
+        samples = named(
+            "--synth", lambda: list(islice(synth_samples(args.synth, args.split), args.limit))
+        )
+        res = evaluate(
+            samples,
+            args.out / "synth",
+            title=f"synthetic {args.split} set",
+            params=params,
+            quiet=args.quiet,
+        )
+        print(markdown_table(res, f"synthetic {args.split} set ({len(res)} scenes)"))
+    if args.middlebury:
+        root = data_root(required=True)
+        assert root is not None
+        scenes = sorted(p for p in (root / "middlebury").iterdir() if p.is_dir())
+        mb = [middlebury_sample(p) for p in scenes]
+        res = evaluate(
+            mb,
+            args.out / "middlebury",
+            title="Middlebury (simulated ToF)",
+            params=params,
+            quiet=args.quiet,
+        )
+        print(markdown_table(res, "Middlebury (simulated ToF)"))
+    print(f"tables and figures in {args.out}/")
+    return 0
