@@ -25,6 +25,8 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
 
+__all__ = ["Distortion", "PinholeCamera", "Pose", "StereoRig", "ToFStereoRig"]
+
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
 Interpolation = Literal["nearest", "linear"]
@@ -34,6 +36,23 @@ UNDISTORT_MAX_ITER = 20
 UNDISTORT_TOL = 1e-12
 #: Tolerance on ``|R^T R - I|`` accepted for rotations (factory calibrations store f32).
 ROTATION_TOL = 1e-5
+
+
+def _flat(name: str, value: object) -> np.ndarray:
+    """``value`` raveled to 1-D; ragged or non-array input raises naming ``name``."""
+    try:
+        return np.ravel(np.asarray(value))
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(
+            f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
+            "expected a sequence of numbers"
+        ) from None
+
+
+def _camera_arg(name: str, value: object) -> PinholeCamera:
+    if not isinstance(value, PinholeCamera):
+        raise InvalidArgumentError(f"{name}: got {type(value).__name__}, expected a PinholeCamera")
+    return value
 
 
 @dataclass(frozen=True)
@@ -62,7 +81,7 @@ class Distortion:
         """From OpenCV's order ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])`` (4, 5 or 8 values)."""
         c = _validate.array(
             "coeffs",
-            np.ravel(np.asarray(coeffs)),
+            _flat("coeffs", coeffs),
             shape=(None,),
             dtype=np.float64,
             finite=True,
@@ -98,7 +117,7 @@ class Pose:
         r = _validate.array("rotation", self.rotation, shape=(3, 3), dtype=np.float64, finite=True)
         t = _validate.array(
             "translation",
-            np.ravel(np.asarray(self.translation)),
+            _flat("translation", self.translation),
             shape=(3,),
             dtype=np.float64,
             finite=True,
@@ -140,6 +159,7 @@ class Pose:
 
     def compose(self, first: Pose) -> Pose:
         """``self ∘ first``: apply ``first`` then ``self``."""
+        first = _pose_arg("first", first)
         return Pose(
             self.rotation @ first.rotation, self.rotation @ first.translation + self.translation
         )
@@ -151,6 +171,16 @@ class Pose:
 
     def _native(self) -> tuple[list[float], list[float]]:
         return [float(v) for v in self.rotation.ravel()], [float(v) for v in self.translation]
+
+
+def _pose_arg(name: str, value: object, *, default_identity: bool = False) -> Pose:
+    """``value`` if it is a :class:`Pose` (None -> identity when ``default_identity``)."""
+    if value is None and default_identity:
+        return Pose.identity()
+    if not isinstance(value, Pose):
+        want = "a Pose or None" if default_identity else "a Pose"
+        raise InvalidArgumentError(f"{name}: got {type(value).__name__}, expected {want}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -251,12 +281,9 @@ class PinholeCamera:
 
     def _ideal_target(self, target: PinholeCamera | None) -> PinholeCamera:
         """``target``, or this camera without distortion; rejects anything else."""
-        target = target or self.without_distortion()
-        if not isinstance(target, PinholeCamera):
-            raise InvalidArgumentError(
-                f"target: got {type(target).__name__}, expected a PinholeCamera"
-            )
-        return target
+        if target is None:
+            return self.without_distortion()
+        return _camera_arg("target", target)
 
     def _native(self) -> tuple[float, float, float, float, int, int, list[float]]:
         return (
@@ -277,7 +304,7 @@ class PinholeCamera:
         Points with ``z <= 0`` after the transform give NaN.
         """
         p = _validate.array("points", points, shape=(None, 3), dtype=np.float64, allow_empty=True)
-        pose = pose or Pose.identity()
+        pose = _pose_arg("pose", pose, default_identity=True)
         return _rgbd_rs.project_points(p, self._native(), pose._native())
 
     def undistort_points(
@@ -335,7 +362,7 @@ class PinholeCamera:
         target = self._ideal_target(target)
         rot = None
         if rotation is not None:
-            rot = [float(v) for v in Pose(np.asarray(rotation, dtype=np.float64)).rotation.ravel()]
+            rot = [float(v) for v in Pose(rotation).rotation.ravel()]  # type: ignore[arg-type]
         return _rgbd_rs.undistort_map(self._native(), target._native(), rot)
 
     def undistort_image(
@@ -380,6 +407,8 @@ class StereoRig:
     baseline: float
 
     def __post_init__(self) -> None:
+        _camera_arg("left", self.left)
+        _camera_arg("right", self.right)
         _validate.real("baseline", self.baseline, positive=True)
         if self.left.size != self.right.size or not math.isclose(self.left.fx, self.right.fx):
             raise InvalidArgumentError(
@@ -412,6 +441,12 @@ class ToFStereoRig:
     reference: Literal["left", "right"] = "right"
 
     def __post_init__(self) -> None:
+        _camera_arg("tof", self.tof)
+        if not isinstance(self.stereo, StereoRig):
+            raise InvalidArgumentError(
+                f"stereo: got {type(self.stereo).__name__}, expected a StereoRig"
+            )
+        _pose_arg("tof_to_reference", self.tof_to_reference)
         _validate.choice("reference", self.reference, ("left", "right"))
 
     @property

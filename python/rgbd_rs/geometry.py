@@ -23,6 +23,15 @@ from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.camera import UNDISTORT_MAX_ITER, UNDISTORT_TOL, PinholeCamera, Pose
 from rgbd_rs.errors import InvalidArgumentError
 
+__all__ = [
+    "Reprojection",
+    "depth_to_disparity",
+    "disparity_to_depth",
+    "normals_from_depth",
+    "normals_from_points",
+    "reproject_depth",
+]
+
 F32 = npt.NDArray[np.float32]
 
 #: Largest splat footprint radius accepted by :func:`reproject_depth` (target pixels).
@@ -145,7 +154,16 @@ def normals_from_points(points: npt.ArrayLike, *, max_depth_jump: float = float(
     used. Missing normals are NaN.
     """
     p = _validate.array("points", points, shape=(None, None, 3))
-    jump = float(max_depth_jump)
+    if isinstance(max_depth_jump, bool) or not isinstance(
+        max_depth_jump, (int, float, np.integer, np.floating)
+    ):
+        raise InvalidArgumentError(
+            f"max_depth_jump: got {max_depth_jump!r}, expected a number > 0 (inf = none)"
+        )
+    try:
+        jump = float(max_depth_jump)
+    except OverflowError:  # an int beyond float range: no limit either way
+        jump = float("inf") if max_depth_jump > 0 else float("-inf")
     if not jump > 0:
         raise InvalidArgumentError(f"max_depth_jump: got {jump}, expected a value > 0 (inf = none)")
     return _rgbd_rs.normals_from_points(p, jump)
@@ -155,4 +173,6 @@ def normals_from_depth(
     depth: npt.ArrayLike, camera: PinholeCamera, *, max_depth_jump: float = float("inf")
 ) -> F32:
     """Normals of a depth map seen by ``camera`` (see :func:`normals_from_points`)."""
+    if not isinstance(camera, PinholeCamera):
+        raise InvalidArgumentError(f"camera: got {type(camera).__name__}, expected a PinholeCamera")
     return normals_from_points(camera.depth_to_points(depth), max_depth_jump=max_depth_jump)

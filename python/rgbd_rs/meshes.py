@@ -20,8 +20,27 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
+__all__ = ["Mesh", "box", "concat", "cylinder", "load_mesh", "quad", "sphere"]
+
 F32 = npt.NDArray[np.float32]
 U32 = npt.NDArray[np.uint32]
+
+
+def _vec3(name: str, value: object) -> npt.NDArray[np.float64]:
+    """A finite 3-vector."""
+    if isinstance(value, (str, bytes)):
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected three numbers")
+    return _validate.array(name, value, shape=(3,), dtype=np.float64, finite=True)
+
+
+def _mesh_arg(name: str, value: object) -> Mesh:
+    if not isinstance(value, Mesh):
+        raise InvalidArgumentError(f"{name}: got {type(value).__name__}, expected a Mesh")
+    return value
+
+
+#: Most segments / rings a primitive accepts (a 4096-segment sphere already has 33 M triangles).
+MAX_SEGMENTS = 4096
 
 
 @dataclass(frozen=True)
@@ -53,17 +72,28 @@ class Mesh:
         self, rotation: npt.ArrayLike | None = None, translation: npt.ArrayLike = (0, 0, 0)
     ) -> Mesh:
         """``R v + t`` applied to every vertex."""
-        r = np.eye(3) if rotation is None else np.asarray(rotation, np.float64)
-        v = self.vertices.astype(np.float64) @ r.T + np.asarray(translation, np.float64)
+        r = (
+            np.eye(3)
+            if rotation is None
+            else _validate.array("rotation", rotation, shape=(3, 3), dtype=np.float64, finite=True)
+        )
+        t = _vec3("translation", translation)
+        v = self.vertices.astype(np.float64) @ r.T + t
         return Mesh(v.astype(np.float32), self.triangles)
 
     def scaled(self, factor: float | Sequence[float]) -> Mesh:
         """Vertices multiplied by ``factor`` (scalar or per axis)."""
-        f = np.asarray(factor, np.float32)
+        if isinstance(factor, (str, bytes)) or np.ndim(factor) not in (0, 1):
+            raise InvalidArgumentError(
+                f"factor: got {factor!r}, expected a number or three numbers (per axis)"
+            )
+        shape = (3,) if np.ndim(factor) else ()
+        f = _validate.array("factor", factor, shape=shape, finite=True)
         return Mesh(self.vertices * f, self.triangles)
 
     def normalized(self, size: float = 1.0) -> Mesh:
         """Centred on its bounding-box centre and scaled so the longest side is ``size``."""
+        size = _validate.real("size", size, positive=True)
         lo, hi = self.bounds()
         extent = float((hi - lo).max())
         if not extent > 0:
@@ -72,11 +102,16 @@ class Mesh:
 
     def merged(self, *others: Mesh) -> Mesh:
         """One mesh holding this one and ``others``."""
-        return concat([self, *others])
+        return concat([self, *(_mesh_arg(f"others[{i}]", m) for i, m in enumerate(others))])
 
 
 def concat(meshes: Sequence[Mesh]) -> Mesh:
     """Concatenate meshes (vertex indices are offset)."""
+    if isinstance(meshes, Mesh) or not isinstance(meshes, (list, tuple)):
+        raise InvalidArgumentError(
+            f"meshes: got {type(meshes).__name__}, expected a list of Mesh objects"
+        )
+    meshes = [_mesh_arg(f"meshes[{i}]", m) for i, m in enumerate(meshes)]
     if not meshes:
         return Mesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32))
     offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
@@ -94,13 +129,14 @@ def quad(corners: npt.ArrayLike) -> Mesh:
 
 def box(size: Sequence[float], center: Sequence[float] = (0.0, 0.0, 0.0)) -> Mesh:
     """Closed axis-aligned box of ``size`` (x, y, z) centred at ``center``."""
-    s = np.asarray(size, np.float64) / 2
-    if s.shape != (3,) or not (s > 0).all():
+    s = _vec3("size", size) / 2
+    if not (s > 0).all():
         raise InvalidArgumentError(f"size: got {size}, expected three positive lengths")
+    c = _vec3("center", center)
     v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
     faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
     tris = [[f[0], f[1], f[2]] for f in faces] + [[f[0], f[2], f[3]] for f in faces]
-    return Mesh((v * s + np.asarray(center)).astype(np.float32), np.array(tris, np.uint32))
+    return Mesh((v * s + c).astype(np.float32), np.array(tris, np.uint32))
 
 
 def cylinder(
@@ -111,9 +147,11 @@ def cylinder(
     axis: int = 1,
 ) -> Mesh:
     """Closed cylinder along world ``axis`` (default y, the vertical of a y-down camera world)."""
-    _validate.real("radius", radius, positive=True)
-    _validate.real("height", height, positive=True)
-    n = _validate.integer("segments", segments, minimum=3)
+    radius = _validate.real("radius", radius, positive=True)
+    height = _validate.real("height", height, positive=True)
+    c = _vec3("center", center)
+    n = _validate.integer("segments", segments, minimum=3, maximum=MAX_SEGMENTS)
+    axis = _validate.integer("axis", axis, maximum=2)
     a = np.linspace(0, 2 * np.pi, n, endpoint=False)
     ring = np.stack([radius * np.cos(a), radius * np.sin(a)], axis=1)
     h = height / 2
@@ -126,18 +164,17 @@ def cylinder(
         [np.stack([i, np.full(n, 2 * n), j], 1), np.stack([i + n, j + n, np.full(n, 2 * n + 1)], 1)]
     )
     v = np.roll(v, axis - 1, axis=1)  # the cylinder axis lands on `axis`
-    return Mesh(
-        (v + np.asarray(center)).astype(np.float32), np.concatenate([side, caps]).astype(np.uint32)
-    )
+    return Mesh((v + c).astype(np.float32), np.concatenate([side, caps]).astype(np.uint32))
 
 
 def sphere(
     radius: float, center: Sequence[float] = (0.0, 0.0, 0.0), rings: int = 16, segments: int = 32
 ) -> Mesh:
     """UV sphere with ``rings`` latitude bands and ``segments`` longitudes."""
-    _validate.real("radius", radius, positive=True)
-    nr = _validate.integer("rings", rings, minimum=2)
-    ns = _validate.integer("segments", segments, minimum=3)
+    radius = _validate.real("radius", radius, positive=True)
+    c = _vec3("center", center)
+    nr = _validate.integer("rings", rings, minimum=2, maximum=MAX_SEGMENTS)
+    ns = _validate.integer("segments", segments, minimum=3, maximum=MAX_SEGMENTS)
     th = np.linspace(0, np.pi, nr + 1)[:, None]
     ph = np.linspace(0, 2 * np.pi, ns, endpoint=False)[None, :]
     v = np.stack(
@@ -147,7 +184,7 @@ def sphere(
     a = (r * ns + s).ravel()
     b = (r * ns + (s + 1) % ns).ravel()
     tris = np.concatenate([np.stack([a, b, a + ns], 1), np.stack([b, b + ns, a + ns], 1)])
-    return Mesh((v * radius + np.asarray(center)).astype(np.float32), tris.astype(np.uint32))
+    return Mesh((v * radius + c).astype(np.float32), tris.astype(np.uint32))
 
 
 def load_mesh(path: str | Path) -> Mesh:
@@ -156,6 +193,8 @@ def load_mesh(path: str | Path) -> Mesh:
     OFF files from ModelNet whose header is fused with the counts line (``OFF3514 3546 0``) are
     accepted. Unreadable or truncated files raise :class:`RgbdError` naming the file.
     """
+    if not isinstance(path, (str, Path)) or not str(path):
+        raise InvalidArgumentError(f"path: got {path!r}, expected a mesh file path")
     path = Path(path)
     if not path.is_file():
         raise InvalidArgumentError(f"path: got {path}, expected an existing mesh file")
@@ -184,8 +223,15 @@ def _read_off(path: Path) -> Mesh:
             idx = [int(x) for x in vals[pos + 1 : pos + 1 + k]]
             if len(idx) != k:
                 raise ValueError("file ends inside a face")
+            bad = [i for i in idx if not 0 <= i < nv]
+            if bad:
+                raise ValueError(
+                    f"face {len(tris)} has vertex index {bad[0]}, expected 0..{nv - 1}"
+                )
             tris += [[idx[0], idx[i], idx[i + 1]] for i in range(1, k - 1)]
             pos += 1 + k
+        if not np.isfinite(v.astype(np.float32)).all():
+            raise ValueError("vertex coordinates beyond float32 range or not finite")
     except (ValueError, IndexError) as exc:
         raise RgbdError(f"{path}: not a valid OFF mesh ({exc})") from exc
     return Mesh(v.astype(np.float32), np.asarray(tris, np.uint32).reshape(-1, 3))
@@ -201,4 +247,8 @@ def _read_ply(path: Path) -> Mesh:
         raise RgbdError(f"{path}: not a valid PLY mesh ({exc})") from exc
     if len(v) == 0 or len(f) == 0:
         raise RgbdError(f"{path}: PLY mesh has no vertices or faces")
+    if f.ndim != 2 or f.shape[1] != 3 or f.min() < 0 or f.max() >= len(v):
+        raise RgbdError(f"{path}: PLY faces are not triangles indexing its {len(v)} vertices")
+    if not np.isfinite(v.astype(np.float32)).all():
+        raise RgbdError(f"{path}: PLY vertex coordinates beyond float32 range or not finite")
     return Mesh(v.astype(np.float32), f.astype(np.uint32))

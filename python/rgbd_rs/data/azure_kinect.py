@@ -82,38 +82,50 @@ def load_azure_kinect_calibration(
     path: str | Path, depth_mode: str = "NFOV_UNBINNED", color_resolution: str = "720P"
 ) -> AzureKinectCalibration:
     """Read an Azure Kinect factory calibration JSON for one depth mode and colour resolution."""
-    if depth_mode not in DEPTH_MODES:
+    if not isinstance(depth_mode, str) or depth_mode not in DEPTH_MODES:
         raise InvalidArgumentError(
             f"depth_mode: got {depth_mode!r}, expected one of {list(DEPTH_MODES)}"
         )
-    if color_resolution not in COLOR_MODES:
+    if not isinstance(color_resolution, str) or color_resolution not in COLOR_MODES:
         raise InvalidArgumentError(
             f"color_resolution: got {color_resolution!r}, expected one of {list(COLOR_MODES)}"
         )
+    if not isinstance(path, (str, Path)) or not str(path):
+        raise InvalidArgumentError(f"path: got {path!r}, expected a calibration JSON path")
     path = Path(path)
     try:
         cams = json.loads(path.read_text())["CalibrationInformation"]["Cameras"]
         by_loc = {c["Location"]: c for c in cams}
         d, c = by_loc["CALIBRATION_CameraLocationD0"], by_loc["CALIBRATION_CameraLocationPV0"]
-        dp, cp = d["Intrinsics"]["ModelParameters"], c["Intrinsics"]["ModelParameters"]
-        if len(dp) != 14 or len(cp) != 14:
-            raise ValueError("expected 14 ModelParameters per camera")
-        if c["SensorWidth"] * 3 != c["SensorHeight"] * 4:
+        dp = _numbers("D0 ModelParameters", d["Intrinsics"]["ModelParameters"], 14)
+        cp = _numbers("PV0 ModelParameters", c["Intrinsics"]["ModelParameters"], 14)
+        sw, sh = _numbers("PV0 SensorWidth/SensorHeight", [c["SensorWidth"], c["SensorHeight"]], 2)
+        if sw * 3 != sh * 4:
             raise ValueError("only 4:3 colour calibrations are supported")
         rt = c["Rt"]
-        pose = Pose(np.reshape(rt["Rotation"], (3, 3)), np.asarray(rt["Translation"]))
-        radius = float(d.get("MetricRadius", 0.0))
-    except (OSError, KeyError, TypeError, ValueError, json.JSONDecodeError) as exc:
+        rotation = _numbers("PV0 Rt.Rotation", rt["Rotation"], 9)
+        translation = _numbers("PV0 Rt.Translation", rt["Translation"], 3)
+        pose = Pose(np.reshape(rotation, (3, 3)), np.asarray(translation))
+        radius = _numbers("D0 MetricRadius", [d.get("MetricRadius", 0.0)], 1)[0]
+        depth_cam = _mode_camera(dp, DEPTH_MODES[depth_mode])
+        color_cam = _mode_camera(cp, COLOR_MODES[color_resolution])
+    except (OSError, KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
+        # json.JSONDecodeError and the cameras' own InvalidArgumentError are ValueErrors.
         raise InvalidArgumentError(
             f"path: could not read an Azure Kinect calibration from {path} ({exc!r}), expected the "
             "device's calibration JSON with D0 and PV0 cameras"
         ) from None
-    return AzureKinectCalibration(
-        _mode_camera(dp, DEPTH_MODES[depth_mode]),
-        _mode_camera(cp, COLOR_MODES[color_resolution]),
-        pose,
-        radius,
-    )
+    return AzureKinectCalibration(depth_cam, color_cam, pose, radius)
+
+
+def _numbers(what: str, values: object, count: int) -> list[float]:
+    """``count`` JSON numbers (strings are refused, not parsed)."""
+    if not isinstance(values, list) or len(values) != count:
+        raise ValueError(f"{what}: expected a list of {count} numbers")
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError(f"{what}: got {v!r}, expected numbers")
+    return [float(v) for v in values]
 
 
 def reproject_to_color(
@@ -127,6 +139,14 @@ def reproject_to_color(
 
     ``pose`` overrides the calibrated depth -> colour transform (e.g. to test a registration).
     """
+    if not isinstance(frame, AzureKinectFrame):
+        raise InvalidArgumentError(
+            f"frame: got {type(frame).__name__}, expected an AzureKinectFrame"
+        )
+    if not isinstance(calibration, AzureKinectCalibration):
+        raise InvalidArgumentError(
+            f"calibration: got {type(calibration).__name__}, expected an AzureKinectCalibration"
+        )
     return reproject_depth(
         frame.depth,
         calibration.depth,
@@ -139,16 +159,38 @@ def reproject_to_color(
 
 def load_azure_kinect_frame(path: str | Path) -> AzureKinectFrame:
     """Read ``azure_kinect_frame.npz`` (``depth_mm``, ``ir``, ``color``); 0 mm becomes NaN."""
+    if not isinstance(path, (str, Path)) or not str(path):
+        raise InvalidArgumentError(f"path: got {path!r}, expected an npz file path")
     path = Path(path)
     try:
-        with path.open("rb") as fh, np.load(fh) as z:
+        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
             depth_mm, ir, color = z["depth_mm"], z["ir"], z["color"]
-    except (OSError, KeyError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+    except (
+        OSError,
+        KeyError,
+        ValueError,
+        zipfile.BadZipFile,
+        EOFError,
+        AttributeError,  # np.load gave a plain array (an .npy), not an archive
+        TypeError,
+    ) as exc:
         raise InvalidArgumentError(
             f"path: could not read an Azure Kinect frame from {path} ({exc!r}), expected an npz "
             "with depth_mm, ir and color"
         ) from None
-    if depth_mm.shape != ir.shape or depth_mm.ndim != 2 or color.ndim != 3:
+    kinds = (depth_mm.dtype.kind, ir.dtype.kind, color.dtype.kind)
+    if any(k not in "uif" for k in kinds) or color.dtype != np.uint8:
+        raise InvalidArgumentError(
+            f"path: {path} holds depth {depth_mm.dtype}, ir {ir.dtype}, color {color.dtype}, "
+            "expected numeric depth_mm and ir and a uint8 colour image"
+        )
+    if (
+        depth_mm.shape != ir.shape
+        or depth_mm.ndim != 2
+        or color.ndim != 3
+        or color.shape[2] < 3
+        or depth_mm.size == 0
+    ):
         raise InvalidArgumentError(
             f"path: {path} holds depth {depth_mm.shape}, ir {ir.shape}, color {color.shape}, "
             "expected equal 2-D depth/ir and an H x W x 3 colour image"

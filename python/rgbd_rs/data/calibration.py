@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose, StereoRig, ToFStereoRig
-from rgbd_rs.data.files import read_json, write_json
 from rgbd_rs.errors import RgbdError
+from rgbd_rs.io import read_json, write_json
 
 
 def _cam(c: PinholeCamera) -> dict[str, Any]:
@@ -53,33 +53,71 @@ def save_rig(path: str | Path, rig: ToFStereoRig) -> Path:
     return write_json(path, rig_to_dict(rig))
 
 
+def _number(where: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where} is {value!r}, expected a JSON number")
+    return float(value)
+
+
+def _integer(where: str, value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f"{where} is {value!r}, expected a JSON integer")
+    return value
+
+
+def _object(where: str, value: object) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ValueError(f"{where} is {type(value).__name__}, expected a JSON object")
+    return value
+
+
+def _numbers(where: str, value: object) -> list[Any]:
+    """A (nested) list of JSON numbers, returned as is."""
+    if not isinstance(value, list):
+        raise ValueError(f"{where} is {value!r}, expected a list of numbers")
+    for i, v in enumerate(value):
+        if isinstance(v, list):
+            _numbers(f"{where}[{i}]", v)
+        else:
+            _number(f"{where}[{i}]", v)
+    return value
+
+
 def load_rig(path: str | Path) -> ToFStereoRig:
-    """Read a calibration JSON; missing keys or bad values raise RgbdError naming the file."""
+    """Read a calibration JSON; missing keys or bad values (strings where numbers belong
+    included) raise RgbdError naming the file."""
     d = read_json(path)
 
-    def cam(c: dict[str, Any]) -> PinholeCamera:
+    def cam(where: str, value: object) -> PinholeCamera:
+        c = _object(where, value)
         return PinholeCamera(
-            float(c["fx"]),
-            float(c["fy"]),
-            float(c["cx"]),
-            float(c["cy"]),
-            int(c["width"]),
-            int(c["height"]),
-            Distortion.from_opencv(c.get("distortion", [0.0] * 5)),
+            _number(f"{where}.fx", c["fx"]),
+            _number(f"{where}.fy", c["fy"]),
+            _number(f"{where}.cx", c["cx"]),
+            _number(f"{where}.cy", c["cy"]),
+            _integer(f"{where}.width", c["width"]),
+            _integer(f"{where}.height", c["height"]),
+            Distortion.from_opencv(_numbers(f"{where}.distortion", c.get("distortion", [0.0] * 5))),
         )
 
     try:
-        st = d["stereo"]
-        t = d["tof_to_reference"]
+        top = _object("the file", d)
+        st = _object("stereo", top["stereo"])
+        t = _object("tof_to_reference", top["tof_to_reference"])
         return ToFStereoRig(
-            tof=cam(d["tof"]),
-            stereo=StereoRig(cam(st["left"]), cam(st["right"]), float(st["baseline"])),
-            tof_to_reference=Pose(
-                np.asarray(t["rotation"], float), np.asarray(t["translation"], float)
+            tof=cam("tof", top["tof"]),
+            stereo=StereoRig(
+                cam("stereo.left", st["left"]),
+                cam("stereo.right", st["right"]),
+                _number("stereo.baseline", st["baseline"]),
             ),
-            reference=d.get("reference", "right"),
+            tof_to_reference=Pose(
+                np.asarray(_numbers("tof_to_reference.rotation", t["rotation"]), float),
+                np.asarray(_numbers("tof_to_reference.translation", t["translation"]), float),
+            ),
+            reference=top.get("reference", "right"),
         )
     except KeyError as exc:
         raise RgbdError(f"{path}: calibration lacks the key {exc}") from exc
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise RgbdError(f"{path}: invalid calibration ({exc})") from exc

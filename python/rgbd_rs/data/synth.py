@@ -34,7 +34,10 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.calibration import load_rig, save_rig
-from rgbd_rs.data.files import (
+from rgbd_rs.data.synth_scene import random_scene, shared_meshes
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.geometry import depth_to_disparity
+from rgbd_rs.io import (
     read_json,
     read_npz,
     read_png,
@@ -43,9 +46,6 @@ from rgbd_rs.data.files import (
     write_npz,
     write_png,
 )
-from rgbd_rs.data.synth_scene import random_scene, shared_meshes
-from rgbd_rs.errors import RgbdError
-from rgbd_rs.geometry import depth_to_disparity
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.render import RenderScene, ToFFrame, ToFModel
 
@@ -54,6 +54,14 @@ U8 = npt.NDArray[np.uint8]
 Split = Literal["train", "test"]
 
 FORMAT = "rgbd_rs-synth/1"
+#: Full resolution of the stereo pair (Table 3.1) and the documented bounds on ``scale``: at most
+#: 4 (7680x4320, four times the thesis' full HD; a rendered scene then needs ~2 GB) and at least
+#: ``MIN_SIDE`` pixels high, so absurd values are refused before anything is allocated.
+FULL_WIDTH, FULL_HEIGHT = 1920, 1080
+MAX_SCALE = 4.0
+MIN_SIDE = 16
+#: Most scenes per split (a bound on the manifest, not a practical size).
+MAX_SCENES = 100_000
 #: Table 3.1: stereo focal 3.2 mm / 2.2 um pixels; ToF 3.66 mm / 10 um; baseline; ToF offset.
 STEREO_FOCAL_PX = 3.2e-3 / 2.2e-6
 TOF_FOCAL_PX = 3.66e-3 / 10e-6
@@ -69,9 +77,15 @@ _MAP_KEYS = ("tof_depth", "tof_amplitude", "tof_gt_depth", "gt_depth", "gt_dispa
 
 
 def synth3_rig(scale: float = 0.5) -> ToFStereoRig:
-    """The SYNTH3 rig; ``scale`` sizes the stereo pair (0.5 -> 960x540)."""
+    """The SYNTH3 rig; ``scale`` sizes the stereo pair (0.5 -> 960x540), at most ``MAX_SCALE``."""
     s = _validate.real("scale", scale, positive=True)
-    w, h = round(1920 * s), round(1080 * s)
+    w, h = round(FULL_WIDTH * s), round(FULL_HEIGHT * s)
+    if s > MAX_SCALE or min(w, h) < MIN_SIDE:
+        raise InvalidArgumentError(
+            f"scale: got {s}, expected {MIN_SIDE / FULL_HEIGHT:.4f} <= scale <= {MAX_SCALE} "
+            f"(the stereo pair is {FULL_WIDTH}x{FULL_HEIGHT} times scale, at least {MIN_SIDE} px "
+            "high)"
+        )
     f = STEREO_FOCAL_PX * w / 1920
     cam = PinholeCamera(f, f, (w - 1) / 2, (h - 1) / 2, w, h)
     tof = PinholeCamera(TOF_FOCAL_PX, TOF_FOCAL_PX, 255.5, 211.5, 512, 424)
@@ -188,9 +202,11 @@ def write_dataset(
     """
     from tqdm import tqdm
 
+    if not isinstance(out, (str, Path)) or not str(out):
+        raise InvalidArgumentError(f"out: got {out!r}, expected a folder path")
     out = Path(out)
-    n_train = _validate.integer("train", train)
-    n_test = _validate.integer("test", test)
+    n_train = _validate.integer("train", train, maximum=MAX_SCENES)
+    n_test = _validate.integer("test", test, maximum=MAX_SCENES)
     seed = _validate.integer("seed", seed, maximum=2**32 - 1)
     rig = synth3_rig(scale)
     meshes = shared_meshes()
@@ -204,13 +220,13 @@ def write_dataset(
     manifest_path = out / "manifest.json"
     manifest: dict[str, Any] = {"format": FORMAT, "params": params, "complete": False, "scenes": {}}
     if manifest_path.exists():
-        old = read_json(manifest_path)
-        if old.get("format") != FORMAT or old.get("params") != params:
+        old = read_manifest(manifest_path)
+        if old["params"] != params:
             raise RgbdError(
                 f"{out}: holds a dataset made with {old.get('params')}, not {params}; "
                 "use another --out or delete it"
             )
-        manifest["scenes"] = old.get("scenes", {})
+        manifest["scenes"] = old["scenes"]
     out.mkdir(parents=True, exist_ok=True)
     save_rig(out / "calibration.json", rig)
     todo = [("train", i) for i in range(n_train)] + [("test", i) for i in range(n_test)]
@@ -230,19 +246,48 @@ def write_dataset(
     return write_json(manifest_path, manifest)
 
 
+def read_manifest(path: Path) -> dict[str, Any]:
+    """The manifest at ``path``, checked for the structure :func:`write_dataset` writes; anything
+    else (a list, missing or mistyped entries) raises RgbdError naming the file."""
+    m = read_json(path)
+    problem = None
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        problem = f"not an rgbd_rs synthetic dataset manifest (expected format {FORMAT!r})"
+    elif not isinstance(m.get("params"), dict) or not all(
+        isinstance(m["params"].get(k), int) and not isinstance(m["params"].get(k), bool)
+        for k in ("train", "test")
+    ):
+        problem = "params must hold integer train and test counts"
+    elif not isinstance(m.get("scenes"), dict) or not all(
+        isinstance(k, str)
+        and isinstance(files, dict)
+        and all(isinstance(f, str) and isinstance(h, str) for f, h in files.items())
+        for k, files in m["scenes"].items()
+    ):
+        problem = "scenes must map scene keys to {file name: SHA-256} objects"
+    elif not isinstance(m.get("complete", False), bool):
+        problem = "complete must be true or false"
+    if problem is not None:
+        raise RgbdError(f"{path}: {problem}")
+    checked: dict[str, Any] = m
+    return checked
+
+
 class SynthDataset:
     """Reader of a dataset written by :func:`write_dataset`.
 
     Refuses an incomplete (interrupted) dataset unless ``allow_partial``; every file error names
-    the file. ``dataset[i]`` is a :class:`SynthSample`; ``dataset.rig`` the calibration.
+    the file. The first access of each scene checks its files against the manifest's SHA-256
+    hashes, so a replaced or swapped file raises instead of loading silently. ``dataset[i]`` is
+    a :class:`SynthSample`; ``dataset.rig`` the calibration.
     """
 
     def __init__(self, root: str | Path, split: Split = "train", *, allow_partial: bool = False):
+        if not isinstance(root, (str, Path)) or not str(root):
+            raise InvalidArgumentError(f"root: got {root!r}, expected a dataset folder path")
         self.root = Path(root)
         self.split = _validate.choice("split", split, ("train", "test"))
-        manifest = read_json(self.root / "manifest.json")
-        if manifest.get("format") != FORMAT:
-            raise RgbdError(f"{self.root / 'manifest.json'}: not an rgbd_rs synthetic dataset")
+        manifest = read_manifest(self.root / "manifest.json")
         p = manifest["params"]
         expected = int(p[self.split])
         self.keys = sorted(k for k in manifest["scenes"] if k.startswith(self.split + "/"))
@@ -257,15 +302,39 @@ class SynthDataset:
                 f"{self.root}: manifest lists {len(self.keys)} {split} scenes, expected {expected}"
             )
         self.rig = load_rig(self.root / "calibration.json")
+        self._hashes: dict[str, dict[str, str]] = manifest["scenes"]
+        self._verified: set[str] = set()
 
     def __len__(self) -> int:
         return len(self.keys)
+
+    def _verify(self, key: str, folder: Path) -> None:
+        """Compare the scene's files with the manifest's hashes (once per scene and reader)."""
+        files = self._hashes[key]
+        for name in ("left.png", "right.png", "data.npz"):
+            if name not in files:
+                raise RgbdError(
+                    f"{self.root / 'manifest.json'}: lists no hash for {key}/{name}; "
+                    "regenerate the dataset with `rgbd synth`"
+                )
+        for name, want in files.items():
+            got = sha256(folder / name)
+            if got != want:
+                raise RgbdError(
+                    f"{folder / name}: SHA-256 {got[:12]}... differs from the manifest's "
+                    f"{want[:12]}... (the file was replaced or corrupted); regenerate it by "
+                    "re-running `rgbd synth` with the same arguments"
+                )
+        self._verified.add(key)
 
     def __iter__(self) -> Iterator[SynthSample]:
         return (self[i] for i in range(len(self)))
 
     def __getitem__(self, i: int) -> SynthSample:
-        folder = self.root / self.keys[_validate.integer("i", i, maximum=len(self) - 1)]
+        key = self.keys[_validate.integer("i", i, maximum=len(self) - 1)]
+        folder = self.root / key
+        if key not in self._verified:
+            self._verify(key, folder)
         maps = read_npz(folder / "data.npz", _MAP_KEYS)
         left, right = read_png(folder / "left.png"), read_png(folder / "right.png")
         stereo = (self.rig.stereo.right.height, self.rig.stereo.right.width)

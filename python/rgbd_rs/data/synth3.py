@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
-from rgbd_rs.errors import RgbdError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
 F32 = npt.NDArray[np.float32]
 
@@ -57,7 +57,10 @@ def _load_mat(path: Path, variable: str) -> F32:
         raise RgbdError(f"{path}: corrupt or truncated MATLAB file ({exc})") from exc
     if variable not in data:
         raise RgbdError(f"{path}: has no variable {variable!r}")
-    arr = np.asarray(data[variable], dtype=np.float32)
+    raw = np.asarray(data[variable])
+    if raw.dtype.kind not in "biuf":
+        raise RgbdError(f"{path}: {variable} holds {raw.dtype} data, expected a numeric map")
+    arr = raw.astype(np.float32)
     if arr.ndim != 2:
         raise RgbdError(f"{path}: {variable} has shape {arr.shape}, expected a 2-D map")
     return np.where(arr > 0, arr, np.float32(np.nan)).astype(np.float32)
@@ -67,6 +70,8 @@ class Synth3Dataset:
     """The scenes of one split of a SYNTH3 folder, indexed by scene number order."""
 
     def __init__(self, root: str | Path, split: str = "train") -> None:
+        if not isinstance(root, (str, Path)) or not str(root):
+            raise InvalidArgumentError(f"root: got {root!r}, expected the SYNTH3 folder path")
         self.root = Path(root)
         self.split = _validate.choice("split", split, ("train", "test"))
         prefix = "test_scene_" if split == "test" else "scene_"
@@ -93,6 +98,7 @@ class Synth3Dataset:
     def path(self, i: int, kind: str) -> Path:
         """File of map ``kind`` (stereo / tof / amplitude / gt) of the ``i``-th scene."""
         folder, suffix, _ = LAYOUT[_validate.choice("kind", kind, tuple(LAYOUT))]
+        i = _validate.integer("i", i, maximum=len(self) - 1)
         prefix = "test_scene_" if self.split == "test" else "scene_"
         tag = self._tags[self.indices[i]]
         return self.root / self.split / folder / f"{prefix}{tag}_{suffix}"

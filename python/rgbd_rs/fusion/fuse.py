@@ -14,7 +14,7 @@ from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32, map2d, rgb8, rig_arg, views
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.stereo import sgm
+from rgbd_rs.fusion.stereo import max_search, sgm
 from rgbd_rs.fusion.upsample import ToFOnReference, tof_to_reference
 from rgbd_rs.geometry import disparity_to_depth
 
@@ -49,10 +49,13 @@ class FusionResult:
 def _max_disparity(tof_disp: F32, width: int, requested: int | None) -> int:
     if requested is not None:
         return _validate.integer("max_disparity", requested, minimum=1, maximum=width - 1)
+    # A derived range stays within what SGM can search on this width (sgm() words the error
+    # when even the smallest range does not fit).
+    top = max(1, min(width - 1, max_search(width)))
     finite = tof_disp[np.isfinite(tof_disp)]
     if finite.size == 0:
-        return min(DEFAULT_MAX_DISPARITY, width - 1)
-    return int(min(width - 1, max(16, np.ceil(np.percentile(finite, 99.9) * RANGE_MARGIN))))
+        return min(DEFAULT_MAX_DISPARITY, top)
+    return int(min(top, max(16, np.ceil(np.percentile(finite, 99.9) * RANGE_MARGIN))))
 
 
 def fuse(

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._inputs import F32, rgb8
 
 #: SGBM block size (thesis §3.7) and smoothness penalties (OpenCV's documented 8/32 x 3 x n^2).
@@ -28,9 +28,24 @@ DISP12_MAX_DIFF = 1
 UNIQUENESS = 5
 
 
+#: OpenCV SGBM searches ``numDisparities`` in steps of this many pixels.
+DISPARITY_STEP = 16
+
+
 def _num_disparities(min_disparity: int, max_disparity: int) -> int:
     span = max_disparity - min_disparity
-    return 16 * max(1, -(-span // 16))
+    return DISPARITY_STEP * max(1, -(-span // DISPARITY_STEP))
+
+
+def max_search(width: int, min_disparity: int = 0, block_size: int = BLOCK_SIZE) -> int:
+    """The largest ``max_disparity`` :func:`sgm` accepts on an image ``width`` pixels wide.
+
+    OpenCV needs ``width - (min_disparity + numDisparities) > block_size // 2`` with
+    ``numDisparities`` a multiple of 16 (else it raises, as its results would depend on
+    uninitialised memory). Below ``min_disparity + 1`` no search range fits.
+    """
+    room = width - min_disparity - block_size // 2 - 1
+    return min_disparity + DISPARITY_STEP * (room // DISPARITY_STEP)
 
 
 def sgm(
@@ -62,6 +77,19 @@ def sgm(
     bs = _validate.integer("block_size", block_size, minimum=1, maximum=11)
     if bs % 2 == 0:
         raise InvalidArgumentError(f"block_size: got {bs}, expected an odd number")
+    limit = max_search(lft.shape[1], lo, bs)
+    if limit <= lo:
+        raise ShapeMismatchError(
+            f"left: got an image {lft.shape[1]} px wide, expected at least "
+            f"{lo + DISPARITY_STEP + bs // 2 + 1} px for min_disparity={lo} (OpenCV SGBM searches "
+            f"{DISPARITY_STEP} disparities at least and needs a {bs // 2 + 1} px margin)"
+        )
+    if hi > limit:
+        raise InvalidArgumentError(
+            f"max_disparity: got {hi}, expected at most {limit} on an image {lft.shape[1]} px "
+            f"wide (OpenCV SGBM searches in steps of {DISPARITY_STEP} and needs a "
+            f"{bs // 2 + 1} px margin)"
+        )
     matcher = cv2.StereoSGBM.create(
         minDisparity=lo,
         numDisparities=_num_disparities(lo, hi),
