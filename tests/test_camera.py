@@ -81,7 +81,7 @@ def test_distortion_opencv_order_and_validation() -> None:
     )
     assert Distortion.from_opencv([0.1, 0.2, 0.0, 0.0]).k3 == 0.0
     assert Distortion().is_identity
-    with pytest.raises(InvalidArgumentError, match=r"coeffs: got 3 coefficients"):
+    with pytest.raises(ShapeMismatchError, match=r"coeffs: got 3 coefficients"):
         Distortion.from_opencv([1.0, 2.0, 3.0])
     with pytest.raises(InvalidArgumentError, match=r"distortion.k1"):
         Distortion(k1=float("inf"))

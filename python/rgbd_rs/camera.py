@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 __all__ = ["Distortion", "PinholeCamera", "Pose", "StereoRig", "ToFStereoRig"]
 
@@ -88,7 +88,7 @@ class Distortion:
             allow_empty=True,
         )
         if c.size not in (0, 4, 5, 8):
-            raise InvalidArgumentError(
+            raise ShapeMismatchError(
                 f"coeffs: got {c.size} coefficients, expected 0, 4, 5 or 8 "
                 "(k1, k2, p1, p2[, k3[, k4, k5, k6]])"
             )
@@ -143,7 +143,7 @@ class Pose:
         """From a 4x4 (or 3x4) homogeneous matrix ``[R | t]``."""
         m = _validate.array("matrix", matrix, shape=(None, 4), dtype=np.float64, finite=True)
         if m.shape[0] not in (3, 4):
-            raise InvalidArgumentError(f"matrix: got shape {m.shape}, expected (3, 4) or (4, 4)")
+            raise ShapeMismatchError(f"matrix: got shape {m.shape}, expected (3, 4) or (4, 4)")
         return cls(m[:3, :3], m[:3, 3])
 
     def as_matrix(self) -> F64:
@@ -381,7 +381,7 @@ class PinholeCamera:
         src = np.asarray(image)
         img, was_2d = _validate.image("image", src)
         if img.shape[:2] != (self.height, self.width):
-            raise InvalidArgumentError(
+            raise ShapeMismatchError(
                 f"image: got size {img.shape[1]}x{img.shape[0]}, expected the camera's "
                 f"{self.width}x{self.height}"
             )

@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.camera import UNDISTORT_MAX_ITER, UNDISTORT_TOL, PinholeCamera, Pose
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 __all__ = [
     "Reprojection",
@@ -125,7 +125,7 @@ def reproject_depth(
     if channels is not None:
         ch, squeeze = _validate.image("channels", channels)
         if ch.shape[:2] != d.shape:
-            raise InvalidArgumentError(
+            raise ShapeMismatchError(
                 f"channels: got shape {tuple(np.shape(channels))}, expected the depth map's "
                 f"{d.shape} (optionally with a trailing channel axis)"
             )

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose, StereoRig, ToFStereoRig
-from rgbd_rs.errors import RgbdError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.io import read_json, write_json
 
 
@@ -50,6 +50,8 @@ def rig_to_dict(rig: ToFStereoRig) -> dict[str, Any]:
 
 def save_rig(path: str | Path, rig: ToFStereoRig) -> Path:
     """Write ``rig`` as calibration JSON (atomically)."""
+    if not isinstance(rig, ToFStereoRig):
+        raise InvalidArgumentError(f"rig: got {type(rig).__name__}, expected a ToFStereoRig")
     return write_json(path, rig_to_dict(rig))
 
 

@@ -13,6 +13,8 @@ def data_root(required: bool = False) -> Path | None:
 
     Returns None when it does not exist, or raises when ``required``.
     """
+    if not isinstance(required, bool):
+        raise InvalidArgumentError(f"required: got {required!r}, expected True or False")
     env = os.environ.get("RGBD_DATA")
     candidates = [Path(env)] if env else []
     here = Path(__file__).resolve()
