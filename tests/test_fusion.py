@@ -237,8 +237,17 @@ def test_lc_fuse_bad_input() -> None:
         lc_fuse(img, img, [d], target_sign=0)
     with pytest.raises(InvalidArgumentError, match="stride"):
         lc_fuse(img, img, [d], params=LcParams(radius=2, stride=0))
+    wide = np.array([[0.0, 1e4] * 4] * 8, np.float32)
     with pytest.raises(InvalidArgumentError, match="bin_width"):
-        lc_fuse(img, img, [np.array([[0.0, 1e9] * 4] * 8, np.float32)])
+        lc_fuse(img, img, [wide], params=LcParams(bin_width=1e-3))
+    # Formerly Rust panics (bin-count overflow), now errors naming the argument.
+    d2 = d.copy()
+    d2[0, 0] = 2.0
+    with pytest.raises(InvalidArgumentError, match="bin_width"):
+        lc_fuse(img, img, [d2], params=LcParams(bin_width=1e-30))
+    d2[0, 0] = -1e19
+    with pytest.raises(InvalidArgumentError, match=r"disparities: got -10{19} in map 0"):
+        lc_fuse(img, img, [d2])
     with pytest.raises(InvalidArgumentError, match="baseline"):
         StereoRig(RIG.stereo.left, RIG.stereo.right, 0.0)
 

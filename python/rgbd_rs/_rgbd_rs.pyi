@@ -5,11 +5,18 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "MAX_PIXELS",
+    "MAX_RADIUS",
+    "MAX_SIDE",
+    "SPLINE_DEFAULT_LAMBDA",
+    "SPLINE_MAX_DEGREE",
     "InvalidArgumentError",
+    "LcConfig",
     "NativeScene",
     "RgbdError",
     "SegmentFits",
     "ShapeMismatchError",
+    "UpsampleConfig",
     "depth_disparity",
     "depth_to_points",
     "distort_pixels",
@@ -34,6 +41,12 @@ _PoseArgs = tuple[list[float], list[float]]
 class RgbdError(ValueError): ...
 class InvalidArgumentError(RgbdError): ...
 class ShapeMismatchError(RgbdError): ...
+
+MAX_RADIUS: int
+MAX_SIDE: int
+MAX_PIXELS: int
+SPLINE_MAX_DEGREE: int
+SPLINE_DEFAULT_LAMBDA: float
 
 def num_threads() -> int: ...
 def project_points(
@@ -165,26 +178,58 @@ def render_points(points: _F32, radius: float, v: _ViewArgs) -> tuple[_F32, _I32
 _U8 = npt.NDArray[np.uint8]
 
 def label_regions(image: _U8, tolerance: float) -> tuple[_I32, int]: ...
+
+@final
+class UpsampleConfig:
+    def __new__(
+        cls, radius: int, sigma_s: float, sigma_c: float, sigma_r: float
+    ) -> UpsampleConfig: ...
+
 def upsample_depth(
     sparse: _F32,
+    channel: _F32 | None,
     image: _U8,
     labels: _I32 | None,
-    radius: int,
-    sigma_s: float,
-    sigma_c: float,
-    sigma_r: float,
-) -> _F32: ...
+    config: UpsampleConfig,
+) -> tuple[_F32, _F32 | None]: ...
+
+@final
+class LcConfig:
+    def __new__(
+        cls,
+        radius: int,
+        gamma_s: float,
+        gamma_c: float,
+        gamma_t: float,
+        truncation: float,
+        bin_width: float,
+        stride: int,
+        target_sign: int,
+    ) -> LcConfig: ...
+    @staticmethod
+    def for_width(width: int) -> LcConfig: ...
+    def with_target_sign(self, target_sign: int) -> LcConfig: ...
+    @property
+    def radius(self) -> int: ...
+    @property
+    def gamma_s(self) -> float: ...
+    @property
+    def gamma_c(self) -> float: ...
+    @property
+    def gamma_t(self) -> float: ...
+    @property
+    def truncation(self) -> float: ...
+    @property
+    def bin_width(self) -> float: ...
+    @property
+    def stride(self) -> int: ...
+    @property
+    def target_sign(self) -> int: ...
+
 def lc_fuse(
     reference: _U8,
     target: _U8,
     disparities: list[_F32],
     confidences: list[_F32 | None],
-    radius: int,
-    gamma_s: float,
-    gamma_c: float,
-    gamma_t: float,
-    truncation: float,
-    bin_width: float,
-    stride: int,
-    target_sign: int,
+    config: LcConfig,
 ) -> tuple[_F32, _F32]: ...

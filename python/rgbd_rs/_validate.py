@@ -1,8 +1,9 @@
 """Input validation shared by every public function (private).
 
 Each helper raises an :class:`~rgbd_rs.errors.RgbdError` subclass whose message names the
-argument, what it got and what it expected, and returns a C-contiguous array of the working dtype
-(copying once only when the input is not already one).
+argument, what it got and what it expected, and returns a C-contiguous, aligned array of the
+working dtype (copying once only when the input is not already one: Fortran-ordered, strided and
+unaligned arrays are copied, never refused or misread).
 """
 
 from __future__ import annotations
@@ -13,7 +14,11 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs import _rgbd_rs
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
+
+#: Largest image side any kernel accepts (defined once, in crates/rgbd-error).
+MAX_SIDE: int = _rgbd_rs.MAX_SIDE
 
 
 def _describe_shape(shape: Sequence[int | None]) -> str:
@@ -57,7 +62,8 @@ def array(
             f"{name}: got an empty array of shape {tuple(value.shape)}, "
             "expected at least one element"
         )
-    out = np.ascontiguousarray(value, dtype=dtype)
+    # np.ascontiguousarray keeps an unaligned buffer as it is; the kernels need aligned memory.
+    out = np.require(value, dtype=dtype, requirements=["C_CONTIGUOUS", "ALIGNED"])
     if finite and out.size and not np.isfinite(out).all():
         bad = int(np.size(out) - np.count_nonzero(np.isfinite(out)))
         raise InvalidArgumentError(f"{name}: got {bad} non-finite values, expected finite values")
@@ -68,7 +74,10 @@ def real(name: str, value: object, *, positive: bool = False, nonnegative: bool 
     """Validate a finite real scalar (optionally > 0 or >= 0)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise InvalidArgumentError(f"{name}: got {value!r}, expected a real number")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an int beyond the float range, e.g. 2**1100
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected a finite number") from None
     if not math.isfinite(v):
         raise InvalidArgumentError(f"{name}: got {v}, expected a finite number")
     if positive and v <= 0:
@@ -87,6 +96,11 @@ def integer(name: str, value: object, *, minimum: int = 0, maximum: int | None =
         hi = "" if maximum is None else f" and <= {maximum}"
         raise InvalidArgumentError(f"{name}: got {v}, expected an integer >= {minimum}{hi}")
     return v
+
+
+def size(name: str, value: object) -> int:
+    """Validate an image side in pixels: an integer in ``1..=MAX_SIDE``."""
+    return integer(name, value, minimum=1, maximum=MAX_SIDE)
 
 
 def choice(name: str, value: object, options: Sequence[str]) -> str:

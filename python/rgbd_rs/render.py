@@ -129,8 +129,8 @@ class OrthographicCamera:
 
     def __post_init__(self) -> None:
         _validate.real("scale", self.scale, positive=True)
-        _validate.integer("width", self.width, minimum=1)
-        _validate.integer("height", self.height, minimum=1)
+        _validate.size("width", self.width)
+        _validate.size("height", self.height)
 
 
 @dataclass(frozen=True)

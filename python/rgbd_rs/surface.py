@@ -40,9 +40,9 @@ DEFAULT_SPACING = 16.0
 DEFAULT_DEGREE = 3
 #: Second-difference smoothness weight relative to one data point (keeps knot spans without data
 #: well-posed; a noise-free quadric is reproduced to < 1e-6 relative error).
-DEFAULT_LAMBDA = 1e-6
+DEFAULT_LAMBDA: float = _rgbd_rs.SPLINE_DEFAULT_LAMBDA
 #: Highest supported degree.
-MAX_DEGREE = 5
+MAX_DEGREE: int = _rgbd_rs.SPLINE_MAX_DEGREE
 
 
 @dataclass(frozen=True)
@@ -241,7 +241,7 @@ class SegmentFits:
         return self._native.merge(i, j)
 
     def find(self, label: int) -> int:
-        """The live segment an original label belongs to now."""
+        """The live segment (its label) an original label belongs to now."""
         return self._native.find(label)
 
     def labels(self) -> I32:

@@ -71,7 +71,7 @@ fn bench(c: &mut Criterion) {
     let (labels, _) = label_regions(&r, W, H, 2.0).unwrap();
     let p = UpsampleParams::default();
     c.bench_function("upsample_depth 480x270 with labels", |b| {
-        b.iter(|| upsample_depth(&sparse, &r, Some(&labels), W, H, &p).unwrap())
+        b.iter(|| upsample_depth(&sparse, None, &r, Some(&labels), W, H, &p).unwrap())
     });
     c.bench_function("label_regions 480x270", |b| {
         b.iter(|| label_regions(&r, W, H, 2.0).unwrap())

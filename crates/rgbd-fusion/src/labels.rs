@@ -31,19 +31,12 @@ pub fn label_regions(
     height: usize,
     tolerance: f32,
 ) -> Result<(Vec<i32>, usize)> {
-    if width == 0 || height == 0 {
-        return Err(invalid(
-            "image",
-            format!("{height}x{width}"),
-            "a non-empty image",
-        ));
-    }
-    check_len("image", image, width * height * 3, "H x W x 3")?;
+    let n = rgbd_error::image_len("image", width, height)?;
+    check_len("image", image, n * 3, "H x W x 3")?;
     if !(tolerance >= 0.0) {
         return Err(invalid("tolerance", tolerance, "a finite value >= 0"));
     }
     let tol = (3.0 * tolerance).floor().min(1e6) as usize;
-    let n = width * height;
     let mut parent: Vec<u32> = (0..n as u32).collect();
     let px = |i: usize| &image[3 * i..3 * i + 3];
     for y in 0..height {

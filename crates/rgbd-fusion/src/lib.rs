@@ -10,7 +10,7 @@
 //!   refinement.
 //!
 //! Images are `H x W x 3` row-major `u8`; maps are `H x W` `f32` with NaN for "no value".
-//! Errors reuse `rgbd_geom::GeomError` so the binding maps them unchanged.
+//! Errors are the workspace's one enum, `rgbd_error::RgbdError`.
 
 mod check;
 pub mod color;
@@ -18,6 +18,7 @@ pub mod labels;
 pub mod lc;
 pub mod upsample;
 
+pub use check::MAX_RADIUS;
 pub use labels::label_regions;
 pub use lc::{lc_fuse, LcOutput, LcParams, Source};
-pub use upsample::{upsample_depth, UpsampleParams};
+pub use upsample::{upsample_depth, UpsampleParams, Upsampled};

@@ -14,7 +14,8 @@
 //! σ values were not available (METHOD_NOTES §4); this form and the defaults are our choice.
 
 use rayon::prelude::*;
-use rgbd_geom::error::{check_len, invalid, Result};
+use rgbd_error::{check_interrupt, image_len};
+use rgbd_geom::error::{check_len, Result};
 
 use crate::check::window_and_positive;
 use crate::color::{gauss_table, sum_abs};
@@ -44,7 +45,8 @@ impl Default for UpsampleParams {
 }
 
 impl UpsampleParams {
-    fn validate(&self) -> Result<()> {
+    /// Checks every field (the binding calls this when a parameter object is built).
+    pub fn validate(&self) -> Result<()> {
         window_and_positive(
             self.radius,
             &[
@@ -56,18 +58,20 @@ impl UpsampleParams {
     }
 }
 
-/// Valid samples of each row as `(x, z)`, sorted by x.
-/// A ToF sample with what the filter reads of its pixel, stored contiguously per row.
+/// A ToF sample with what the filter reads of its pixel and the channel value it carries
+/// (NaN = none), stored contiguously per row, sorted by x.
 #[derive(Clone, Copy)]
 struct Tap {
     x: u32,
     z: f32,
+    a: f32,
     color: [u8; 3],
     label: i32,
 }
 
 fn sample_rows(
     sparse: &[f32],
+    channel: Option<&[f32]>,
     image: &[u8],
     labels: Option<&[i32]>,
     width: usize,
@@ -84,6 +88,7 @@ fn sample_rows(
                     Tap {
                         x: x as u32,
                         z,
+                        a: channel.map_or(f32::NAN, |c| c[q]),
                         color: [image[3 * q], image[3 * q + 1], image[3 * q + 2]],
                         label: labels.map_or(0, |l| l[q]),
                     }
@@ -93,31 +98,42 @@ fn sample_rows(
         .collect()
 }
 
+/// Result of [`upsample_depth`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Upsampled {
+    /// Dense depth, NaN where no sample lies within the radius.
+    pub depth: Vec<f32>,
+    /// The carried channel interpolated with the very weights the depth got (NaN where the
+    /// depth is NaN or no weighted sample carried a value); empty when no channel was given.
+    pub channel: Vec<f32>,
+}
+
 /// Upsamples `sparse` (H x W depth, NaN/<=0 = no sample) guided by `image` (H x W x 3) and, when
 /// given, `labels` (H x W segment ids). Pixels with no sample within `radius` stay NaN.
+///
+/// `channel` (H x W, e.g. the ToF amplitude on the same samples) is carried along: its output is
+/// the same weighted mean as the depth's, so its unit and offset never enter the weights (the
+/// range term compares depths only).
 pub fn upsample_depth(
     sparse: &[f32],
+    channel: Option<&[f32]>,
     image: &[u8],
     labels: Option<&[i32]>,
     width: usize,
     height: usize,
     params: &UpsampleParams,
-) -> Result<Vec<f32>> {
+) -> Result<Upsampled> {
     params.validate()?;
-    if width == 0 || height == 0 {
-        return Err(invalid(
-            "sparse",
-            format!("{height}x{width}"),
-            "a non-empty map",
-        ));
-    }
-    let n = width * height;
+    let n = image_len("sparse", width, height)?;
     check_len("sparse", sparse, n, "H x W")?;
     check_len("image", image, n * 3, "H x W x 3 of the depth map's size")?;
     if let Some(l) = labels {
         check_len("labels", l, n, "H x W of the depth map's size")?;
     }
-    let rows = sample_rows(sparse, image, labels, width);
+    if let Some(c) = channel {
+        check_len("channel", c, n, "H x W of the depth map's size")?;
+    }
+    let rows = sample_rows(sparse, channel, image, labels, width);
     let r = params.radius as i64;
     let side = 2 * params.radius + 1;
     let spatial: Vec<f32> = (0..side * side)
@@ -129,14 +145,24 @@ pub fn upsample_depth(
     let gc = gauss_table(params.sigma_c);
     let inv_2r2 = 1.0 / (2.0 * params.sigma_r * params.sigma_r);
     let mut out = vec![f32::NAN; n];
+    let mut carried = vec![f32::NAN; if channel.is_some() { n } else { 0 }];
+    // Without a channel the carried rows are empty and zip stops nothing: chunk them by width
+    // only when present.
+    let mut carried_rows: Vec<&mut [f32]> = if channel.is_some() {
+        carried.chunks_mut(width).collect()
+    } else {
+        (0..height).map(|_| &mut [][..]).collect()
+    };
     out.par_chunks_mut(width)
+        .zip(carried_rows.par_iter_mut())
         .enumerate()
-        .for_each(|(y, out_row)| {
+        .try_for_each(|(y, (out_row, a_row))| {
+            check_interrupt()?;
             let y0 = (y as i64 - r).max(0) as usize;
             let y1 = (y as i64 + r).min(height as i64 - 1) as usize;
             let mut cursor = vec![0usize; y1 - y0 + 1];
-            // Samples of other segments as (Gs, z): only they need a second look.
-            let mut others: Vec<(f32, f32)> = Vec::with_capacity(side * side);
+            // Samples of other segments as (Gs, z, a): only they need a second look.
+            let mut others: Vec<(f32, f32, f32)> = Vec::with_capacity(side * side);
             for (x, o) in out_row.iter_mut().enumerate() {
                 let p = y * width + x;
                 let cp = &image[3 * p..3 * p + 3];
@@ -156,53 +182,75 @@ pub fn upsample_depth(
                     let srow = (yq as i64 - y as i64 + r) as usize * side;
                     for t in row[c..].iter().take_while(|t| t.x <= hi) {
                         let ws = spatial[srow + (t.x as i64 - x as i64 + r) as usize];
-                        all.add(ws, t.z);
+                        all.add(ws, t.z, t.a);
                         // Without labels every tap carries label 0 like p: one segment.
                         if t.label == lp {
-                            same.add(ws * gc[sum_abs(cp, &t.color)], t.z);
+                            same.add(ws * gc[sum_abs(cp, &t.color)], t.z, t.a);
                         } else {
-                            others.push((ws, t.z));
+                            others.push((ws, t.z, t.a));
                         }
                     }
                 }
-                *o = estimate(&same, &all, &others, inv_2r2);
+                let (z, a) = estimate(&same, &all, &others, inv_2r2);
+                *o = z;
+                if let Some(slot) = a_row.get_mut(x) {
+                    *slot = a;
+                }
             }
-        });
-    Ok(out)
+            Ok(())
+        })?;
+    drop(carried_rows);
+    Ok(Upsampled {
+        depth: out,
+        channel: carried,
+    })
 }
 
-/// Running weighted sums.
+/// Running weighted sums of the depth and of the carried channel (whose weight sum counts only
+/// the samples that carry a value).
 #[derive(Default, Clone, Copy)]
 struct Sums {
     w: f32,
     wz: f32,
+    wa_w: f32,
+    wa: f32,
 }
 
 impl Sums {
     #[inline]
-    fn add(&mut self, w: f32, z: f32) {
+    fn add(&mut self, w: f32, z: f32, a: f32) {
         self.w += w;
         self.wz += w * z;
+        if a.is_finite() {
+            self.wa_w += w;
+            self.wa += w * a;
+        }
     }
 
-    fn mean(&self) -> Option<f32> {
-        (self.w > 0.0).then(|| self.wz / self.w)
+    fn mean(&self) -> Option<(f32, f32)> {
+        let a = if self.wa_w > 0.0 {
+            self.wa / self.wa_w
+        } else {
+            f32::NAN
+        };
+        (self.w > 0.0).then(|| (self.wz / self.w, a))
     }
 }
 
 /// The two-pass estimate: `z0` from the same-segment samples (Gs Gc), or from all samples (Gs)
 /// where p's segment holds none — colour across segments means little; then the same-segment
 /// sums plus the other segments' samples weighted by depth agreement with `z0` (Gs Gr).
-fn estimate(same: &Sums, all: &Sums, others: &[(f32, f32)], inv_2r2: f32) -> f32 {
-    let Some(z0) = same.mean().or_else(|| all.mean()) else {
-        return f32::NAN;
+fn estimate(same: &Sums, all: &Sums, others: &[(f32, f32, f32)], inv_2r2: f32) -> (f32, f32) {
+    let Some(first) = same.mean().or_else(|| all.mean()) else {
+        return (f32::NAN, f32::NAN);
     };
+    let z0 = first.0;
     let mut sums = *same;
-    for &(ws, z) in others {
+    for &(ws, z, a) in others {
         let dz = (z - z0) / z0;
-        sums.add(ws * (-dz * dz * inv_2r2).exp(), z);
+        sums.add(ws * (-dz * dz * inv_2r2).exp(), z, a);
     }
-    sums.mean().unwrap_or(z0)
+    sums.mean().unwrap_or(first)
 }
 
 #[cfg(test)]
@@ -233,7 +281,9 @@ mod tests {
         let (sparse, img, lab) = step(w, h);
         let p = UpsampleParams::default();
         for labels in [None, Some(&lab[..])] {
-            let out = upsample_depth(&sparse, &img, labels, w, h, &p).unwrap();
+            let out = upsample_depth(&sparse, None, &img, labels, w, h, &p)
+                .unwrap()
+                .depth;
             for y in 0..h {
                 for x in 0..w {
                     let want = if x >= w / 2 { 2.0 } else { 1.0 };
@@ -260,21 +310,42 @@ mod tests {
                 f32::NAN
             };
         }
-        let out =
-            upsample_depth(&sparse, &img, Some(&lab), w, h, &UpsampleParams::default()).unwrap();
+        let p = UpsampleParams::default();
+        let out = upsample_depth(&sparse, None, &img, Some(&lab), w, h, &p)
+            .unwrap()
+            .depth;
         assert!((out[w - 1 - 4] - 1.5).abs() < 1e-4);
         assert!(out[w - 1].is_nan(), "more than radius from every sample");
+    }
+
+    #[test]
+    fn carried_channel_gets_the_depth_weights() {
+        // The channel is the depth plus an offset: a weighted mean with the depth's weights keeps
+        // the offset exactly, whatever the range term did (a filter run on the channel itself
+        // would weight by the channel's own relative differences instead).
+        let (w, h) = (20, 10);
+        let (sparse, img, lab) = step(w, h);
+        let chan: Vec<f32> = sparse.iter().map(|z| z + 10.0).collect();
+        let p = UpsampleParams::default();
+        for labels in [None, Some(&lab[..])] {
+            let out = upsample_depth(&sparse, Some(&chan), &img, labels, w, h, &p).unwrap();
+            for (z, a) in out.depth.iter().zip(&out.channel) {
+                assert!((a - z - 10.0).abs() < 1e-4, "{z} {a}");
+            }
+        }
+        let none = upsample_depth(&sparse, None, &img, None, w, h, &p).unwrap();
+        assert!(none.channel.is_empty());
     }
 
     #[test]
     fn rejects_bad_arguments() {
         let (sparse, img, _) = step(8, 4);
         let p = UpsampleParams::default();
-        assert!(upsample_depth(&sparse, &img[3..], None, 8, 4, &p).is_err());
-        assert!(upsample_depth(&sparse, &img, Some(&[0; 3]), 8, 4, &p).is_err());
+        assert!(upsample_depth(&sparse, None, &img[3..], None, 8, 4, &p).is_err());
+        assert!(upsample_depth(&sparse, None, &img, Some(&[0; 3]), 8, 4, &p).is_err());
         let bad = UpsampleParams { sigma_r: 0.0, ..p };
-        assert!(upsample_depth(&sparse, &img, None, 8, 4, &bad).is_err());
+        assert!(upsample_depth(&sparse, None, &img, None, 8, 4, &bad).is_err());
         let bad = UpsampleParams { radius: 0, ..p };
-        assert!(upsample_depth(&sparse, &img, None, 8, 4, &bad).is_err());
+        assert!(upsample_depth(&sparse, None, &img, None, 8, 4, &bad).is_err());
     }
 }

@@ -111,8 +111,11 @@ fn refine(r_img: &[u8], t_img: &[u8], w: usize, h: usize, d: &[f32], radius: usi
         disparity: d,
         confidence: None,
     }];
+    // Dense window and gamma_s = 6 (the kernel under test, not the defaults).
     let p = LcParams {
         radius,
+        gamma_s: 6.0,
+        stride: 1,
         ..LcParams::default()
     };
     lc_fuse(r_img, t_img, w, h, &src, &p).unwrap()
@@ -306,7 +309,7 @@ fn bad_arguments_name_themselves() {
         confidence: None,
     }];
     let p = LcParams::default();
-    let err = |r: Result<_, rgbd_geom::GeomError>| r.unwrap_err().to_string();
+    let err = |r: Result<_, rgbd_geom::RgbdError>| r.unwrap_err().to_string();
     assert!(err(lc_fuse(&img[1..], &img, w, h, &src, &p)).starts_with("reference"));
     assert!(err(lc_fuse(&img, &img[1..], w, h, &src, &p)).starts_with("target"));
     assert!(err(lc_fuse(&img, &img, w, h, &[], &p)).starts_with("sources"));
@@ -315,12 +318,12 @@ fn bad_arguments_name_themselves() {
         disparity: &d,
         confidence: Some(&c),
     }];
-    assert!(err(lc_fuse(&img, &img, w, h, &bad, &p)).starts_with("confidence"));
+    assert!(err(lc_fuse(&img, &img, w, h, &bad, &p)).starts_with("confidences"));
     let short = [Source {
         disparity: &d[1..],
         confidence: None,
     }];
-    assert!(err(lc_fuse(&img, &img, w, h, &short, &p)).starts_with("disparity"));
+    assert!(err(lc_fuse(&img, &img, w, h, &short, &p)).starts_with("disparities"));
     for bad in [
         LcParams { radius: 0, ..p },
         LcParams { gamma_s: 0.0, ..p },
@@ -335,10 +338,32 @@ fn bad_arguments_name_themselves() {
     ] {
         assert!(lc_fuse(&img, &img, w, h, &src, &bad).is_err());
     }
-    let wide = [0.0f32, 1e9].repeat(w * h / 2);
+    let wide = [0.0f32, 1e4].repeat(w * h / 2);
     let src = [Source {
         disparity: &wide,
         confidence: None,
     }];
-    assert!(err(lc_fuse(&img, &img, w, h, &src, &p)).starts_with("bin_width"));
+    let fine = LcParams {
+        bin_width: 1e-3,
+        ..p
+    };
+    assert!(err(lc_fuse(&img, &img, w, h, &src, &fine)).starts_with("bin_width"));
+    // Formerly a bin-count overflow (panic): a tiny bin width, an absurd disparity.
+    let tiny = LcParams {
+        bin_width: 1e-30,
+        ..p
+    };
+    let varied = [0.0f32, 1.0].repeat(w * h / 2);
+    let src = [Source {
+        disparity: &varied,
+        confidence: None,
+    }];
+    assert!(err(lc_fuse(&img, &img, w, h, &src, &tiny)).starts_with("bin_width"));
+    let mut absurd = varied.clone();
+    absurd[0] = -1e19;
+    let src = [Source {
+        disparity: &absurd,
+        confidence: None,
+    }];
+    assert!(err(lc_fuse(&img, &img, w, h, &src, &p)).starts_with("disparities"));
 }

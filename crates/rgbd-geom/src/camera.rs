@@ -28,13 +28,8 @@ impl Intrinsics {
                 return Err(invalid(arg, v, "a finite principal point coordinate"));
             }
         }
-        if width == 0 || height == 0 {
-            return Err(invalid(
-                "size",
-                format!("{width}x{height}"),
-                "a positive image size",
-            ));
-        }
+        // Bounded here, so every map or image made for this camera has a sane size.
+        rgbd_error::image_len("size", width, height)?;
         Ok(Self {
             fx,
             fy,

@@ -5,7 +5,7 @@
 //! Conventions: x right, y down, z forward; pixel centres at integer coordinates; depth is z in
 //! metres; invalid samples are NaN. Buffers are row-major slices with explicit sizes so the
 //! binding crate can pass numpy memory without copies. No function panics on bad input: each
-//! returns a [`GeomError`] naming the argument.
+//! returns a [`RgbdError`] naming the argument.
 
 pub mod camera;
 pub mod distortion;
@@ -18,7 +18,7 @@ pub mod stereo;
 
 pub use camera::{Intrinsics, Pose};
 pub use distortion::{Distortion, UNDISTORT_MAX_ITER, UNDISTORT_TOL};
-pub use error::{GeomError, Result};
+pub use error::{Result, RgbdError};
 pub use normals::normals_from_points;
 pub use projection::Camera;
 pub use remap::{remap, undistort_image, undistort_map, ImageRef, Interpolation};

@@ -1,12 +1,15 @@
-//! The Python exception hierarchy and the single helper that runs core code without the GIL.
+//! The Python exception hierarchy, the one mapping from the core error enum to it, the single
+//! helper that runs core code without the GIL, and the single helper that borrows numpy memory.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::thread;
+use std::time::Duration;
 
+use numpy::{Element, PyArrayMethods, PyReadonlyArray, PyUntypedArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
-use rgbd_geom::GeomError;
-use rgbd_spline::SplineError;
+use rgbd_error::RgbdError as CoreError;
 
 create_exception!(
     _rgbd_rs,
@@ -27,43 +30,67 @@ create_exception!(
     "An array does not have the shape its companions or the camera imply."
 );
 
-/// A core crate's error enum, mapped variant by variant to the Python hierarchy.
-pub trait CoreError {
-    fn into_py(self) -> PyErr;
-}
-
-impl CoreError for GeomError {
-    fn into_py(self) -> PyErr {
-        let msg = self.to_string();
-        match self {
-            GeomError::InvalidArgument { .. } => InvalidArgumentError::new_err(msg),
-            GeomError::ShapeMismatch { .. } => ShapeMismatchError::new_err(msg),
-        }
+/// Maps a core error to its Python exception, message unchanged: one variant, one class.
+pub fn to_py(err: CoreError) -> PyErr {
+    let msg = err.to_string();
+    match err {
+        CoreError::InvalidArgument { .. } => InvalidArgumentError::new_err(msg),
+        CoreError::ShapeMismatch { .. } => ShapeMismatchError::new_err(msg),
+        CoreError::Interrupted => PyKeyboardInterrupt::new_err("interrupted in the native core"),
     }
 }
 
-impl CoreError for SplineError {
-    fn into_py(self) -> PyErr {
-        let msg = self.to_string();
-        match self {
-            SplineError::InvalidArgument { .. } => InvalidArgumentError::new_err(msg),
-        }
-    }
+/// `ShapeMismatchError` with `msg` (for shape checks done in the binding itself).
+pub fn shape_err(msg: String) -> PyErr {
+    ShapeMismatchError::new_err(msg)
 }
 
-/// Maps a core error to its Python exception, message unchanged.
-pub fn to_py(err: impl CoreError) -> PyErr {
-    err.into_py()
-}
+/// How often a waiting caller looks for Ctrl-C while a kernel runs on another thread.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
 
 /// Runs `f` with the GIL released; a panic becomes `RgbdError` instead of crossing into Python.
-pub fn run<T, E, F>(py: Python<'_>, f: F) -> PyResult<T>
+pub fn run<T, F>(py: Python<'_>, f: F) -> PyResult<T>
 where
     T: Send,
-    E: CoreError + Send,
-    F: FnOnce() -> Result<T, E> + Send,
+    F: FnOnce() -> Result<T, CoreError> + Send,
 {
-    match py.detach(|| catch_unwind(AssertUnwindSafe(f))) {
+    let _running = rgbd_error::running();
+    finish(py.detach(|| catch_unwind(AssertUnwindSafe(f))))
+}
+
+/// [`run`] for kernels that can take seconds: `f` runs on a scoped thread while this thread
+/// polls for signals; Ctrl-C asks the kernel to stop at its next `check_interrupt` (between rows)
+/// and raises `KeyboardInterrupt` once it has.
+pub fn run_interruptible<T, F>(py: Python<'_>, f: F) -> PyResult<T>
+where
+    T: Send,
+    F: FnOnce() -> Result<T, CoreError> + Send,
+{
+    let _running = rgbd_error::running();
+    let mut signal: Option<PyErr> = None;
+    let out = py.detach(|| {
+        thread::scope(|s| {
+            let worker = s.spawn(|| catch_unwind(AssertUnwindSafe(f)));
+            while !worker.is_finished() {
+                thread::park_timeout(SIGNAL_POLL);
+                if signal.is_none() {
+                    if let Err(e) = Python::attach(|py| py.check_signals()) {
+                        rgbd_error::request_interrupt();
+                        signal = Some(e);
+                    }
+                }
+            }
+            worker.join().unwrap_or_else(Err)
+        })
+    });
+    match signal {
+        Some(e) => Err(e),
+        None => finish(out),
+    }
+}
+
+fn finish<T>(out: std::thread::Result<Result<T, CoreError>>) -> PyResult<T> {
+    match out {
         Ok(res) => res.map_err(to_py),
         Err(panic) => {
             let what = panic
@@ -78,14 +105,19 @@ where
     }
 }
 
-/// Borrows a contiguous numpy buffer, or says which argument was not contiguous.
-pub fn contiguous<'a, T>(
+/// Borrows a numpy array's memory as a row-major slice. Every borrow goes through here, so a
+/// Fortran-ordered, strided or unaligned array is refused (the public wrappers copy those once)
+/// instead of being read in the wrong order.
+pub fn borrow<'a, T: Element, Dim: numpy::ndarray::Dimension>(
     arg: &str,
-    slice: Result<&'a [T], numpy::AsSliceError>,
+    a: &'a PyReadonlyArray<'_, T, Dim>,
 ) -> PyResult<&'a [T]> {
-    slice.map_err(|_| {
-        InvalidArgumentError::new_err(format!(
-            "{arg}: got a non-contiguous array, expected a C-contiguous array (use np.ascontiguousarray)"
-        ))
-    })
+    let aligned = (a.data() as usize).is_multiple_of(std::mem::align_of::<T>());
+    match a.as_slice() {
+        Ok(s) if aligned && (a.is_c_contiguous()) => Ok(s),
+        _ => Err(InvalidArgumentError::new_err(format!(
+            "{arg}: got a non-C-contiguous or unaligned array, expected a C-contiguous aligned \
+             array (the public rgbd_rs functions copy such arrays; the native module does not)"
+        ))),
+    }
 }

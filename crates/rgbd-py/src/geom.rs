@@ -10,7 +10,7 @@ use numpy::{
 use pyo3::prelude::*;
 use rgbd_geom::{Camera, Distortion, ImageRef, Interpolation, Intrinsics, Pose, ReprojectOptions};
 
-use crate::errors::{contiguous, run, to_py, InvalidArgumentError};
+use crate::errors::{borrow, run, shape_err, to_py, InvalidArgumentError};
 
 /// `(fx, fy, cx, cy, width, height, [k1, k2, p1, p2, k3, k4, k5, k6])`, as `PinholeCamera._native()`.
 type CameraArgs = (f64, f64, f64, f64, usize, usize, [f64; 8]);
@@ -47,10 +47,6 @@ fn rotation_arg(rotation: Option<[f64; 9]>) -> PyResult<Option<Matrix3<f64>>> {
         .transpose()
 }
 
-pub(crate) fn shape_err(msg: String) -> PyErr {
-    InvalidArgumentError::new_err(msg)
-}
-
 /// Projects `N x 3` points through `pose` into `camera`; returns `N x 2` pixels (NaN behind).
 #[pyfunction]
 pub fn project_points<'py>(
@@ -61,7 +57,7 @@ pub fn project_points<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let n = points.shape()[0];
     let (cam, pose) = (camera(cam)?, pose(pose_args)?);
-    let pts = contiguous("points", points.as_slice())?;
+    let pts = borrow("points", &points)?;
     let out = run(py, || cam.project_points(pts, &pose))?;
     to_numpy(py, (n, 2), out)
 }
@@ -78,7 +74,7 @@ pub fn undistort_pixels<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let n = pixels.shape()[0];
     let cam = camera(cam)?;
-    let px = contiguous("pixels", pixels.as_slice())?;
+    let px = borrow("pixels", &pixels)?;
     let out = run(py, || cam.undistort_pixels(px, normalized, max_iter, tol))?;
     to_numpy(py, (n, 2), out)
 }
@@ -92,7 +88,7 @@ pub fn distort_pixels<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let n = pixels.shape()[0];
     let cam = camera(cam)?;
-    let px = contiguous("pixels", pixels.as_slice())?;
+    let px = borrow("pixels", &pixels)?;
     let out = run(py, || cam.distort_pixels(px))?;
     to_numpy(py, (n, 2), out)
 }
@@ -108,7 +104,7 @@ pub fn depth_to_points<'py>(
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let cam = camera(cam)?;
     let (h, w) = (cam.intrinsics.height, cam.intrinsics.width);
-    let d = contiguous("depth", depth.as_slice())?;
+    let d = borrow("depth", &depth)?;
     let out = run(py, || cam.depth_to_points(d, max_iter, tol))?;
     to_numpy(py, (h, w, 3), out)
 }
@@ -125,7 +121,7 @@ pub fn undistort_map<'py>(
     let (src, dst) = (camera(src)?, camera(dst)?.intrinsics);
     let rot = rotation_arg(rotation)?;
     let map = run(py, || {
-        Ok::<_, rgbd_geom::GeomError>(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
+        Ok::<_, rgbd_geom::RgbdError>(rgbd_geom::undistort_map(&src, &dst, rot.as_ref()))
     })?;
     to_numpy(py, (dst.height, dst.width, 2), map)
 }
@@ -150,8 +146,8 @@ pub fn remap<'py>(
             "map: got shape ({mh}, {mw}, {two}), expected (H, W, 2)"
         )));
     }
-    let img = contiguous("image", image.as_slice())?;
-    let m = contiguous("map", map.as_slice())?;
+    let img = borrow("image", &image)?;
+    let m = borrow("map", &map)?;
     let out = run(py, || {
         rgbd_geom::remap(ImageRef::new(img, w, h, c)?, m, mw, interp)
     })?;
@@ -185,7 +181,7 @@ pub fn undistort_image<'py>(
     let &[h, w, c] = image.shape() else {
         unreachable!("3-D array")
     };
-    let img = contiguous("image", image.as_slice())?;
+    let img = borrow("image", &image)?;
     let out = run(py, || {
         rgbd_geom::undistort_image(
             ImageRef::new(img, w, h, c)?,
@@ -207,7 +203,7 @@ pub fn depth_disparity<'py>(
     focal: f64,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let shape = values.shape().to_vec();
-    let v = contiguous("values", values.as_slice())?;
+    let v = borrow("values", &values)?;
     let out = run(py, || rgbd_geom::depth_disparity(v, baseline, focal))?;
     to_numpy(py, shape, out)
 }
@@ -234,9 +230,9 @@ pub fn reproject_depth<'py>(
     tol: f64,
 ) -> PyResult<Reprojected<'py>> {
     let (src, dst, pose) = (camera(src)?, camera(dst)?, pose(pose_args)?);
-    let d = contiguous("depth", depth.as_slice())?;
+    let d = borrow("depth", &depth)?;
     let ch = match &channels {
-        Some(c) => Some((contiguous("channels", c.as_slice())?, c.shape()[2])),
+        Some(c) => Some((borrow("channels", c)?, c.shape()[2])),
         None => None,
     };
     let opts = ReprojectOptions {
@@ -272,7 +268,7 @@ pub fn normals_from_points<'py>(
             "points: got shape ({h}, {w}, {c}), expected (H, W, 3)"
         )));
     }
-    let p = contiguous("points", points.as_slice())?;
+    let p = borrow("points", &points)?;
     let out = run(py, || {
         rgbd_geom::normals_from_points(p, w, h, max_depth_jump)
     })?;

@@ -57,5 +57,13 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fusion::label_regions, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::lc_fuse, m)?)?;
+    m.add_class::<fusion::PyLcConfig>()?;
+    m.add_class::<fusion::PyUpsampleConfig>()?;
+    // Limits defined once in the core crates, read by the Python layer.
+    m.add("MAX_RADIUS", rgbd_fusion::MAX_RADIUS)?;
+    m.add("MAX_SIDE", rgbd_error::MAX_SIDE)?;
+    m.add("MAX_PIXELS", rgbd_error::MAX_PIXELS)?;
+    m.add("SPLINE_MAX_DEGREE", rgbd_spline::MAX_DEGREE)?;
+    m.add("SPLINE_DEFAULT_LAMBDA", rgbd_spline::DEFAULT_LAMBDA)?;
     Ok(())
 }

@@ -8,7 +8,7 @@ use numpy::{PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyAr
 use pyo3::prelude::*;
 use rgbd_render::{Material, Pattern, PointLight, Projection, Scene, TofOptions, View};
 
-use crate::errors::{contiguous, run, InvalidArgumentError};
+use crate::errors::{borrow, run, run_interruptible, InvalidArgumentError};
 use crate::geom::{pose, to_numpy, PoseArgs};
 
 /// `(kind, a, b, cx, cy, width, height, world_to_camera)`: kind "perspective" (a, b = fx, fy)
@@ -90,7 +90,7 @@ fn material(m: MaterialArgs<'_>) -> PyResult<Material> {
             Pattern::Image {
                 width: s[1],
                 height: s[0],
-                rgb: contiguous("texture image", img.as_slice())?.to_vec(),
+                rgb: borrow("texture image", &img)?.to_vec(),
                 period: p[0],
             }
         }
@@ -137,9 +137,9 @@ impl PyScene {
                 intensity,
             })
             .collect();
-        let v = contiguous("vertices", vertices.as_slice())?;
-        let t = contiguous("triangles", triangles.as_slice())?;
-        let o = contiguous("object", object.as_slice())?;
+        let v = borrow("vertices", &vertices)?;
+        let t = borrow("triangles", &triangles)?;
+        let o = borrow("object", &object)?;
         let scene = run(py, || Scene::new(v, t, o, mats, lights, ambient))?;
         Ok(Self {
             inner: Arc::new(scene),
@@ -156,9 +156,7 @@ impl PyScene {
     fn depth<'py>(&self, py: Python<'py>, v: ViewArgs) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let view = view(v)?;
         let s = &self.inner;
-        let out = run(py, || {
-            Ok::<_, rgbd_geom::GeomError>(rgbd_render::render_depth(s, &view))
-        })?;
+        let out = run_interruptible(py, || rgbd_render::render_depth(s, &view))?;
         to_numpy(py, (view.height, view.width), out)
     }
 
@@ -177,9 +175,7 @@ impl PyScene {
     )> {
         let view = view(v)?;
         let s = &self.inner;
-        let g = run(py, || {
-            Ok::<_, rgbd_geom::GeomError>(rgbd_render::render_gbuffer(s, &view))
-        })?;
+        let g = run_interruptible(py, || rgbd_render::render_gbuffer(s, &view))?;
         let (h, w) = (view.height, view.width);
         Ok((
             to_numpy(py, (h, w), g.depth)?,
@@ -200,7 +196,7 @@ impl PyScene {
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let view = view(v)?;
         let s = &self.inner;
-        let out = run(py, || {
+        let out = run_interruptible(py, || {
             rgbd_render::render_color(s, &view, supersample, shadows)
         })?;
         to_numpy(py, (view.height, view.width, 3), out)
@@ -243,7 +239,7 @@ impl PyScene {
             seed,
         };
         let s = &self.inner;
-        let f = run(py, || rgbd_render::simulate_tof(s, &view, &opts))?;
+        let f = run_interruptible(py, || rgbd_render::simulate_tof(s, &view, &opts))?;
         let (h, w) = (view.height, view.width);
         Ok((
             to_numpy(py, (h, w), f.depth)?,
@@ -264,8 +260,8 @@ pub fn render_points<'py>(
     v: ViewArgs,
 ) -> PyResult<Splats<'py>> {
     let view = view(v)?;
-    let pts = contiguous("points", points.as_slice())?;
-    let (d, i) = run(py, || rgbd_render::render_points(pts, radius, &view))?;
+    let pts = borrow("points", &points)?;
+    let (d, i) = run_interruptible(py, || rgbd_render::render_points(pts, radius, &view))?;
     Ok((
         to_numpy(py, (view.height, view.width), d)?,
         to_numpy(py, (view.height, view.width), i)?,

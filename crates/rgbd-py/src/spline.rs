@@ -1,11 +1,13 @@
 //! Adapters for rgbd-spline: surface fits of organised point clouds and per-segment fits.
 
 use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use std::sync::{PoisonError, RwLock, RwLockReadGuard};
+
 use pyo3::prelude::*;
 use rgbd_spline::{fit_mask, Criterion, FitKind, KnotGrid, SegmentFits, SurfaceMaps};
 
-use crate::errors::{contiguous, run, to_py, InvalidArgumentError};
-use crate::geom::{shape_err, to_numpy};
+use crate::errors::{borrow, run, shape_err, InvalidArgumentError};
+use crate::geom::to_numpy;
 
 type Map2<'py> = Bound<'py, PyArray2<f32>>;
 /// fitted, error, k1, k2, mean, gaussian.
@@ -53,7 +55,7 @@ fn same_size(arg: &str, got: &[usize], h: usize, w: usize) -> PyResult<()> {
 
 fn index(arg: &str, i: i64) -> PyResult<usize> {
     usize::try_from(i).map_err(|_| {
-        InvalidArgumentError::new_err(format!("{arg}: got {i}, expected a segment id >= 0"))
+        InvalidArgumentError::new_err(format!("{arg}: got {i}, expected a segment label >= 0"))
     })
 }
 
@@ -72,11 +74,11 @@ pub fn fit_surface<'py>(
     with_dof: bool,
 ) -> PyResult<(MapsOut<'py>, usize, f64, Option<f64>, bool)> {
     let (h, w) = points_shape(&points)?;
-    let p = contiguous("points", points.as_slice())?;
+    let p = borrow("points", &points)?;
     let m = match &mask {
         Some(m) => {
             same_size("mask", m.shape(), h, w)?;
-            Some(contiguous("mask", m.as_slice())?)
+            Some(borrow("mask", m)?)
         }
         None => None,
     };
@@ -88,16 +90,36 @@ pub fn fit_surface<'py>(
         let maps = rgbd_spline::surface_maps(p, w, h, 3, region, |i| {
             m.is_none_or(|m| m[i]).then_some(&fit)
         });
-        Ok::<_, rgbd_spline::SplineError>((fit, maps))
+        Ok::<_, rgbd_spline::RgbdError>((fit, maps))
     })?;
     let linear = fit.kind == FitKind::Linear;
     Ok((maps_out(py, h, w, maps)?, fit.n, fit.sse, fit.dof, linear))
 }
 
 /// Per-segment spline fits of a labelled point cloud with cheap unions and merges.
-#[pyclass(module = "rgbd_rs._rgbd_rs", name = "SegmentFits")]
+///
+/// Safe to share between threads: queries take a read lock, `merge` the write lock, each taken
+/// with the GIL released (so a waiting thread never blocks the one holding the lock).
+#[pyclass(module = "rgbd_rs._rgbd_rs", name = "SegmentFits", frozen)]
 pub struct PySegmentFits {
-    inner: SegmentFits,
+    inner: RwLock<SegmentFits>,
+}
+
+impl PySegmentFits {
+    fn read(&self) -> RwLockReadGuard<'_, SegmentFits> {
+        // A poisoned lock means a panic mid-merge, which `run` already reported; the fits are
+        // still the last consistent state (merge writes only after its solve succeeded).
+        self.inner.read().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Runs a query on the fits with the GIL released.
+    fn query<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&SegmentFits) -> Result<T, rgbd_spline::RgbdError> + Send,
+    ) -> PyResult<T> {
+        run(py, || f(&self.read()))
+    }
 }
 
 #[pymethods]
@@ -124,75 +146,73 @@ impl PySegmentFits {
                 )))
             }
         };
-        let p = contiguous("points", points.as_slice())?;
-        let l = contiguous("labels", labels.as_slice())?;
+        let p = borrow("points", &points)?;
+        let l = borrow("labels", &labels)?;
         let inner = run(py, || {
             let grid = KnotGrid::new(w, h, spacing, degree)?;
             SegmentFits::new(p, w, h, 3, l, &grid, lam, criterion)
         })?;
-        Ok(Self { inner })
+        Ok(Self {
+            inner: RwLock::new(inner),
+        })
     }
 
     /// Number of labels (merged ones included).
     #[getter]
     fn n_labels(&self) -> usize {
-        self.inner.n_labels()
+        self.read().n_labels()
     }
 
     /// 'gcv' or 'mse'.
     #[getter]
     fn criterion(&self) -> &'static str {
-        match self.inner.criterion {
+        match self.read().criterion {
             Criterion::Gcv => "gcv",
             Criterion::Mse => "mse",
         }
     }
 
-    fn size(&self, i: i64) -> PyResult<usize> {
-        self.inner.size(index("i", i)?).map_err(to_py)
+    fn size(&self, py: Python<'_>, i: i64) -> PyResult<usize> {
+        let i = index("i", i)?;
+        self.query(py, |s| s.size(i))
     }
 
-    fn fit_error(&self, i: i64) -> PyResult<f64> {
-        self.inner.fit_error(index("i", i)?).map_err(to_py)
+    fn fit_error(&self, py: Python<'_>, i: i64) -> PyResult<f64> {
+        let i = index("i", i)?;
+        self.query(py, |s| s.fit_error(i))
     }
 
-    fn mse(&self, i: i64) -> PyResult<f64> {
-        Ok(self.inner.fit(index("i", i)?).map_err(to_py)?.mse())
+    fn mse(&self, py: Python<'_>, i: i64) -> PyResult<f64> {
+        let i = index("i", i)?;
+        self.query(py, |s| Ok(s.fit(i)?.mse()))
     }
 
     fn union_error(&self, py: Python<'_>, i: i64, j: i64) -> PyResult<f64> {
         let (i, j) = (index("i", i)?, index("j", j)?);
-        run(py, || self.inner.union_error(i, j))
+        self.query(py, |s| s.union_error(i, j))
     }
 
     fn should_merge(&self, py: Python<'_>, i: i64, j: i64) -> PyResult<bool> {
         let (i, j) = (index("i", i)?, index("j", j)?);
-        run(py, || self.inner.should_merge(i, j))
+        self.query(py, |s| s.should_merge(i, j))
     }
 
-    fn merge(&mut self, py: Python<'_>, i: i64, j: i64) -> PyResult<f64> {
+    fn merge(&self, py: Python<'_>, i: i64, j: i64) -> PyResult<f64> {
         let (i, j) = (index("i", i)?, index("j", j)?);
-        let inner = &mut self.inner;
-        run(py, move || inner.merge(i, j))
+        run(py, || {
+            let mut fits = self.inner.write().unwrap_or_else(PoisonError::into_inner);
+            fits.merge(i, j)
+        })
     }
 
-    fn find(&self, label: i64) -> PyResult<usize> {
+    fn find(&self, py: Python<'_>, label: i64) -> PyResult<usize> {
         let l = index("label", label)?;
-        if l >= self.inner.n_labels() {
-            return Err(InvalidArgumentError::new_err(format!(
-                "label: got {l}, expected < {}",
-                self.inner.n_labels()
-            )));
-        }
-        Ok(self.inner.find(l))
+        self.query(py, |s| s.find(l))
     }
 
     fn labels<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i32>>> {
-        to_numpy(
-            py,
-            (self.inner.height, self.inner.width),
-            self.inner.current_labels(),
-        )
+        let (h, w, labels) = self.query(py, |s| Ok((s.height, s.width, s.current_labels())))?;
+        to_numpy(py, (h, w), labels)
     }
 
     fn maps<'py>(
@@ -201,9 +221,10 @@ impl PySegmentFits {
         points: PyReadonlyArray3<'py, f32>,
     ) -> PyResult<MapsOut<'py>> {
         let (h, w) = points_shape(&points)?;
-        same_size("points", &[h, w], self.inner.height, self.inner.width)?;
-        let p = contiguous("points", points.as_slice())?;
-        let m = run(py, || self.inner.maps(p))?;
+        let (fh, fw) = self.query(py, |s| Ok((s.height, s.width)))?;
+        same_size("points", &[h, w], fh, fw)?;
+        let p = borrow("points", &points)?;
+        let m = self.query(py, |s| s.maps(p))?;
         maps_out(py, h, w, m)
     }
 }

@@ -2,6 +2,7 @@
 //! surface seen through each pixel centre. Rows are rendered in parallel (rayon).
 
 use rayon::prelude::*;
+use rgbd_error::{check_interrupt, Result};
 
 use crate::bvh::Hit;
 use crate::scene::{Scene, Surface};
@@ -23,32 +24,40 @@ pub struct GBuffer {
 }
 
 /// Depth only (z in the camera frame; NaN for misses): the fast path for depth views.
-pub fn render_depth(scene: &Scene, view: &View) -> Vec<f32> {
+/// Every rendering loop checks for an interrupt once per row.
+pub fn render_depth(scene: &Scene, view: &View) -> Result<Vec<f32>> {
     let w = view.width;
     let mut out = vec![f32::NAN; view.len()];
-    out.par_chunks_mut(w).enumerate().for_each(|(row, line)| {
-        for (col, px) in line.iter_mut().enumerate() {
-            let ray = view.ray(col as f64, row as f64);
-            if let Some(h) = scene.cast(&ray, 0.0) {
-                *px = h.t;
+    out.par_chunks_mut(w)
+        .enumerate()
+        .try_for_each(|(row, line)| {
+            check_interrupt()?;
+            for (col, px) in line.iter_mut().enumerate() {
+                let ray = view.ray(col as f64, row as f64);
+                if let Some(h) = scene.cast(&ray, 0.0) {
+                    *px = h.t;
+                }
             }
-        }
-    });
-    out
+            Ok(())
+        })?;
+    Ok(out)
 }
 
 /// All first-hit attributes.
-pub fn render_gbuffer(scene: &Scene, view: &View) -> GBuffer {
+pub fn render_gbuffer(scene: &Scene, view: &View) -> Result<GBuffer> {
     let w = view.width;
     // Resolve each hit where its ray is at hand (one ray per pixel, cast and shaded in parallel).
     let hits: Vec<Option<(Hit, Surface)>> = (0..view.len())
         .into_par_iter()
         .with_min_len(w)
         .map(|i| {
+            if i % w == 0 {
+                check_interrupt()?;
+            }
             let ray = view.ray((i % w) as f64, (i / w) as f64);
-            scene.cast(&ray, 0.0).map(|h| (h, scene.surface(&ray, &h)))
+            Ok(scene.cast(&ray, 0.0).map(|h| (h, scene.surface(&ray, &h))))
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let n = view.len();
     let mut g = GBuffer {
         depth: vec![f32::NAN; n],
@@ -66,5 +75,5 @@ pub fn render_gbuffer(scene: &Scene, view: &View) -> GBuffer {
         g.bary[2 * i] = h.u;
         g.bary[2 * i + 1] = h.v;
     }
-    g
+    Ok(g)
 }

@@ -67,7 +67,8 @@ pub fn render_color(
     let mut out = vec![0.0f32; 3 * view.len()];
     out.par_chunks_mut(3 * w)
         .enumerate()
-        .for_each(|(row, line)| {
+        .try_for_each(|(row, line)| {
+            rgbd_error::check_interrupt()?;
             for (col, px) in line.chunks_exact_mut(3).enumerate() {
                 let mut acc = [0.0f32; 3];
                 for k in 0..s * s {
@@ -83,6 +84,7 @@ pub fn render_color(
                     px[c] = acc[c] * inv;
                 }
             }
-        });
+            Ok::<_, rgbd_error::RgbdError>(())
+        })?;
     Ok(out)
 }

@@ -25,6 +25,9 @@ pub fn render_points(points: &[f32], radius: f32, view: &View) -> Result<(Vec<f3
     let mut index = vec![-1i32; w * h];
     let origin = view.centre();
     for (i, p) in points.chunks_exact(3).enumerate() {
+        if i % (1 << 16) == 0 {
+            rgbd_error::check_interrupt()?;
+        }
         let pc = view.to_camera(sub([p[0], p[1], p[2]] as V3, origin));
         let z = pc[2];
         let (u, v, r) = match view.projection {

@@ -152,8 +152,13 @@ pub fn simulate_tof(scene: &Scene, view: &View, opts: &TofOptions) -> Result<Tof
     let samples: Vec<Sample> = (0..view.len())
         .into_par_iter()
         .with_min_len(w)
-        .map(|i| first_pass(scene, view, opts, i % w, i / w))
-        .collect();
+        .map(|i| {
+            if i % w == 0 {
+                rgbd_error::check_interrupt()?;
+            }
+            Ok(first_pass(scene, view, opts, i % w, i / w))
+        })
+        .collect::<Result<_>>()?;
     let n = view.len();
     let mut frame = TofFrame {
         depth: vec![f32::NAN; n],
@@ -166,7 +171,8 @@ pub fn simulate_tof(scene: &Scene, view: &View, opts: &TofOptions) -> Result<Tof
         .zip(frame.amplitude.par_chunks_mut(w))
         .zip(frame.truth.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(row, ((depth, amp), truth))| {
+        .try_for_each(|(row, ((depth, amp), truth))| {
+            rgbd_error::check_interrupt()?;
             for col in 0..w {
                 let indirect = pooled_indirect(&samples, w, h, col, row);
                 let px = finish(view, opts, &samples[row * w + col], indirect, col, row);
@@ -174,7 +180,8 @@ pub fn simulate_tof(scene: &Scene, view: &View, opts: &TofOptions) -> Result<Tof
                 amp[col] = px.1;
                 truth[col] = samples[row * w + col].z;
             }
-        });
+            Ok::<_, rgbd_error::RgbdError>(())
+        })?;
     Ok(frame)
 }
 

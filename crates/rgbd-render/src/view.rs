@@ -48,13 +48,8 @@ impl View {
         height: usize,
         world_to_camera: &Pose,
     ) -> Result<Self> {
-        if width == 0 || height == 0 {
-            return Err(invalid(
-                "size",
-                format!("{width}x{height}"),
-                "width and height >= 1",
-            ));
-        }
+        // Bounded before anything of this size is allocated (rgbd-error's limits).
+        rgbd_error::image_len("view", width, height)?;
         let (a, b, c, d) = match projection {
             Projection::Perspective { fx, fy, cx, cy } => (fx, fy, cx, cy),
             Projection::Orthographic { sx, sy, cx, cy } => (sx, sy, cx, cy),

@@ -9,7 +9,7 @@ use rgbd_render::{render_depth, render_gbuffer, render_points, Projection, View}
 fn fronto_parallel_plane_has_exact_depth() {
     let scene = Builder::new().wall(2.5, 10.0, 0).scene(vec![grey(0.5)]);
     let view = pinhole(64, 48, 50.0);
-    let d = render_depth(&scene, &view);
+    let d = render_depth(&scene, &view).unwrap();
     assert!(d.iter().all(|&z| (z - 2.5).abs() < 1e-6), "{:?}", &d[..4]);
 }
 
@@ -21,7 +21,7 @@ fn slanted_plane_matches_analytic_depth() {
     b.quad(pts.map(|[x, y]| [x, y, 2.0 + 0.5 * x]), 0);
     let scene = b.scene(vec![grey(0.5)]);
     let view = pinhole(40, 30, 40.0);
-    let g = render_gbuffer(&scene, &view);
+    let g = render_gbuffer(&scene, &view).unwrap();
     for r in 0..30 {
         for c in 0..40 {
             let x0 = (c as f64 - 19.5) / 40.0;
@@ -61,7 +61,7 @@ fn orthographic_and_posed_views() {
         &pose,
     )
     .unwrap();
-    let d = render_depth(&scene, &ortho);
+    let d = render_depth(&scene, &ortho).unwrap();
     // +-1 m at 10 px/m: columns 6..=25 are inside (|c - 15.5| / 10 < 1).
     for c in 0..32 {
         let inside = ((c as f64 - 15.5) / 10.0).abs() < 1.0;

@@ -5,7 +5,7 @@ use crate::band::BandMatrix;
 use crate::grid::KnotGrid;
 use crate::normal::Normal;
 use crate::surface::GridSurface;
-use crate::SplineError;
+use rgbd_error::{invalid, RgbdError};
 
 /// Ridge weight pulling every control point towards the set's least-squares linear fit
 /// (relative to one data point's weight). It only matters for control points that neither data
@@ -74,10 +74,10 @@ pub fn solve(
     lambda: f64,
     offset: &[f64],
     with_dof: bool,
-) -> Result<Fit, SplineError> {
+) -> Result<Fit, RgbdError> {
     let m = &normal.moments;
     if m.n == 0 {
-        return Err(SplineError::invalid(
+        return Err(invalid(
             "segment",
             "no valid pixel",
             "at least one pixel with finite values",
@@ -177,7 +177,7 @@ pub fn solve(
         }
     }
     let chol = a.cholesky().map_err(|i| {
-        SplineError::invalid(
+        invalid(
             "segment",
             format!("a non-positive pivot at control point {i}"),
             "a well-posed fit",

@@ -14,7 +14,7 @@ use crate::basis::{uniform_basis, Basis, MAX_DEGREE};
 use crate::fit::{solve, Fit};
 use crate::normal::{accumulate, Region};
 use crate::surface::MAX_CHANNELS;
-use crate::SplineError;
+use rgbd_error::{invalid, RgbdError};
 
 /// Default smoothness weight (relative to one data point's weight). Chosen small enough that a
 /// noise-free quadric is reproduced to < 1e-6 relative error and large enough that an empty span
@@ -37,23 +37,15 @@ impl KnotGrid {
         height: usize,
         spacing: f64,
         degree: usize,
-    ) -> Result<Self, SplineError> {
+    ) -> Result<Self, RgbdError> {
         if !(1..=MAX_DEGREE).contains(&degree) {
-            return Err(SplineError::invalid(
-                "degree",
-                degree,
-                format!("1..={MAX_DEGREE}"),
-            ));
+            return Err(invalid("degree", degree, format!("1..={MAX_DEGREE}")));
         }
         if !(spacing.is_finite() && spacing >= 1.0) {
-            return Err(SplineError::invalid(
-                "spacing",
-                spacing,
-                "a knot spacing >= 1 pixel",
-            ));
+            return Err(invalid("spacing", spacing, "a knot spacing >= 1 pixel"));
         }
         if width == 0 || height == 0 {
-            return Err(SplineError::invalid(
+            return Err(invalid(
                 "size",
                 format!("{width}x{height}"),
                 "a non-empty image",
@@ -132,27 +124,19 @@ pub(crate) fn check_values<T>(
     height: usize,
     channels: usize,
     lambda: f64,
-) -> Result<(), SplineError> {
+) -> Result<(), RgbdError> {
     if !(1..=MAX_CHANNELS).contains(&channels) {
-        return Err(SplineError::invalid(
-            "channels",
-            channels,
-            format!("1..={MAX_CHANNELS}"),
-        ));
+        return Err(invalid("channels", channels, format!("1..={MAX_CHANNELS}")));
     }
     if values.len() != width * height * channels {
-        return Err(SplineError::invalid(
+        return Err(invalid(
             "values",
             format!("{} values", values.len()),
             format!("height * width * channels = {}", width * height * channels),
         ));
     }
     if !(lambda.is_finite() && lambda > 0.0) {
-        return Err(SplineError::invalid(
-            "lambda",
-            lambda,
-            "a smoothness weight > 0",
-        ));
+        return Err(invalid("lambda", lambda, "a smoothness weight > 0"));
     }
     Ok(())
 }
@@ -170,7 +154,7 @@ pub fn fit_grid<T: Copy + Into<f64> + Sync>(
     grid: &KnotGrid,
     lambda: f64,
     with_dof: bool,
-) -> Result<Fit, SplineError> {
+) -> Result<Fit, RgbdError> {
     fit_mask(
         values, width, height, channels, None, grid, lambda, with_dof,
     )
@@ -187,7 +171,7 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
     grid: &KnotGrid,
     lambda: f64,
     with_dof: bool,
-) -> Result<Fit, SplineError> {
+) -> Result<Fit, RgbdError> {
     check_values(values, width, height, channels, lambda)?;
     check_grid(grid, width, height)?;
     if let Some(m) = mask {
@@ -200,7 +184,7 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
         None => Some(Region::full(width, height)),
     };
     let Some(region) = region else {
-        return Err(SplineError::invalid(
+        return Err(invalid(
             "mask",
             "no pixel selected",
             "at least one true pixel",
@@ -221,7 +205,7 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
         region,
     );
     if normals[0].moments.n == 0 {
-        return Err(SplineError::invalid(
+        return Err(invalid(
             "values",
             "no valid pixel (all NaN or masked out)",
             "at least one pixel with finite values",
@@ -236,9 +220,9 @@ pub(crate) fn check_pixels(
     len: usize,
     width: usize,
     height: usize,
-) -> Result<(), SplineError> {
+) -> Result<(), RgbdError> {
     if len != width * height {
-        return Err(SplineError::invalid(
+        return Err(invalid(
             arg,
             format!("{len} values"),
             format!("height * width = {}", width * height),
@@ -248,10 +232,10 @@ pub(crate) fn check_pixels(
 }
 
 /// The grid must have been made for an image of this size.
-pub(crate) fn check_grid(grid: &KnotGrid, width: usize, height: usize) -> Result<(), SplineError> {
+pub(crate) fn check_grid(grid: &KnotGrid, width: usize, height: usize) -> Result<(), RgbdError> {
     let expect = KnotGrid::new(width, height, grid.spacing, grid.degree)?;
     if expect != *grid {
-        return Err(SplineError::invalid(
+        return Err(invalid(
             "grid",
             format!("{}x{} cells", grid.cells_u, grid.cells_v),
             format!("the grid of a {width}x{height} image"),

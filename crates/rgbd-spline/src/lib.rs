@@ -22,29 +22,5 @@ pub use normal::Region;
 pub use segments::{Criterion, SegmentFits};
 pub use surface::{GridSurface, Jet, MAX_CHANNELS};
 
-use std::fmt::Display;
-
-/// Errors of the spline kernels; each names the argument, what it got and what it expected.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum SplineError {
-    #[error("{arg}: got {got}, expected {expected}")]
-    InvalidArgument {
-        arg: &'static str,
-        got: String,
-        expected: String,
-    },
-}
-
-impl SplineError {
-    pub(crate) fn invalid(
-        arg: &'static str,
-        got: impl Display,
-        expected: impl Into<String>,
-    ) -> Self {
-        Self::InvalidArgument {
-            arg,
-            got: got.to_string(),
-            expected: expected.into(),
-        }
-    }
-}
+/// Errors of the spline kernels: the workspace's one error enum (`rgbd-error`).
+pub use rgbd_error::RgbdError;

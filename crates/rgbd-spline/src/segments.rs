@@ -7,7 +7,7 @@ use crate::fit::{solve, Fit};
 use crate::grid::{check_grid, check_pixels, check_values, valid_mean, KnotGrid};
 use crate::maps::{surface_maps, SurfaceMaps};
 use crate::normal::{accumulate, Normal, Region};
-use crate::SplineError;
+use rgbd_error::{invalid, RgbdError};
 
 /// Which number `fit_error` reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,15 +33,19 @@ pub struct SegmentFits {
     pub lambda: f64,
     pub criterion: Criterion,
     offset: Vec<f64>,
-    labels: Vec<i32>,
+    /// Per pixel: the slot of its label in `ids`, -1 unlabelled (labels are compacted, never
+    /// used as indices: a label of 2^31 - 2 costs one slot, not 2^31).
+    slots: Vec<i32>,
+    /// The distinct labels >= 0, sorted; slot `s` holds label `ids[s]`.
+    ids: Vec<i32>,
     normals: Vec<Normal>,
-    fits: Vec<Result<Fit, SplineError>>,
-    /// `parent[i] == i` for live segments; a merged segment points at the one it joined.
+    fits: Vec<Result<Fit, RgbdError>>,
+    /// `parent[s] == s` for live segments; a merged segment points at the one it joined (slots).
     parent: Vec<usize>,
 }
 
 impl SegmentFits {
-    /// Fits every label `0..=max(labels)` (negative: unlabelled) of `values`
+    /// Fits every distinct label >= 0 (negative: unlabelled) of `values`
     /// (`height x width x channels`), in parallel.
     #[allow(clippy::too_many_arguments)]
     pub fn new<T: Copy + Into<f64> + Sync>(
@@ -53,19 +57,32 @@ impl SegmentFits {
         grid: &KnotGrid,
         lambda: f64,
         criterion: Criterion,
-    ) -> Result<Self, SplineError> {
+    ) -> Result<Self, RgbdError> {
         check_values(values, width, height, channels, lambda)?;
         check_grid(grid, width, height)?;
         check_pixels("labels", labels.len(), width, height)?;
-        let n_labels = labels.iter().copied().max().unwrap_or(-1) + 1;
-        if n_labels <= 0 {
-            return Err(SplineError::invalid(
+        let mut ids: Vec<i32> = labels.iter().copied().filter(|&l| l >= 0).collect();
+        ids.par_sort_unstable();
+        ids.dedup();
+        if ids.is_empty() {
+            return Err(invalid(
                 "labels",
                 "no label >= 0",
                 "at least one labelled pixel",
             ));
         }
-        let n_labels = n_labels as usize;
+        let n_labels = ids.len();
+        let slots: Vec<i32> = labels
+            .par_iter()
+            .map(|&l| {
+                if l < 0 {
+                    l
+                } else {
+                    ids.binary_search(&l).map_or(-1, |s| s as i32)
+                }
+            })
+            .collect();
+        let labels = &slots[..];
         let full = Region::full(width, height);
         let offset = valid_mean(values, width, channels, full, |i| labels[i] >= 0);
         let normals = accumulate(
@@ -92,55 +109,66 @@ impl SegmentFits {
             lambda,
             criterion,
             offset,
-            labels: labels.to_vec(),
+            slots,
+            ids,
             normals,
             fits,
             parent: (0..n_labels).collect(),
         })
     }
 
-    /// Number of labels the fits were built with (merged ones included).
+    /// Number of distinct labels the fits were built with (merged ones included).
     pub fn n_labels(&self) -> usize {
         self.parent.len()
     }
 
-    /// The live segment a label belongs to now.
-    pub fn find(&self, label: usize) -> usize {
-        let mut i = label;
+    /// The distinct labels the fits were built with, sorted.
+    pub fn label_ids(&self) -> &[i32] {
+        &self.ids
+    }
+
+    /// The slot of `label`, or an error naming `arg`.
+    fn slot(&self, arg: &'static str, label: usize) -> Result<usize, RgbdError> {
+        i32::try_from(label)
+            .ok()
+            .and_then(|l| self.ids.binary_search(&l).ok())
+            .ok_or_else(|| invalid(arg, label, "a label present in the label image"))
+    }
+
+    fn root(&self, slot: usize) -> usize {
+        let mut i = slot;
         while self.parent[i] != i {
             i = self.parent[i];
         }
         i
     }
 
-    fn live(&self, arg: &'static str, i: usize) -> Result<(), SplineError> {
-        if i >= self.parent.len() {
-            return Err(SplineError::invalid(
+    /// The live segment (its label) that `label` belongs to now.
+    pub fn find(&self, label: usize) -> Result<usize, RgbdError> {
+        Ok(self.ids[self.root(self.slot("label", label)?)] as usize)
+    }
+
+    /// The slot of live segment `label`, or an error naming `arg`.
+    fn live(&self, arg: &'static str, label: usize) -> Result<usize, RgbdError> {
+        let s = self.slot(arg, label)?;
+        if self.parent[s] != s {
+            return Err(invalid(
                 arg,
-                i,
-                format!("a segment id < {}", self.parent.len()),
-            ));
-        }
-        if self.parent[i] != i {
-            return Err(SplineError::invalid(
-                arg,
-                format!("segment {i}, merged into {}", self.find(i)),
+                format!("segment {label}, merged into {}", self.ids[self.root(s)]),
                 "a live segment",
             ));
         }
-        Ok(())
+        Ok(s)
     }
 
     /// Valid pixels of live segment `i`.
-    pub fn size(&self, i: usize) -> Result<usize, SplineError> {
-        self.live("i", i)?;
-        Ok(self.normals[i].moments.n)
+    pub fn size(&self, i: usize) -> Result<usize, RgbdError> {
+        Ok(self.normals[self.live("i", i)?].moments.n)
     }
 
     /// The fit of live segment `i`.
-    pub fn fit(&self, i: usize) -> Result<&Fit, SplineError> {
-        self.live("i", i)?;
-        self.fits[i].as_ref().map_err(Clone::clone)
+    pub fn fit(&self, i: usize) -> Result<&Fit, RgbdError> {
+        self.fits[self.live("i", i)?].as_ref().map_err(Clone::clone)
     }
 
     fn error_of(&self, fit: &Fit) -> f64 {
@@ -151,18 +179,17 @@ impl SegmentFits {
     }
 
     /// Fitting error of live segment `i` under the chosen [`Criterion`].
-    pub fn fit_error(&self, i: usize) -> Result<f64, SplineError> {
+    pub fn fit_error(&self, i: usize) -> Result<f64, RgbdError> {
         Ok(self.error_of(self.fit(i)?))
     }
 
     /// The normal equations of the union of live segments `i` and `j`, and their fit.
-    fn union_fit(&self, i: usize, j: usize) -> Result<(Normal, Fit), SplineError> {
-        self.live("i", i)?;
-        self.live("j", j)?;
+    fn union_fit(&self, i: usize, j: usize) -> Result<(Normal, Fit), RgbdError> {
+        let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
         if i == j {
-            return Err(SplineError::invalid("j", j, "a segment other than i"));
+            return Err(invalid("j", j, "a segment other than i"));
         }
-        let u = self.normals[i].union(&self.normals[j]);
+        let u = self.normals[si].union(&self.normals[sj]);
         let fit = solve(
             &u,
             &self.grid,
@@ -174,53 +201,47 @@ impl SegmentFits {
     }
 
     /// Fitting error of the union of live segments `i` and `j` (nothing is changed).
-    pub fn union_error(&self, i: usize, j: usize) -> Result<f64, SplineError> {
+    pub fn union_error(&self, i: usize, j: usize) -> Result<f64, RgbdError> {
         Ok(self.error_of(&self.union_fit(i, j)?.1))
     }
 
     /// Eq. 4.8: whether `e_i|S_i| + e_j|S_j| > e_ij (|S_i| + |S_j|)`.
-    pub fn should_merge(&self, i: usize, j: usize) -> Result<bool, SplineError> {
+    pub fn should_merge(&self, i: usize, j: usize) -> Result<bool, RgbdError> {
         let (ni, nj) = (self.size(i)? as f64, self.size(j)? as f64);
         let lhs = self.fit_error(i)? * ni + self.fit_error(j)? * nj;
         Ok(lhs > self.union_error(i, j)? * (ni + nj))
     }
 
     /// Merges live segment `j` into `i`; returns the error of the merged segment.
-    pub fn merge(&mut self, i: usize, j: usize) -> Result<f64, SplineError> {
+    pub fn merge(&mut self, i: usize, j: usize) -> Result<f64, RgbdError> {
         let (union, fit) = self.union_fit(i, j)?;
+        let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
         let e = self.error_of(&fit);
         let empty = Normal::empty(union.k, union.channels);
-        self.normals[i] = union;
-        self.normals[j] = empty;
-        self.fits[i] = Ok(fit);
-        self.fits[j] = Err(SplineError::invalid(
-            "j",
-            format!("segment {j}"),
-            "a live segment",
-        ));
-        self.parent[j] = i;
+        self.normals[si] = union;
+        self.normals[sj] = empty;
+        self.fits[si] = Ok(fit);
+        self.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
+        self.parent[sj] = si;
         Ok(e)
     }
 
     /// The label image with every label replaced by the live segment it belongs to.
     pub fn current_labels(&self) -> Vec<i32> {
         let root: Vec<i32> = (0..self.parent.len())
-            .map(|i| self.find(i) as i32)
+            .map(|s| self.ids[self.root(s)])
             .collect();
-        self.labels
+        self.slots
             .iter()
-            .map(|&l| if l < 0 { l } else { root[l as usize] })
+            .map(|&s| if s < 0 { s } else { root[s as usize] })
             .collect()
     }
 
     /// Per-pixel maps of `values` (the array the fits were built from) against the surface of
     /// the segment each pixel belongs to now.
-    pub fn maps<T: Copy + Into<f64> + Sync>(
-        &self,
-        values: &[T],
-    ) -> Result<SurfaceMaps, SplineError> {
+    pub fn maps<T: Copy + Into<f64> + Sync>(&self, values: &[T]) -> Result<SurfaceMaps, RgbdError> {
         check_values(values, self.width, self.height, self.channels, self.lambda)?;
-        let root: Vec<usize> = (0..self.parent.len()).map(|i| self.find(i)).collect();
+        let root: Vec<usize> = (0..self.parent.len()).map(|s| self.root(s)).collect();
         Ok(surface_maps(
             values,
             self.width,
@@ -228,11 +249,11 @@ impl SegmentFits {
             self.channels,
             None,
             |px| {
-                let l = self.labels[px];
-                if l < 0 {
+                let s = self.slots[px];
+                if s < 0 {
                     None
                 } else {
-                    self.fits[root[l as usize]].as_ref().ok()
+                    self.fits[root[s as usize]].as_ref().ok()
                 }
             },
         ))

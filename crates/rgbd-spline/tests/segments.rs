@@ -99,7 +99,7 @@ fn union_equals_a_fit_of_the_union_from_scratch() {
             assert!((a.value[c] - b.value[c]).abs() < 1e-9);
         }
     }
-    assert_eq!(s.find(2), 0);
+    assert_eq!(s.find(2), Ok(0));
     assert!(s.current_labels().iter().all(|&l| l == 0 || l == 1));
     assert!(s.fit_error(2).is_err(), "merged segments are not live");
     assert!(s.union_error(0, 0).is_err());

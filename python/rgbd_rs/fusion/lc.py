@@ -13,19 +13,13 @@ from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32, map2d, rgb8, views
 from rgbd_rs.fusion.crosscheck import consistent, warp_to_target
 
-#: Window at full (1920 px) resolution: 39 x 39 as in the literature; scaled with image width.
-WINDOW_FULL_RES = 39
-FULL_RES_WIDTH = 1920
-#: eq. 2.16 constants. Mattoccia's published values were not available (METHOD_NOTES §1); these
-#: are the checked reimplementation's (gamma_s = 12 at a 39 x 39 window, gamma_c = 30,
-#: gamma_t = 25, clip 69), gamma_s scaled with the window.
-GAMMA_S_FULL_RES = 12.0
-GAMMA_C = 30.0
-GAMMA_T = 25.0
-TRUNCATION = 69.0
-#: Disparity bins Ω is accumulated on (px) and window sampling step. Chosen; see README.
-BIN_WIDTH = 0.25
-STRIDE = 2
+#: The defaults and limits live in crates/rgbd-fusion (``LcParams::for_width``, ``MAX_RADIUS``);
+#: read here through the binding so the two languages cannot disagree.
+_DEFAULTS = _rgbd_rs.LcConfig.for_width(960)
+#: The literature's window and gamma_s (39 x 39, 12) at 1920 px; gamma_s scales with the radius.
+_FULL_RES = _rgbd_rs.LcConfig.for_width(1920)
+#: Largest window half-size.
+MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 
 
 @dataclass(frozen=True)
@@ -35,28 +29,43 @@ class LcParams:
     ``radius`` defaults (None) to the literature's 39 x 39 window at 1920 px width, scaled to
     the image (960 px -> radius 10); ``gamma_s`` to gamma_s = 12 at radius 19, scaled with the
     radius (radius 10 -> 6.3). ``stride`` samples every ``stride``-th row and column of the
-    window (same extent, 1/stride^2 of the work); it is capped at the radius. ``cross_check``
-    runs the accumulation in the target view too and keeps only pixels on which the two views
-    agree (:mod:`rgbd_rs.fusion.crosscheck`; twice the time, lower density).
+    window (same extent, 1/stride^2 of the work); the kernel caps it at the radius.
+    ``cross_check`` runs the accumulation in the target view too and keeps only pixels on which
+    the two views agree (:mod:`rgbd_rs.fusion.crosscheck`; twice the time, lower density).
+    Defaults are defined once, in ``crates/rgbd-fusion/src/lc.rs``.
     """
 
     radius: int | None = None
     gamma_s: float | None = None
-    gamma_c: float = GAMMA_C
-    gamma_t: float = GAMMA_T
-    truncation: float = TRUNCATION
-    bin_width: float = BIN_WIDTH
-    stride: int = STRIDE
+    gamma_c: float = _DEFAULTS.gamma_c
+    gamma_t: float = _DEFAULTS.gamma_t
+    truncation: float = _DEFAULTS.truncation
+    bin_width: float = _DEFAULTS.bin_width
+    stride: int = _DEFAULTS.stride
     cross_check: bool = False
 
     def resolved(self, width: int) -> tuple[int, float]:
         """``(radius, gamma_s)`` for an image ``width`` pixels wide."""
-        half = WINDOW_FULL_RES // 2
         r = self.radius
         if r is None:
-            r = max(1, round(half * width / FULL_RES_WIDTH))
-        g = self.gamma_s if self.gamma_s is not None else GAMMA_S_FULL_RES * r / half
-        return r, g
+            r = _rgbd_rs.LcConfig.for_width(_validate.size("width", width)).radius
+        if self.gamma_s is not None:
+            return r, self.gamma_s
+        return r, _FULL_RES.gamma_s * r / _FULL_RES.radius
+
+    def native(self, width: int, target_sign: int) -> _rgbd_rs.LcConfig:
+        """The validated native parameter object for an image ``width`` pixels wide."""
+        radius, gamma_s = self.resolved(width)
+        return _rgbd_rs.LcConfig(
+            _validate.integer("radius", radius, minimum=1, maximum=MAX_RADIUS),
+            _validate.real("gamma_s", gamma_s, positive=True),
+            _validate.real("gamma_c", self.gamma_c, positive=True),
+            _validate.real("gamma_t", self.gamma_t, positive=True),
+            _validate.real("truncation", self.truncation, positive=True),
+            _validate.real("bin_width", self.bin_width, positive=True),
+            _validate.integer("stride", self.stride, minimum=1),
+            target_sign,
+        )
 
 
 def lc_fuse(
@@ -111,27 +120,22 @@ def lc_fuse(
         raise InvalidArgumentError(
             "disparities: got only NaN, expected at least one valid disparity to fuse"
         )
-    if target_sign not in (1, -1):
+    if isinstance(target_sign, bool) or target_sign not in (1, -1):
         raise InvalidArgumentError(f"target_sign: got {target_sign!r}, expected +1 or -1")
-    p = params or LcParams()
+    p = LcParams() if params is None else params
     if not isinstance(p, LcParams):
         raise InvalidArgumentError(f"params: got {type(p).__name__}, expected LcParams")
-    radius, gamma_s = p.resolved(w)
-    args = (
-        _validate.integer("radius", radius, minimum=1, maximum=64),
-        _validate.real("gamma_s", gamma_s, positive=True),
-        _validate.real("gamma_c", p.gamma_c, positive=True),
-        _validate.real("gamma_t", p.gamma_t, positive=True),
-        _validate.real("truncation", p.truncation, positive=True),
-        _validate.real("bin_width", p.bin_width, positive=True),
-        min(_validate.integer("stride", p.stride, minimum=1), radius),
-    )
-    disp, share = _rgbd_rs.lc_fuse(ref, tgt, ds, cs, *args, target_sign)
+    config = p.native(w, target_sign)
+    disp, share = _rgbd_rs.lc_fuse(ref, tgt, ds, cs, config)
     if not p.cross_check:
         return disp, share
     warped = [warp_to_target(d, c, target_sign) for d, c in zip(ds, cs, strict=True)]
     back, _ = _rgbd_rs.lc_fuse(
-        tgt, ref, [d for d, _ in warped], [c for _, c in warped], *args, -target_sign
+        tgt,
+        ref,
+        [d for d, _ in warped],
+        [c for _, c in warped],
+        config.with_target_sign(-target_sign),
     )
     checked = consistent(disp, back, target_sign)
     return checked, np.where(np.isfinite(checked), share, np.nan).astype(np.float32)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import overload
 
 import cv2
 import numpy as np
@@ -26,6 +27,8 @@ from rgbd_rs.geometry import depth_to_disparity, reproject_depth
 MEANSHIFT_SPATIAL = 8
 MEANSHIFT_COLOR = 16
 REGION_TOLERANCE = 2.0
+#: Largest window half-size (defined once, in crates/rgbd-fusion).
+MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 #: Extended cross bilateral filter defaults at 960 px width (ToF samples ~2 px apart there).
 UPSAMPLE_RADIUS = 5
 SIGMA_SPATIAL = 3.0
@@ -42,7 +45,7 @@ def segment_mean_shift(
 ) -> npt.NDArray[np.int32]:
     """Mean-shift segmentation of an RGB uint8 image: ``H x W`` int32 labels ``0..n-1``."""
     img = rgb8("image", image)
-    sp = _validate.integer("spatial_radius", spatial_radius, minimum=1, maximum=64)
+    sp = _validate.integer("spatial_radius", spatial_radius, minimum=1, maximum=MAX_RADIUS)
     sr = _validate.integer("color_radius", color_radius, minimum=1, maximum=255)
     tol = _validate.real("tolerance", tolerance, nonnegative=True)
     filtered = cv2.pyrMeanShiftFiltering(img, sp, sr)
@@ -50,36 +53,86 @@ def segment_mean_shift(
     return labels
 
 
+def _upsample(
+    sparse: npt.ArrayLike,
+    channel: npt.ArrayLike | None,
+    image: npt.ArrayLike,
+    labels: npt.ArrayLike | None,
+    radius: int,
+    sigma_spatial: float,
+    sigma_color: float,
+    sigma_range: float,
+) -> tuple[F32, F32 | None]:
+    img = rgb8("image", image)
+    h, w = img.shape[:2]
+    s = map2d("sparse", sparse, (h, w))
+    ch = None if channel is None else map2d("channel", channel, (h, w))
+    lab = None
+    if labels is not None:
+        lab = _validate.array("labels", labels, shape=(h, w), dtype=np.int32)
+    config = _rgbd_rs.UpsampleConfig(
+        _validate.integer("radius", radius, minimum=1, maximum=MAX_RADIUS),
+        _validate.real("sigma_spatial", sigma_spatial, positive=True),
+        _validate.real("sigma_color", sigma_color, positive=True),
+        _validate.real("sigma_range", sigma_range, positive=True),
+    )
+    return _rgbd_rs.upsample_depth(s, ch, img, lab, config)
+
+
+@overload
 def upsample_depth(
     sparse: npt.ArrayLike,
     image: npt.ArrayLike,
     labels: npt.ArrayLike | None = None,
     *,
+    channel: None = None,
+    radius: int = ...,
+    sigma_spatial: float = ...,
+    sigma_color: float = ...,
+    sigma_range: float = ...,
+) -> F32: ...
+
+
+@overload
+def upsample_depth(
+    sparse: npt.ArrayLike,
+    image: npt.ArrayLike,
+    labels: npt.ArrayLike | None = None,
+    *,
+    channel: npt.ArrayLike,
+    radius: int = ...,
+    sigma_spatial: float = ...,
+    sigma_color: float = ...,
+    sigma_range: float = ...,
+) -> tuple[F32, F32]: ...
+
+
+def upsample_depth(
+    sparse: npt.ArrayLike,
+    image: npt.ArrayLike,
+    labels: npt.ArrayLike | None = None,
+    *,
+    channel: npt.ArrayLike | None = None,
     radius: int = UPSAMPLE_RADIUS,
     sigma_spatial: float = SIGMA_SPATIAL,
     sigma_color: float = SIGMA_COLOR,
     sigma_range: float = SIGMA_RANGE,
-) -> F32:
+) -> F32 | tuple[F32, F32]:
     """Dense depth from sparse samples (NaN elsewhere) guided by ``image`` and ``labels``.
 
     Without ``labels`` it is a plain joint bilateral filter (spatial x colour). ``sigma_range``
     is relative to depth (0.02 = 2 %). Pixels with no sample within ``radius`` stay NaN.
+
+    ``channel`` (``H x W`` values on the same samples, e.g. the ToF amplitude; NaN = none) is
+    interpolated with the very weights the depth gets, so its unit never enters the filter; the
+    result is then ``(depth, channel)``.
     """
-    img = rgb8("image", image)
-    h, w = img.shape[:2]
-    s = map2d("sparse", sparse, (h, w))
-    lab = None
-    if labels is not None:
-        lab = np.ascontiguousarray(_validate.array("labels", labels, shape=(h, w), dtype=np.int32))
-    return _rgbd_rs.upsample_depth(
-        s,
-        img,
-        lab,
-        _validate.integer("radius", radius, minimum=1, maximum=64),
-        _validate.real("sigma_spatial", sigma_spatial, positive=True),
-        _validate.real("sigma_color", sigma_color, positive=True),
-        _validate.real("sigma_range", sigma_range, positive=True),
+    depth, carried = _upsample(
+        sparse, channel, image, labels, radius, sigma_spatial, sigma_color, sigma_range
     )
+    if carried is None:
+        return depth
+    return depth, carried
 
 
 @dataclass(frozen=True)
@@ -132,7 +185,11 @@ def tof_to_reference(
     with np.errstate(invalid="ignore"):
         landed = np.isfinite(rep.depth) & (rep.channels > 0)
     sparse_amp = np.where(landed, rep.channels, np.nan).astype(np.float32)
-    dense = upsample_depth(rep.depth, img, lab, radius=radius)
-    dense_amp = upsample_depth(sparse_amp, img, lab, radius=radius)
+    # One pass: the amplitude rides on the depth's weights (a second filter run on the amplitude
+    # would apply the depth-relative range term to amplitude differences).
+    dense, dense_amp = _upsample(
+        rep.depth, sparse_amp, img, lab, radius, SIGMA_SPATIAL, SIGMA_COLOR, SIGMA_RANGE
+    )
+    assert dense_amp is not None
     disp = depth_to_disparity(dense, r.stereo.baseline, r.stereo.focal)
     return ToFOnReference(rep.depth, dense, disp, dense_amp, np.asarray(lab, dtype=np.int32))

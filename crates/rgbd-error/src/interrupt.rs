@@ -1,0 +1,59 @@
+//! Cooperative interruption: long kernels call [`check_interrupt`] between chunks of work (rows,
+//! tiles) and return [`RgbdError::Interrupted`] once the binding saw Ctrl-C and called
+//! [`request_interrupt`]. A request is cleared when the last running kernel has returned, so it
+//! never leaks into the next call.
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use crate::{Result, RgbdError};
+
+static PENDING: AtomicBool = AtomicBool::new(false);
+static RUNNING: AtomicUsize = AtomicUsize::new(0);
+
+/// `Err(Interrupted)` once an interrupt was requested while kernels run.
+#[inline]
+pub fn check_interrupt() -> Result<()> {
+    if PENDING.load(Ordering::Relaxed) {
+        Err(RgbdError::Interrupted)
+    } else {
+        Ok(())
+    }
+}
+
+/// Asks every running kernel to stop at its next check.
+pub fn request_interrupt() {
+    PENDING.store(true, Ordering::Relaxed);
+}
+
+/// Marks a kernel call as running until dropped (see [`running`]).
+#[must_use = "the call counts as running only while the guard lives"]
+pub struct Running(());
+
+/// Registers a running kernel call; the pending interrupt is cleared when the last one ends.
+pub fn running() -> Running {
+    RUNNING.fetch_add(1, Ordering::SeqCst);
+    Running(())
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        if RUNNING.fetch_sub(1, Ordering::SeqCst) == 1 {
+            PENDING.store(false, Ordering::Relaxed);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_request_stops_running_kernels_and_then_clears() {
+        let guard = running();
+        assert!(check_interrupt().is_ok());
+        request_interrupt();
+        assert_eq!(check_interrupt(), Err(RgbdError::Interrupted));
+        drop(guard);
+        assert!(check_interrupt().is_ok());
+    }
+}
