@@ -60,7 +60,8 @@ def test_ctrl_c_stops_a_long_kernel() -> None:
     [
         "from rgbd_rs.render import Scene, OrthographicCamera\n"
         "Scene().build().depth(OrthographicCamera(1.0, 2**20, 2**20))",
-        "from rgbd_rs import PinholeCamera\nPinholeCamera(1, 1, 0, 0, 2**20, 2**20).undistort_map()",
+        "from rgbd_rs import PinholeCamera\n"
+        "PinholeCamera(1, 1, 0, 0, 2**20, 2**20).undistort_map()",
         "import numpy as np\nfrom rgbd_rs import _rgbd_rs\n"
         "_rgbd_rs.render_points(np.zeros((1, 3), np.float32), 0.1,"
         " ('orthographic', 1.0, 1.0, 0.0, 0.0, 2**20, 2**20, ([1,0,0,0,1,0,0,0,1], [0,0,0])))",
@@ -89,7 +90,7 @@ def test_segment_fits_is_safe_to_share_between_threads() -> None:
                 fits.fit_error(7)
                 fits.union_error(6, 7)
             fits.merge(2 * k, 2 * k + 1)
-        except BaseException as e:  # noqa: BLE001 - collected and asserted below
+        except BaseException as e:  # collected and asserted below
             errors.append(e)
 
     threads = [threading.Thread(target=work, args=(k,)) for k in range(3)]
