@@ -207,8 +207,8 @@ class PinholeCamera:
         _validate.real("fy", self.fy, positive=True)
         _validate.real("cx", self.cx)
         _validate.real("cy", self.cy)
-        _validate.integer("width", self.width, minimum=1)
-        _validate.integer("height", self.height, minimum=1)
+        _validate.size("width", self.width)
+        _validate.size("height", self.height)
         if not isinstance(self.distortion, Distortion):
             raise InvalidArgumentError(
                 f"distortion: got {type(self.distortion).__name__}, expected a Distortion"

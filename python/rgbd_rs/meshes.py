@@ -206,6 +206,11 @@ def load_mesh(path: str | Path) -> Mesh:
     raise InvalidArgumentError(f"path: got a {suffix!r} file ({path}), expected .off or .ply")
 
 
+def _fits_float32(v: np.ndarray) -> bool:
+    """All finite and within float32's range (the Mesh stores float32)."""
+    return bool(np.all(np.abs(v) <= np.finfo(np.float32).max))
+
+
 def _read_off(path: Path) -> Mesh:
     tokens = path.read_text(errors="replace").split("#")[0].split()
     try:
@@ -230,7 +235,7 @@ def _read_off(path: Path) -> Mesh:
                 )
             tris += [[idx[0], idx[i], idx[i + 1]] for i in range(1, k - 1)]
             pos += 1 + k
-        if not np.isfinite(v.astype(np.float32)).all():
+        if not _fits_float32(v):
             raise ValueError("vertex coordinates beyond float32 range or not finite")
     except (ValueError, IndexError) as exc:
         raise RgbdError(f"{path}: not a valid OFF mesh ({exc})") from exc
@@ -249,6 +254,6 @@ def _read_ply(path: Path) -> Mesh:
         raise RgbdError(f"{path}: PLY mesh has no vertices or faces")
     if f.ndim != 2 or f.shape[1] != 3 or f.min() < 0 or f.max() >= len(v):
         raise RgbdError(f"{path}: PLY faces are not triangles indexing its {len(v)} vertices")
-    if not np.isfinite(v.astype(np.float32)).all():
+    if not _fits_float32(v):
         raise RgbdError(f"{path}: PLY vertex coordinates beyond float32 range or not finite")
     return Mesh(v.astype(np.float32), f.astype(np.uint32))

@@ -89,6 +89,24 @@ def fuse(
     rgt = rgb8("right", right, size)
     ref_img, tgt_img, sign = views(lft, rgt, r.reference)
     h, w = ref_img.shape[:2]
+    # The cheap checks come before the stages run.
+    if params is not None and not isinstance(params, LcParams):
+        raise InvalidArgumentError(f"params: got {type(params).__name__}, expected LcParams")
+    given: tuple[F32, F32] | None = None
+    if isinstance(confidence, str):
+        kind = _validate.choice("confidence", confidence, ("uniform", "heuristic"))
+    elif isinstance(confidence, (tuple, list)) and len(confidence) == 2:
+        given = (
+            map2d("confidence[0]", confidence[0], (h, w)),
+            map2d("confidence[1]", confidence[1], (h, w)),
+        )
+    else:
+        raise InvalidArgumentError(
+            f"confidence: got {type(confidence).__name__}, expected 'uniform', 'heuristic' "
+            "or a (tof_confidence, stereo_confidence) pair of maps"
+        )
+    if max_disparity is not None:
+        _max_disparity(np.empty(0, np.float32), w, max_disparity)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         tof = tof_to_reference(tof_depth, tof_amplitude, r, ref_img)
@@ -113,21 +131,13 @@ def fuse(
         )
     ct: F32 | None
     cs: F32 | None
-    if isinstance(confidence, str):
-        kind = _validate.choice("confidence", confidence, ("uniform", "heuristic"))
-        if kind == "uniform":
-            ct = cs = None
-        else:
-            ct = tof_confidence(tof_disp, tof.amplitude, r.stereo.baseline, r.stereo.focal)
-            cs = stereo_confidence(ref_img, tgt_img, stereo, target_sign=sign, max_disparity=dmax)
+    if given is not None:
+        ct, cs = given
+    elif kind == "uniform":
+        ct = cs = None
     else:
-        if not isinstance(confidence, (tuple, list)) or len(confidence) != 2:
-            raise InvalidArgumentError(
-                f"confidence: got {type(confidence).__name__}, expected 'uniform', 'heuristic' "
-                "or a (tof_confidence, stereo_confidence) pair of maps"
-            )
-        ct = map2d("confidence[0]", confidence[0], (h, w))
-        cs = map2d("confidence[1]", confidence[1], (h, w))
+        ct = tof_confidence(tof_disp, tof.amplitude, r.stereo.baseline, r.stereo.focal)
+        cs = stereo_confidence(ref_img, tgt_img, stereo, target_sign=sign, max_disparity=dmax)
     disp, plaus = lc_fuse(
         ref_img, tgt_img, [tof_disp, stereo], [ct, cs], target_sign=sign, params=params
     )
