@@ -1,4 +1,4 @@
-"""The `rgbd` command line: help, demo, reproject."""
+"""The `rgbd` command line: help, demo, reproject, and every bad run ending in one line."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rgbd_rs.cli import main
 
@@ -65,4 +66,190 @@ def test_bad_input_is_a_clean_error(tmp_path: Path, capsys) -> None:  # type: ig
         ]
     )
     assert code == 2
-    assert "rgbd: error: path:" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err.startswith("rgbd: error: --calib: path:") and "missing.json" in err
+
+
+# -- every bad run: one line on stderr, exit status 2, no traceback -----------------------------
+
+
+@pytest.fixture(scope="module")
+def fuse_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Valid small inputs of `rgbd fuse` (the synthetic rig at 1/8 size); tests break one."""
+    from rgbd_rs.data import save_rig, synth3_rig
+    from rgbd_rs.io import write_png
+
+    d = tmp_path_factory.mktemp("fuse_inputs")
+    img = np.zeros((135, 240, 3), np.uint8)
+    write_png(d / "l.png", img)
+    write_png(d / "r.png", img)
+    np.save(d / "depth.npy", np.ones((424, 512), np.float32))
+    np.save(d / "amp.npy", np.ones((424, 512), np.float32))
+    save_rig(d / "calib.json", synth3_rig(0.125))
+    return {
+        "--left": d / "l.png",
+        "--right": d / "r.png",
+        "--tof-depth": d / "depth.npy",
+        "--tof-amplitude": d / "amp.npy",
+        "--calib": d / "calib.json",
+        "--out": d / "out",
+    }
+
+
+def _fuse_argv(inputs: dict[str, Path], **replace: Path) -> list[str]:
+    args = {**inputs, **{"--" + k.replace("_", "-"): v for k, v in replace.items()}}
+    return ["fuse", *[s for flag, path in args.items() for s in (flag, str(path))]]
+
+
+def _bad_file(tmp: Path, name: str, data: bytes) -> Path:
+    p = tmp / name
+    p.write_bytes(data)
+    return p
+
+
+def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str) -> None:
+    assert res.returncode == 2, (res.returncode, res.stdout, res.stderr)
+    assert "Traceback" not in res.stderr, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1, res.stderr
+    assert lines[0].startswith("rgbd: error: "), lines[0]
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "missing --left",
+        "truncated .npy",
+        "empty .npy",
+        "missing .npy",
+        "3-D .npy",
+        "object .npy",
+        "strings in the calibration",
+        "malformed calibration",
+        "calibration is a list",
+    ],
+)
+def test_bad_fuse_runs_end_in_one_line(
+    case: str, fuse_inputs: dict[str, Path], tmp_path: Path
+) -> None:
+    import json
+
+    good = fuse_inputs
+    header = np.lib.format.magic(1, 0)
+    replace, needles = {
+        "missing --left": ({"left": tmp_path / "nope.png"}, ("--left", "nope.png")),
+        "truncated .npy": (
+            {"tof_depth": _bad_file(tmp_path, "t.npy", good["--tof-depth"].read_bytes()[:90])},
+            ("--tof-depth", "t.npy", "truncated"),
+        ),
+        "empty .npy": (
+            {"tof_depth": _bad_file(tmp_path, "e.npy", b"")},
+            ("--tof-depth", "e.npy", "empty"),
+        ),
+        "missing .npy": (
+            {"tof_amplitude": tmp_path / "gone.npy"},
+            ("--tof-amplitude", "gone.npy", "not found"),
+        ),
+        "3-D .npy": (
+            {"tof_depth": _save(tmp_path / "3d.npy", np.ones((2, 2, 2)))},
+            ("--tof-depth", "3d.npy", "shape"),
+        ),
+        "object .npy": (
+            {"tof_depth": _bad_file(tmp_path, "o.npy", header + b"garbage")},
+            ("--tof-depth", "o.npy"),
+        ),
+        "strings in the calibration": (
+            {"calib": _edit_json(good["--calib"], tmp_path / "s.json", "365.9")},
+            ("--calib", "s.json", "fx"),
+        ),
+        "malformed calibration": (
+            {"calib": _bad_file(tmp_path, "m.json", b"{")},
+            ("--calib", "m.json", "malformed"),
+        ),
+        "calibration is a list": (
+            {"calib": _bad_file(tmp_path, "l.json", json.dumps([1]).encode())},
+            ("--calib", "l.json"),
+        ),
+    }[case]
+    _assert_one_line_error(run(*_fuse_argv(good, **replace)), *needles)
+
+
+def _save(path: Path, arr: np.ndarray) -> Path:
+    np.save(path, arr)
+    return path
+
+
+def _edit_json(src: Path, dst: Path, fx: object) -> Path:
+    import json
+
+    doc = json.loads(src.read_text())
+    doc["tof"]["fx"] = fx
+    dst.write_text(json.dumps(doc))
+    return dst
+
+
+@pytest.mark.parametrize(
+    ("argv", "needles"),
+    [
+        (["eval", "fusion", "--synth", "x", "--limit", "0"], ("--limit", "got 0")),
+        (["eval", "fusion", "--synth", "x", "--stride", "-1"], ("--stride", "got -1")),
+        (["eval", "fusion", "--synth", "/nonexistent/ds"], ("--synth", "manifest.json")),
+        (["eval", "fusion"], ("--synth/--middlebury",)),
+        (["eval"], ("WHAT",)),
+        (["synth", "--out", "OUT", "--scale", "1000"], ("--scale", "got 1000")),
+        (["synth", "--out", "OUT", "--scale", "nan"], ("--scale",)),
+        (["synth", "--out", "OUT", "--train", "-3"], ("--train", "got -3")),
+        (["synth", "--out", "OUT", "--seed", "x"], ("--seed", "got 'x'")),
+        (["reproject", "--frame", "a", "--calib", "b"], ("--out",)),
+        (
+            ["reproject", "--frame", "a", "--calib", "b", "--out", "o", "--splat-radius", "9"],
+            ("--splat-radius", "got 9"),
+        ),
+        (["fuse", "--left", "a"], ("required",)),
+        (["nonsense"], ("invalid choice",)),
+    ],
+    ids=lambda v: " ".join(v) if isinstance(v, list) else None,
+)
+def test_bad_command_lines_end_in_one_line(
+    argv: list[str], needles: tuple[str, ...], tmp_path: Path
+) -> None:
+    argv = [str(tmp_path / "out") if a == "OUT" else a for a in argv]
+    res = run(*argv)
+    _assert_one_line_error(res, *needles)
+    assert not (tmp_path / "out").exists(), "rejected before anything was written"
+
+
+def test_synth_scale_1000_is_refused_before_allocating(tmp_path: Path) -> None:
+    """Also the library call behind it (the CLI's own check is argparse's)."""
+    from rgbd_rs import InvalidArgumentError
+    from rgbd_rs.data import write_dataset
+
+    with pytest.raises(InvalidArgumentError, match=r"^scale: got 1000"):
+        write_dataset(tmp_path / "ds", scale=1000.0)
+    assert not (tmp_path / "ds").exists()
+
+
+def test_unwritable_output_is_one_line(tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("a file where the output folder should go")
+    res = run("synth", "--out", str(blocker / "sub"), "--preview", "--scale", "0.02")
+    _assert_one_line_error(res, "file")
+
+
+def test_eval_and_train_are_groups_pipelines_extend() -> None:
+    """`rgbd eval WHAT`: fusion registers its WHAT from its own module."""
+    from rgbd_rs.cli import build_parser
+    from rgbd_rs.cli._args import GROUPS, Commands
+
+    assert set(GROUPS) == {"eval", "train"}
+    res = run("eval", "--help")
+    assert res.returncode == 0 and "fusion" in res.stdout
+    # A later pipeline adds `rgbd eval segmentation` without touching fusion's module.
+    import argparse
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    Commands(sub).group_command("train", "demo_what", lambda args: 0, help="h", description="d")
+    assert parser.parse_args(["train", "demo_what"]).run is not None

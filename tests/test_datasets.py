@@ -92,6 +92,41 @@ def test_reader_checks_geometry_and_files(dataset: Path, tmp_path: Path) -> None
         SynthDataset(broken)
 
 
+def test_reader_checks_the_manifest_hashes_once_per_scene(
+    dataset: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shutil
+
+    import rgbd_rs.data.synth as synth
+
+    swapped = tmp_path / "swapped"
+    shutil.copytree(dataset, swapped)
+    a, b = (swapped / f"train/scene_000{i}/data.npz" for i in (0, 1))
+    a_bytes, b_bytes = a.read_bytes(), b.read_bytes()
+    assert a_bytes != b_bytes
+    a.write_bytes(b_bytes)
+    b.write_bytes(a_bytes)  # both files are valid npz archives: only the hashes tell
+    ds = SynthDataset(swapped)
+    with pytest.raises(RgbdError, match=r"scene_0000/data\.npz: SHA-256 \w+\.\.\. differs"):
+        ds[0]
+    with pytest.raises(RgbdError, match=r"scene_0001/data\.npz: SHA-256"):
+        ds[1]
+    # Cheap: the files of a scene are hashed on its first access only.
+    hashed: list[str] = []
+    real = synth.sha256
+
+    def counting(path: str | Path) -> str:
+        hashed.append(Path(path).name)
+        return real(path)
+
+    monkeypatch.setattr(synth, "sha256", counting)
+    ok = SynthDataset(dataset)
+    first = ok[0]
+    np.testing.assert_array_equal(ok[0].gt_depth, first.gt_depth)
+    ok[1]
+    assert sorted(hashed) == sorted(["left.png", "right.png", "data.npz"] * 2)
+
+
 def test_calibration_round_trip(tmp_path: Path) -> None:
     rig = synth3_rig(0.5)
     save_rig(tmp_path / "c.json", rig)

@@ -1,0 +1,314 @@
+"""Bad input to :mod:`rgbd_rs.data`, :mod:`rgbd_rs.io`, :mod:`rgbd_rs.viz` and
+:mod:`rgbd_rs.metrics` (see tests/test_bad_input.py for the contract and the meta-test).
+
+A file whose *content* is bad raises :class:`~rgbd_rs.RgbdError` itself, naming the file; a bad
+argument (a path of the wrong type, an unknown mode) raises InvalidArgumentError naming it."""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bad_input import Case, check, params
+from rgbd_rs import InvalidArgumentError, RgbdError, ShapeMismatchError
+from rgbd_rs.data import (
+    AzureKinectFrame,
+    Synth3Dataset,
+    SynthDataset,
+    data_root,
+    load_azure_kinect_calibration,
+    load_azure_kinect_frame,
+    load_middlebury,
+    load_rig,
+    reproject_to_color,
+    save_rig,
+    synth3_rig,
+    write_dataset,
+)
+from rgbd_rs.data.calibration import rig_to_dict
+from rgbd_rs.io import (
+    read_json,
+    read_npy,
+    read_npz,
+    read_png,
+    sha256,
+    write_json,
+    write_npz,
+    write_png,
+)
+from rgbd_rs.metrics import depth_edges, edge_alignment, rms_error
+from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+
+SHAPE = ShapeMismatchError
+ARG = InvalidArgumentError
+FILE = RgbdError
+
+_TMP = tempfile.TemporaryDirectory(prefix="rgbd_bad_input_")
+TMP = Path(_TMP.name)
+D = np.ones((6, 8), np.float32)
+U8 = np.zeros((6, 8, 3), np.uint8)
+
+
+def _file(name: str, data: bytes | str) -> Path:
+    p = TMP / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(data, str):
+        p.write_text(data)
+    else:
+        p.write_bytes(data)
+    return p
+
+
+def _kinect_calibration(tmp: Path, **override: object) -> Path:
+    """A minimal Azure Kinect calibration JSON; ``override`` replaces D0 intrinsics fields."""
+    params = [0.5, 0.5, 0.5, 0.5, *([0.0] * 10)]
+    d0 = {
+        "Location": "CALIBRATION_CameraLocationD0",
+        "Intrinsics": {"ModelParameters": params},
+        "MetricRadius": 1.7,
+    }
+    pv0 = {
+        "Location": "CALIBRATION_CameraLocationPV0",
+        "Intrinsics": {"ModelParameters": params},
+        "SensorWidth": 4096,
+        "SensorHeight": 3072,
+        "Rt": {"Rotation": [1, 0, 0, 0, 1, 0, 0, 0, 1], "Translation": [0.03, 0, 0]},
+    }
+    d0["Intrinsics"] = {**d0["Intrinsics"], **override}
+    doc = {"CalibrationInformation": {"Cameras": [d0, pv0]}}
+    return _file(tmp.name + "/kinect.json", json.dumps(doc))
+
+
+def _kinect_strings() -> object:
+    path = _kinect_calibration(TMP / "strings", ModelParameters=["0.5"] * 14)
+    return load_azure_kinect_calibration(path)
+
+
+def _rig_with_strings() -> object:
+    doc = rig_to_dict(synth3_rig(0.125))
+    doc["tof"]["fx"] = "365.9"
+    return load_rig(_file("rig_strings.json", json.dumps(doc)))
+
+
+def _middlebury_16bit() -> object:
+    folder = TMP / "mb16"
+    write_png(folder / "view1.png", np.zeros((10, 700, 3), np.uint8))
+    write_png(folder / "view5.png", np.zeros((10, 700, 3), np.uint8))
+    write_png(folder / "disp1.png", np.full((10, 700), 4 * 20, np.uint16))
+    write_png(folder / "disp5.png", np.full((10, 700), 4 * 20, np.uint16))
+    return load_middlebury(folder)
+
+
+def _synth3_string_variable() -> object:
+    from scipy.io import savemat
+
+    from rgbd_rs.data.synth3 import LAYOUT
+
+    root = TMP / "synth3"
+    for kind, (folder, suffix, var) in LAYOUT.items():
+        value: object = np.ones((4, 6))
+        if kind == "amplitude":
+            value = "not a map"
+        p = root / "train" / folder / f"scene_0000_{suffix}"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        savemat(p, {var: value})
+    return Synth3Dataset(root, "train")[0]
+
+
+def _synth3_bad_kind() -> object:
+    from scipy.io import savemat
+
+    from rgbd_rs.data.synth3 import LAYOUT
+
+    root = TMP / "synth3_ok"
+    for folder, suffix, var in LAYOUT.values():
+        p = root / "test" / folder / f"test_scene_0000_{suffix}"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        savemat(p, {var: np.ones((4, 6))})
+    return Synth3Dataset(root, "test").path(0, "depth")
+
+
+def _manifest_list() -> object:
+    root = TMP / "manifest_list"
+    _file("manifest_list/manifest.json", "[]")
+    save_rig(root / "calibration.json", synth3_rig(0.125))
+    return SynthDataset(root)
+
+
+CASES: list[Case] = [
+    # -- data -----------------------------------------------------------------------------------
+    Case("data_root", lambda: data_root(required="yes"), ARG, r"^required: got 'yes'"),
+    Case(
+        "load_azure_kinect_calibration",
+        _kinect_strings,
+        ARG,
+        r"^path: .*strings/kinect\.json.*ModelParameters",
+        "strings",
+    ),
+    Case(
+        "load_azure_kinect_calibration",
+        lambda: load_azure_kinect_calibration(TMP / "none.json", depth_mode="HFOV"),
+        ARG,
+        r"^depth_mode: got 'HFOV'",
+        "mode",
+    ),
+    Case(
+        "load_azure_kinect_calibration",
+        lambda: load_azure_kinect_calibration(TMP / "none.json", color_resolution=["720P"]),
+        ARG,
+        r"^color_resolution: got \['720P'\]",
+        "unhashable mode",
+    ),
+    Case(
+        "load_azure_kinect_frame",
+        lambda: load_azure_kinect_frame(_file("frame.npz", b"")),
+        ARG,
+        r"^path: .*frame\.npz",
+    ),
+    Case(
+        "load_azure_kinect_frame",
+        lambda: load_azure_kinect_frame(None),
+        ARG,
+        r"^path: got None",
+        "None",
+    ),
+    Case(
+        "AzureKinectFrame",
+        lambda: reproject_to_color(
+            AzureKinectFrame(D[:3], D, U8),
+            load_azure_kinect_calibration(_kinect_calibration(TMP / "ok")),
+        ),
+        SHAPE,
+        r"^depth: got shape \(3, 8\)",
+    ),
+    Case(
+        "reproject_to_color",
+        lambda: reproject_to_color(AzureKinectFrame(D, D, U8), "calibration"),
+        ARG,
+        r"^calibration: got str",
+    ),
+    Case("load_middlebury", _middlebury_16bit, FILE, r"disp1\.png: got a uint16 disparity PNG"),
+    Case("load_middlebury", lambda: load_middlebury(TMP), FILE, r"Middlebury", "not a scene"),
+    Case("load_middlebury", lambda: load_middlebury(7), ARG, r"^folder: got 7", "int"),
+    Case("load_rig", _rig_with_strings, FILE, r"rig_strings\.json.*tof\.fx is '365\.9'"),
+    Case(
+        "load_rig",
+        lambda: load_rig(_file("rig_list.json", "[1, 2]")),
+        FILE,
+        r"rig_list\.json.*JSON object",
+        "list",
+    ),
+    Case("save_rig", lambda: save_rig(TMP / "r.json", "rig"), ARG, r"^rig: got str"),
+    Case("synth3_rig", lambda: synth3_rig(1000.0), ARG, r"^scale: got 1000"),
+    Case("synth3_rig", lambda: synth3_rig(1e-6), ARG, r"^scale: got 1e-06", "tiny"),
+    Case(
+        "write_dataset",
+        lambda: write_dataset(TMP / "ds", scale=1000.0),
+        ARG,
+        r"^scale: got 1000",
+    ),
+    Case("write_dataset", lambda: write_dataset(TMP / "ds", train=-1), ARG, r"^train", "train"),
+    Case("write_dataset", lambda: write_dataset(TMP / "ds", seed=2**40), ARG, r"^seed", "seed"),
+    Case("SynthDataset", lambda: SynthDataset(TMP, "val"), ARG, r"^split: got 'val'"),
+    Case("SynthDataset", _manifest_list, FILE, r"manifest\.json: not an rgbd_rs", "manifest []"),
+    Case("Synth3Dataset", lambda: Synth3Dataset(TMP, "val"), ARG, r"^split: got 'val'"),
+    Case(
+        "Synth3Dataset",
+        _synth3_string_variable,
+        FILE,
+        r"amplitude_reprojected.*amplitude_120_rp holds <U",
+        ".mat string variable",
+    ),
+    Case("Synth3Dataset.path", _synth3_bad_kind, ARG, r"^kind: got 'depth'"),
+    # -- io -------------------------------------------------------------------------------------
+    Case("write_npz", lambda: write_npz(TMP / "a.npz", [D]), ARG, r"^arrays: got list"),
+    Case(
+        "write_npz",
+        lambda: write_npz(TMP / "a.npz", {"a": np.array([object()])}),
+        ARG,
+        r"^arrays\['a'\]: got dtype object",
+        "object",
+    ),
+    Case("read_npz", lambda: read_npz(TMP / "missing.npz"), FILE, r"missing\.npz: file not found"),
+    Case(
+        "read_npz",
+        lambda: read_npz(_file("trunc.npz", b"PK\x03\x04 truncated")),
+        FILE,
+        r"trunc\.npz: corrupt or truncated",
+        "truncated",
+    ),
+    Case("read_npz", lambda: read_npz(TMP / "x.npz", "a"), ARG, r"^keys: got 'a'", "keys"),
+    Case("read_npy", lambda: read_npy(_file("empty.npy", b"")), FILE, r"empty\.npy: empty file"),
+    Case(
+        "read_npy",
+        lambda: read_npy(_file("trunc.npy", b"\x93NUMPY\x01\x00v\x00{'descr'")),
+        FILE,
+        r"trunc\.npy: corrupt or truncated",
+        "truncated",
+    ),
+    Case("read_npy", lambda: read_npy(42), ARG, r"^path: got 42", "int"),
+    Case("write_png", lambda: write_png(TMP / "f.png", D), ARG, r"^image: got dtype float32"),
+    Case(
+        "write_png",
+        lambda: write_png(TMP / "f.png", np.zeros((2, 2, 2), np.uint8)),
+        SHAPE,
+        r"^image: got shape \(2, 2, 2\)",
+        "2 channels",
+    ),
+    Case("read_png", lambda: read_png(_file("bad.png", b"\x89PNG")), FILE, r"bad\.png: corrupt"),
+    Case("write_json", lambda: write_json(TMP / "o.json", object()), ARG, r"^obj: got"),
+    Case("read_json", lambda: read_json(_file("bad.json", "{")), FILE, r"bad\.json: malformed"),
+    Case("sha256", lambda: sha256(TMP / "nothing"), FILE, r"nothing: file not found"),
+    # -- viz ------------------------------------------------------------------------------------
+    Case("colorize", lambda: colorize(np.zeros((2, 2, 2))), SHAPE, r"^values: got shape"),
+    Case("colorize", lambda: colorize(D, vmin="lo"), ARG, r"^vmin: got 'lo'", "vmin"),
+    Case("colorize", lambda: colorize(D, colormap=99), ARG, r"^colormap: got 99", "colormap"),
+    Case("as_bgr", lambda: as_bgr(np.float32(0)), ARG, r"^image: got dtype float32"),
+    Case("as_bgr", lambda: as_bgr(np.uint8(0)), SHAPE, r"^image: got shape \(\)", "0-d"),
+    Case("tile", lambda: tile([], []), ARG, r"^images: got list"),
+    Case("tile", lambda: tile([U8], ["a", "b"]), ARG, r"^labels: got", "labels"),
+    Case("tile", lambda: tile([D], ["a"]), ARG, r"^images\[0\]: got dtype float32", "float"),
+    Case("tile", lambda: tile([U8], ["a"], width=0), ARG, r"^width: got 0", "width"),
+    Case("save_png", lambda: save_png(TMP / "v.png", D), ARG, r"^image: got dtype float32"),
+    Case("save_png", lambda: save_png(3.5, U8), ARG, r"^path: got 3.5", "path"),
+    # -- metrics --------------------------------------------------------------------------------
+    Case("depth_edges", lambda: depth_edges(np.ones(3)), SHAPE, r"^depth: got shape \(3,\)"),
+    Case("depth_edges", lambda: depth_edges(D, rel_step=0.0), ARG, r"^rel_step: got 0", "step"),
+    Case(
+        "edge_alignment",
+        lambda: edge_alignment(D, U8[:5]),
+        SHAPE,
+        r"^image: got shape \(5, 8, 3\)",
+    ),
+    Case(
+        "edge_alignment",
+        lambda: edge_alignment(D, U8, max_distance="far"),
+        ARG,
+        r"^max_distance: got 'far'",
+        "distance",
+    ),
+    Case("rms_error", lambda: rms_error(D, D[:3]), SHAPE, r"^truth: got shape \(3, 8\)"),
+    Case(
+        "rms_error",
+        lambda: rms_error(D, np.full_like(D, np.nan)),
+        ARG,
+        r"^mask: got no pixel",
+        "nothing to compare",
+    ),
+    Case(
+        "rms_error",
+        lambda: rms_error(D, D, mask=np.ones((6, 8))),
+        ARG,
+        r"^mask: got dtype float64",
+        "float mask",
+    ),
+]
+
+
+@pytest.mark.parametrize("case", params(CASES))
+def test_bad_input(case: Case) -> None:
+    check(case)
