@@ -200,7 +200,7 @@ def main() -> None:
     stages = [
         ("mean-shift segmentation", lambda: segment_mean_shift(s.right)),
         (
-            "reprojection + mean shift + both upsamplings",
+            "reprojection + mean shift + upsampling (depth, amplitude carried)",
             lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right),
         ),
         ("SGBM (8 paths, 7x7, LR check)", lambda: sgm(s.left, s.right, max_disparity=96)),
