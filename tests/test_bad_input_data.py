@@ -95,11 +95,12 @@ def _rig_with_strings() -> object:
 
 
 def _middlebury_16bit() -> object:
+    """The 2003 layout (disparity = PNG / 4) with 16-bit ground truth: refused, not divided."""
     folder = TMP / "mb16"
-    write_png(folder / "view1.png", np.zeros((10, 700, 3), np.uint8))
-    write_png(folder / "view5.png", np.zeros((10, 700, 3), np.uint8))
-    write_png(folder / "disp1.png", np.full((10, 700), 4 * 20, np.uint16))
-    write_png(folder / "disp5.png", np.full((10, 700), 4 * 20, np.uint16))
+    write_png(folder / "im2.png", np.zeros((10, 40, 3), np.uint8))
+    write_png(folder / "im6.png", np.zeros((10, 40, 3), np.uint8))
+    write_png(folder / "disp2.png", np.full((10, 40), 256 * 20, np.uint16))
+    write_png(folder / "disp6.png", np.full((10, 40), 256 * 20, np.uint16))
     return load_middlebury(folder)
 
 
@@ -191,7 +192,7 @@ CASES: list[Case] = [
         ARG,
         r"^calibration: got str",
     ),
-    Case("load_middlebury", _middlebury_16bit, FILE, r"disp1\.png: got a uint16 disparity PNG"),
+    Case("load_middlebury", _middlebury_16bit, FILE, r"disp2\.png: got a uint16 disparity PNG"),
     Case("load_middlebury", lambda: load_middlebury(TMP), FILE, r"Middlebury", "not a scene"),
     Case("load_middlebury", lambda: load_middlebury(7), ARG, r"^folder: got 7", "int"),
     Case("load_rig", _rig_with_strings, FILE, r"rig_strings\.json.*tof\.fx is '365\.9'"),
