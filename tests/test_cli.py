@@ -80,7 +80,7 @@ def fuse_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     from rgbd_rs.io import write_png
 
     d = tmp_path_factory.mktemp("fuse_inputs")
-    img = np.zeros((135, 240, 3), np.uint8)
+    img = np.random.default_rng(0).integers(0, 255, (135, 240, 3)).astype(np.uint8)
     write_png(d / "l.png", img)
     write_png(d / "r.png", img)
     np.save(d / "depth.npy", np.ones((424, 512), np.float32))
@@ -253,3 +253,21 @@ def test_eval_and_train_are_groups_pipelines_extend() -> None:
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     Commands(sub).group_command("train", "demo_what", lambda args: 0, help="h", description="d")
     assert parser.parse_args(["train", "demo_what"]).run is not None
+
+
+def test_a_warning_is_one_line_and_the_run_succeeds(
+    fuse_inputs: dict[str, Path], tmp_path: Path
+) -> None:
+    dead = _save(tmp_path / "dead.npy", np.full((424, 512), np.nan, np.float32))
+    res = run(*_fuse_argv(fuse_inputs, tof_depth=dead, out=tmp_path / "out"))
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.strip().splitlines() == [
+        "rgbd: warning: tof_depth: no valid ToF pixel reaches the reference camera; returning "
+        "the stereo-only LC result"
+    ]
+    assert (tmp_path / "out" / "fused.npz").is_file()
+
+
+def test_a_folder_given_as_a_file_is_named(fuse_inputs: dict[str, Path], tmp_path: Path) -> None:
+    res = run(*_fuse_argv(fuse_inputs, calib=tmp_path))
+    _assert_one_line_error(res, "--calib", "is a folder")

@@ -46,6 +46,8 @@ def _path(value: object, name: str = "path") -> Path:
 
 def _read_bytes(path: Path) -> bytes:
     """The file's bytes; a missing or empty file raises RgbdError naming it."""
+    if path.is_dir():
+        raise RgbdError(f"{path}: is a folder, expected a file")
     if not path.is_file():
         raise RgbdError(f"{path}: file not found")
     data = path.read_bytes()

@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import TextIO
 
 from rgbd_rs import __version__
 from rgbd_rs.cli import data, demo, fusion
-from rgbd_rs.cli._args import Commands, Parser, fail, os_message
+from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message
 from rgbd_rs.errors import RgbdError
 
 __all__ = ["PIPELINES", "build_parser", "main"]
@@ -42,6 +44,18 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    """Warnings (a dead ToF frame, ...) as one line each, without the source line."""
+    print(f"rgbd: warning: {one_line(str(message))}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``rgbd`` script; returns the exit status (0 ok, 2 error)."""
     parser = build_parser()
@@ -51,7 +65,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        status: int = run(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            status: int = run(args)
     except RgbdError as exc:
         return fail(str(exc))
     except OSError as exc:

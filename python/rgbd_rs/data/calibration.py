@@ -58,7 +58,10 @@ def save_rig(path: str | Path, rig: ToFStereoRig) -> Path:
 def _number(where: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"{where} is {value!r}, expected a JSON number")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:
+        raise ValueError(f"{where} is an integer beyond the float range") from None
 
 
 def _integer(where: str, value: object) -> int:
