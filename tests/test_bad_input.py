@@ -225,6 +225,20 @@ CASES: list[Case] = [
     ),
     Case(
         "PinholeCamera.undistort_image",
+        lambda: CAM.undistort_image([[1, 2], [3]]),
+        ARG,
+        r"^image: got list",
+        "ragged",
+    ),
+    Case(
+        "PinholeCamera.from_matrix",
+        lambda: PinholeCamera.from_matrix(np.eye(3), 8, 6, np.zeros(5)),
+        ARG,
+        r"^distortion: got ndarray",
+        "distortion array",
+    ),
+    Case(
+        "PinholeCamera.undistort_image",
         lambda: CAM.undistort_image(np.zeros((6, 8, 2, 2))),
         SHAPE,
         r"^image: got shape",

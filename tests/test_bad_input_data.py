@@ -260,6 +260,16 @@ CASES: list[Case] = [
         r"^image: got shape \(2, 2, 2\)",
         "2 channels",
     ),
+    Case(
+        "write_png",
+        lambda: write_png(TMP / "r.png", [[1, 2], [3]]),
+        ARG,
+        r"^image: got list",
+        "ragged",
+    ),
+    Case(
+        "write_png", lambda: write_png(TMP / "r.png", U8, rgb="yes"), ARG, r"^rgb: got 'yes'", "rgb"
+    ),
     Case("read_png", lambda: read_png(_file("bad.png", b"\x89PNG")), FILE, r"bad\.png: corrupt"),
     Case("write_json", lambda: write_json(TMP / "o.json", object()), ARG, r"^obj: got"),
     Case("read_json", lambda: read_json(_file("bad.json", "{")), FILE, r"bad\.json: malformed"),
@@ -270,6 +280,7 @@ CASES: list[Case] = [
     Case("colorize", lambda: colorize(D, colormap=99), ARG, r"^colormap: got 99", "colormap"),
     Case("as_bgr", lambda: as_bgr(np.float32(0)), ARG, r"^image: got dtype float32"),
     Case("as_bgr", lambda: as_bgr(np.uint8(0)), SHAPE, r"^image: got shape \(\)", "0-d"),
+    Case("as_bgr", lambda: as_bgr([[1, 2], [3]]), ARG, r"^image: got list", "ragged"),
     Case("tile", lambda: tile([], []), ARG, r"^images: got list"),
     Case("tile", lambda: tile([U8], ["a", "b"]), ARG, r"^labels: got", "labels"),
     Case("tile", lambda: tile([D], ["a"]), ARG, r"^images\[0\]: got dtype float32", "float"),
@@ -306,6 +317,9 @@ CASES: list[Case] = [
         ARG,
         r"^mask: got dtype float64",
         "float mask",
+    ),
+    Case(
+        "rms_error", lambda: rms_error(D, D, mask=[[1, 2], [3]]), ARG, r"^mask: got list", "ragged"
     ),
 ]
 

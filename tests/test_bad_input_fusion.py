@@ -177,6 +177,14 @@ CASES: list[Case] = [
         "all NaN",
     ),
     Case("sgm", lambda: F.sgm(IMG, IMG, max_disparity=39), ARG, r"^max_disparity: got 39"),
+    Case("sgm", lambda: F.sgm([[1, 2], [3]], IMG), ARG, r"^left: got list", "ragged"),
+    Case(
+        "lc_fuse",
+        lambda: F.lc_fuse(I4, I4, [D4], confidences=-1),
+        ARG,
+        r"^confidences: got int",
+        "confidences not a list",
+    ),
     Case(
         "sgm",
         lambda: F.sgm(IMG, IMG, max_disparity=30, min_disparity=10),

@@ -232,7 +232,7 @@ class PinholeCamera:
             float(k[1, 2]),
             width,
             height,
-            distortion or Distortion(),
+            Distortion() if distortion is None else distortion,
         )
 
     @property
@@ -378,7 +378,10 @@ class PinholeCamera:
         gives float32 with NaN where the source has no sample; integer input keeps its dtype with
         0 there.
         """
-        src = np.asarray(image)
+        try:
+            src = np.asarray(image)
+        except (TypeError, ValueError):  # ragged input: the validator words the error
+            src = _validate.array("image", image, shape=(None, None))
         img, was_2d = _validate.image("image", src)
         if img.shape[:2] != (self.height, self.width):
             raise ShapeMismatchError(

@@ -44,6 +44,16 @@ def _path(value: object, name: str = "path") -> Path:
     raise InvalidArgumentError(f"{name}: got {value!r}, expected a file path (str or Path)")
 
 
+def _asarray(name: str, value: object) -> np.ndarray:
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged lists and the like
+        raise InvalidArgumentError(
+            f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
+            "expected a numpy array"
+        ) from None
+
+
 def _read_bytes(path: Path) -> bytes:
     """The file's bytes; a missing or empty file raises RgbdError naming it."""
     if path.is_dir():
@@ -76,7 +86,7 @@ def write_npz(path: str | Path, arrays: Mapping[str, npt.ArrayLike]) -> Path:
         for key, value in arrays.items():
             if not isinstance(key, str) or not key:
                 raise InvalidArgumentError(f"arrays: got key {key!r}, expected non-empty names")
-            arr = np.asarray(value)
+            arr = _asarray(f"arrays[{key!r}]", value)
             if arr.dtype.kind not in "biuf":
                 raise InvalidArgumentError(
                     f"arrays[{key!r}]: got dtype {arr.dtype}, expected a bool/int/float array"
@@ -136,7 +146,9 @@ def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
     ``image`` is ``H x W`` or ``H x W x C`` (C = 1, 3 or 4) of uint8 or uint16.
     """
     out = _path(path)
-    img = np.asarray(image)
+    img = _asarray("image", image)
+    if not isinstance(rgb, (bool, np.bool_)):
+        raise InvalidArgumentError(f"rgb: got {rgb!r}, expected True or False")
     if img.dtype not in _PNG_DTYPES:
         raise InvalidArgumentError(f"image: got dtype {img.dtype}, expected uint8 or uint16")
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in _PNG_CHANNELS):
@@ -156,6 +168,8 @@ def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
 def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     """Read a PNG unchanged (8/16 bit; 3 channels returned as RGB); bad files raise RgbdError."""
     path = _path(path)
+    if not isinstance(rgb, (bool, np.bool_)):
+        raise InvalidArgumentError(f"rgb: got {rgb!r}, expected True or False")
     data = np.frombuffer(_read_bytes(path), np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if img is None:

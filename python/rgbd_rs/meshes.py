@@ -52,7 +52,10 @@ class Mesh:
 
     def __post_init__(self) -> None:
         v = _validate.array("vertices", self.vertices, shape=(None, 3), finite=True)
-        t = np.asarray(self.triangles)
+        try:
+            t = np.asarray(self.triangles)
+        except (TypeError, ValueError):  # ragged input: the validator words the error
+            t = _validate.array("triangles", self.triangles, shape=(None, 3))
         if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
             raise InvalidArgumentError(
                 f"triangles: got {t.dtype} array of shape {t.shape}, expected integer (M, 3)"
@@ -83,12 +86,15 @@ class Mesh:
 
     def scaled(self, factor: float | Sequence[float]) -> Mesh:
         """Vertices multiplied by ``factor`` (scalar or per axis)."""
-        if isinstance(factor, (str, bytes)) or np.ndim(factor) not in (0, 1):
+        try:
+            ndim = np.ndim(factor)
+        except ValueError:  # ragged
+            ndim = -1
+        if isinstance(factor, (str, bytes)) or ndim not in (0, 1):
             raise InvalidArgumentError(
                 f"factor: got {factor!r}, expected a number or three numbers (per axis)"
             )
-        shape = (3,) if np.ndim(factor) else ()
-        f = _validate.array("factor", factor, shape=shape, finite=True)
+        f = _validate.array("factor", factor, shape=(3,) if ndim else (), finite=True)
         return Mesh(self.vertices * f, self.triangles)
 
     def normalized(self, size: float = 1.0) -> Mesh:

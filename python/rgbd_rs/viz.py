@@ -21,6 +21,8 @@ U8 = npt.NDArray[np.uint8]
 COLORMAP_LAST = max(getattr(cv2, n) for n in dir(cv2) if n.startswith("COLORMAP_"))
 #: Largest tile width accepted by :func:`tile` (pixels).
 MAX_TILE_WIDTH = 8192
+#: Most columns :func:`tile` lays out.
+MAX_TILE_COLUMNS = 64
 
 
 def colorize(
@@ -47,7 +49,10 @@ def colorize(
 
 
 def _u8_image(name: str, value: object) -> U8:
-    img = np.asarray(value)
+    try:
+        img = np.asarray(value)
+    except (TypeError, ValueError):  # ragged input: the validator words the error
+        img = _validate.array(name, value, shape=(None,))
     if img.dtype != np.uint8:
         raise InvalidArgumentError(f"{name}: got dtype {img.dtype}, expected uint8")
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3) or img.size == 0:
@@ -77,7 +82,7 @@ def tile(images: Sequence[U8], labels: Sequence[str], columns: int = 3, width: i
         )
     if not all(isinstance(label, str) for label in labels):
         raise InvalidArgumentError(f"labels: got {labels!r}, expected strings")
-    columns = _validate.integer("columns", columns, minimum=1)
+    columns = _validate.integer("columns", columns, minimum=1, maximum=MAX_TILE_COLUMNS)
     width = _validate.integer("width", width, minimum=1, maximum=MAX_TILE_WIDTH)
     checked = [_u8_image(f"images[{i}]", img) for i, img in enumerate(images)]
     cells = []
