@@ -213,6 +213,13 @@ CASES: list[Case] = [
         r"^scale: got 1000",
     ),
     Case("write_dataset", lambda: write_dataset(TMP / "ds", train=-1), ARG, r"^train", "train"),
+    Case(
+        "write_dataset",
+        lambda: write_dataset(_file("plain_file", "x")),
+        ARG,
+        r"^out: got .*plain_file, a file",
+        "out is a file",
+    ),
     Case("write_dataset", lambda: write_dataset(TMP / "ds", seed=2**40), ARG, r"^seed", "seed"),
     Case("SynthDataset", lambda: SynthDataset(TMP, "val"), ARG, r"^split: got 'val'"),
     Case("SynthDataset", _manifest_list, FILE, r"manifest\.json: not an rgbd_rs", "manifest []"),
@@ -272,6 +279,7 @@ CASES: list[Case] = [
     ),
     Case("read_png", lambda: read_png(_file("bad.png", b"\x89PNG")), FILE, r"bad\.png: corrupt"),
     Case("write_json", lambda: write_json(TMP / "o.json", object()), ARG, r"^obj: got"),
+    Case("write_json", lambda: write_json(TMP, {}), FILE, r"is a folder, expected a file", "dir"),
     Case("read_json", lambda: read_json(_file("bad.json", "{")), FILE, r"bad\.json: malformed"),
     Case("sha256", lambda: sha256(TMP / "nothing"), FILE, r"nothing: file not found"),
     # -- viz ------------------------------------------------------------------------------------

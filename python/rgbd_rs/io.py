@@ -67,6 +67,8 @@ def _read_bytes(path: Path) -> bytes:
 
 
 def _atomic_bytes(path: Path, data: bytes) -> Path:
+    if path.is_dir():
+        raise RgbdError(f"{path}: is a folder, expected a file path to write")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_bytes(data)

@@ -205,6 +205,8 @@ def write_dataset(
     if not isinstance(out, (str, Path)) or not str(out):
         raise InvalidArgumentError(f"out: got {out!r}, expected a folder path")
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"out: got {out}, a file; expected a dataset folder")
     n_train = _validate.integer("train", train, maximum=MAX_SCENES)
     n_test = _validate.integer("test", test, maximum=MAX_SCENES)
     seed = _validate.integer("seed", seed, maximum=2**32 - 1)
