@@ -1,0 +1,116 @@
+"""The meta-test of the bad-input suite: every public callable of every public module (its
+``__all__``, else the functions and classes it defines) has at least one case in
+tests/test_bad_input*.py, or is listed in ``EXEMPT`` with the reason it takes no input to check.
+"""
+
+from __future__ import annotations
+
+import inspect
+import types
+from collections.abc import Iterator
+
+import rgbd_rs
+import rgbd_rs.data
+import rgbd_rs.fusion
+import rgbd_rs.io
+import rgbd_rs.meshes
+import rgbd_rs.metrics
+import rgbd_rs.render
+import rgbd_rs.surface
+import rgbd_rs.viz
+from bad_input import Case
+
+# -- the meta-test: every public callable has a case -------------------------------------------
+
+PUBLIC_MODULES = (
+    rgbd_rs,
+    rgbd_rs.camera,
+    rgbd_rs.geometry,
+    rgbd_rs.fusion,
+    rgbd_rs.surface,
+    rgbd_rs.render,
+    rgbd_rs.meshes,
+    rgbd_rs.data,
+    rgbd_rs.io,
+    rgbd_rs.viz,
+    rgbd_rs.metrics,
+)
+
+#: Public callables with no caller input to check, and why.
+EXEMPT: dict[str, str] = {
+    "Distortion.to_opencv": "no arguments",
+    "Pose.identity": "no arguments",
+    "Pose.as_matrix": "no arguments",
+    "Pose.inverse": "no arguments (a validated Pose is invertible)",
+    "PinholeCamera.without_distortion": "no arguments",
+    "Reprojection": "result container built by reproject_depth",
+    "FusionResult": "result container built by fuse",
+    "ToFOnReference": "result container built by tof_to_reference",
+    "SurfaceMaps": "result container built by the surface fits",
+    "SurfaceFit": "result container built by fit_mask / fit_grid",
+    "SegmentFits.labels": "no arguments",
+    "ToFFrame": "result container built by RenderScene.tof",
+    "GBuffer": "result container built by RenderScene.gbuffer",
+    "RenderScene": "built by Scene.build from a native scene, not by callers",
+    "Texture.uniform": "no arguments",
+    "ToFModel.ideal": "no arguments",
+    "Mesh.bounds": "no arguments",
+    "SynthSample": "result container built by SynthDataset",
+    "Synth3Sample": "result container built by Synth3Dataset",
+    "MiddleburyPair": "result container built by load_middlebury",
+    "AzureKinectCalibration": "result container built by load_azure_kinect_calibration",
+}
+
+
+def _members(cls: type) -> Iterator[str]:
+    for key, value in vars(cls).items():
+        if key.startswith("_"):
+            continue
+        if isinstance(value, (staticmethod, classmethod)) or inspect.isfunction(value):
+            yield f"{cls.__qualname__}.{key}"
+
+
+def public_callables() -> dict[str, str]:
+    """``{name: module}`` of every public function, class and method; ``__all__`` where a module
+    has one, else the functions and classes it defines without a leading underscore."""
+    found: dict[str, str] = {}
+    for mod in PUBLIC_MODULES:
+        names = getattr(mod, "__all__", None)
+        if names is None:
+            names = [
+                n
+                for n, o in vars(mod).items()
+                if not n.startswith("_") and getattr(o, "__module__", None) == mod.__name__
+            ]
+        for n in names:
+            obj = getattr(mod, n)
+            if isinstance(obj, types.ModuleType) or not (
+                inspect.isfunction(obj) or inspect.isclass(obj)
+            ):
+                continue
+            if inspect.isclass(obj) and issubclass(obj, BaseException):
+                continue  # the error classes themselves
+            found.setdefault(obj.__qualname__, mod.__name__)
+            if inspect.isclass(obj):
+                for m in _members(obj):
+                    found.setdefault(m, mod.__name__)
+    return found
+
+
+def all_cases() -> list[Case]:
+    from test_bad_input import CASES as CORE
+    from test_bad_input_data import CASES as DATA
+    from test_bad_input_fusion import CASES as FUSION
+    from test_bad_input_render import CASES as RENDER
+
+    return [*CORE, *FUSION, *RENDER, *DATA]
+
+
+def test_every_public_callable_has_a_bad_input_case() -> None:
+    covered = {c.name for c in all_cases()}
+    public = public_callables()
+    missing = sorted(f"{public[n]}: {n}" for n in public if n not in covered and n not in EXEMPT)
+    assert not missing, "public callables without a bad-input case:\n" + "\n".join(missing)
+    stale = sorted((covered | set(EXEMPT)) - set(public))
+    assert not stale, f"cases or exemptions for names that are not public: {stale}"
+    assert not covered & set(EXEMPT), "a name is both covered and exempt"
