@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
-from rgbd_rs.camera import PinholeCamera, Pose
+from rgbd_rs.camera import PinholeCamera, Pose, _pose_arg
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.meshes import Mesh
 
@@ -34,6 +34,21 @@ F32 = npt.NDArray[np.float32]
 I32 = npt.NDArray[np.int32]
 
 TextureKind = Literal["uniform", "checker", "stripes", "noise", "image"]
+_TEXTURE_KINDS = ("uniform", "checker", "stripes", "noise", "image")
+
+
+def _reals(name: str, value: object, n: int) -> list[float]:
+    """``n`` finite reals (a sequence), or an error naming ``name``."""
+    if not isinstance(value, (tuple, list, np.ndarray)) or len(value) != n:
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected {n} numbers")
+    return [_validate.real(f"{name}[{i}]", v) for i, v in enumerate(value)]
+
+
+def _grey_or_rgb(name: str, value: object) -> list[float]:
+    """A real (grey, used for all three channels) or three reals."""
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        return [_validate.real(name, value)] * 3
+    return _reals(name, value, 3)
 
 
 @dataclass(frozen=True)
@@ -82,6 +97,14 @@ class Texture:
             img = img / np.float32(255)
         return cls("image", (_validate.real("period", period, positive=True),), 0, img)
 
+    def __post_init__(self) -> None:
+        _validate.choice("texture", self.kind, _TEXTURE_KINDS)
+        if not isinstance(self.params, (tuple, list)):
+            raise InvalidArgumentError(f"params: got {self.params!r}, expected a tuple of numbers")
+        for i, v in enumerate(self.params):
+            _validate.real(f"params[{i}]", v)
+        _validate.integer("seed", self.seed, maximum=2**63 - 1)
+
     def _native(self) -> tuple[str, list[float], int, F32 | None]:
         return self.kind, [float(p) for p in self.params], int(self.seed), self.image_rgb
 
@@ -96,11 +119,18 @@ class Material:
     texture: Texture = field(default_factory=Texture)
     contrast: float = 0.8
 
+    def __post_init__(self) -> None:
+        _reals("albedo", self.albedo, 3)
+        _validate.real("albedo_ir", self.albedo_ir)
+        _validate.real("contrast", self.contrast)
+        if not isinstance(self.texture, Texture):
+            raise InvalidArgumentError(
+                f"texture: got {type(self.texture).__name__}, expected a Texture"
+            )
+
     def _native(self) -> tuple[list[float], float, float, str, list[float], int, F32 | None]:
         kind, params, seed, image = self.texture._native()
         albedo = [float(a) for a in self.albedo]
-        if len(albedo) != 3:
-            raise InvalidArgumentError(f"albedo: got {self.albedo}, expected three values")
         return albedo, float(self.albedo_ir), float(self.contrast), kind, params, seed, image
 
 
@@ -111,10 +141,12 @@ class PointLight:
     position: tuple[float, float, float]
     intensity: float | tuple[float, float, float] = 1.0
 
+    def __post_init__(self) -> None:
+        _reals("position", self.position, 3)
+        _grey_or_rgb("intensity", self.intensity)
+
     def _native(self) -> tuple[list[float], list[float]]:
-        i = self.intensity
-        rgb = [float(i)] * 3 if isinstance(i, int | float) else [float(c) for c in i]
-        return [float(p) for p in self.position], rgb
+        return _reals("position", self.position, 3), _grey_or_rgb("intensity", self.intensity)
 
 
 @dataclass(frozen=True)
@@ -209,7 +241,7 @@ Camera = PinholeCamera | OrthographicCamera
 def _view(
     camera: Camera, pose: Pose | None
 ) -> tuple[str, float, float, float, float, int, int, tuple[list[float], list[float]]]:
-    p = (pose or Pose.identity())._native()
+    p = _pose_arg("pose", pose, default_identity=True)._native()
     if isinstance(camera, OrthographicCamera):
         cx = (camera.width - 1) / 2 if camera.cx is None else float(camera.cx)
         cy = (camera.height - 1) / 2 if camera.cy is None else float(camera.cy)
@@ -239,6 +271,10 @@ class Scene:
         """Append an object; returns the scene for chaining."""
         if not isinstance(mesh, Mesh):
             raise InvalidArgumentError(f"mesh: got {type(mesh).__name__}, expected a Mesh")
+        if material is not None and not isinstance(material, Material):
+            raise InvalidArgumentError(
+                f"material: got {type(material).__name__}, expected a Material or None"
+            )
         self.objects.append((mesh, material or Material()))
         return self
 
@@ -246,7 +282,12 @@ class Scene:
         """Build the BVH over all triangles (object index = position in :attr:`objects`)."""
         verts, tris, obj = [], [], []
         offset = 0
-        for k, (mesh, _) in enumerate(self.objects):
+        for k, item in enumerate(self.objects):
+            mesh, material = item if isinstance(item, tuple) and len(item) == 2 else (None, None)
+            if not isinstance(mesh, Mesh) or not isinstance(material, Material):
+                raise InvalidArgumentError(
+                    f"objects[{k}]: got {item!r:.60}, expected a (Mesh, Material) pair"
+                )
             verts.append(mesh.vertices)
             tris.append(mesh.triangles + np.uint32(offset))
             obj.append(np.full(len(mesh.triangles), k, np.uint32))
@@ -254,8 +295,12 @@ class Scene:
         v = np.concatenate(verts) if verts else np.zeros((0, 3), np.float32)
         t = np.concatenate(tris) if tris else np.zeros((0, 3), np.uint32)
         o = np.concatenate(obj) if obj else np.zeros(0, np.uint32)
-        a = self.ambient
-        amb = [float(a)] * 3 if isinstance(a, int | float) else [float(c) for c in a]
+        amb = _grey_or_rgb("ambient", self.ambient)
+        for k, light in enumerate(self.lights):
+            if not isinstance(light, PointLight):
+                raise InvalidArgumentError(
+                    f"lights[{k}]: got {type(light).__name__}, expected a PointLight"
+                )
         native = _rgbd_rs.NativeScene(
             np.ascontiguousarray(v, np.float32),
             np.ascontiguousarray(t, np.uint32),
@@ -307,7 +352,9 @@ class RenderScene:
         seed: int = 0,
     ) -> ToFFrame:
         """Simulate a ToF frame (emitter at the camera centre) with ``model``'s error sources."""
-        m = model or ToFModel()
+        m = ToFModel() if model is None else model
+        if not isinstance(m, ToFModel):
+            raise InvalidArgumentError(f"model: got {type(m).__name__}, expected a ToFModel")
         if not isinstance(camera, PinholeCamera):
             raise InvalidArgumentError(
                 f"camera: got {type(camera).__name__}, expected a PinholeCamera for ToF"
@@ -319,11 +366,11 @@ class RenderScene:
                 _validate.integer("subsamples", m.subsamples, minimum=1, maximum=8),
                 _validate.integer("multipath_rays", m.multipath_rays, maximum=256),
                 bool(m.noise),
-                m.power,
-                m.read_noise,
-                m.shot_noise,
-                m.ambient,
-                m.amplitude_threshold,
+                _validate.real("power", m.power, positive=True),
+                _validate.real("read_noise", m.read_noise, nonnegative=True),
+                _validate.real("shot_noise", m.shot_noise, nonnegative=True),
+                _validate.real("ambient", m.ambient, nonnegative=True),
+                _validate.real("amplitude_threshold", m.amplitude_threshold, nonnegative=True),
                 bool(m.wrap_phase),
                 _validate.integer("seed", seed, maximum=2**63 - 1),
             )

@@ -45,6 +45,11 @@ DEFAULT_LAMBDA: float = _rgbd_rs.SPLINE_DEFAULT_LAMBDA
 MAX_DEGREE: int = _rgbd_rs.SPLINE_MAX_DEGREE
 
 
+def _label(name: str, value: object) -> int:
+    """A segment label: an integer in ``0..2**31-1``."""
+    return _validate.integer(name, value, minimum=0, maximum=2**31 - 1)
+
+
 @dataclass(frozen=True)
 class SurfaceMaps:
     """Per-pixel results; NaN where a pixel has no surface (or no measurement, for ``error``)."""
@@ -162,8 +167,10 @@ def ortho_points(depth: npt.ArrayLike, pixel_size: float) -> F32:
 class SegmentFits:
     """Spline fits of every segment of a label image, for region merging (thesis §4.7).
 
-    ``labels`` is ``H x W`` integer, ``-1`` (any negative) for unlabelled pixels, segments
-    ``0..max``. Each segment keeps its normal equations; :meth:`union_error` sums two systems and
+    ``labels`` is ``H x W`` integer, ``-1`` (any negative) for unlabelled pixels; any labels
+    ``>= 0`` (compacted internally, so sparse or huge ids cost nothing) name the segments, and the
+    methods take those labels. One object may be shared between threads. Each segment keeps its
+    normal equations; :meth:`union_error` sums two systems and
     solves once (no pass over pixels), :meth:`merge` makes that union permanent.
 
     ``criterion`` picks what :meth:`fit_error` reports:
@@ -208,7 +215,7 @@ class SegmentFits:
 
     @property
     def n_labels(self) -> int:
-        """Number of labels the fits were built with (merged ones included)."""
+        """Number of distinct labels the fits were built with (merged ones included)."""
         return self._native.n_labels
 
     @property
@@ -218,31 +225,31 @@ class SegmentFits:
 
     def size(self, i: int) -> int:
         """Valid pixels of live segment ``i``."""
-        return self._native.size(i)
+        return self._native.size(_label("i", i))
 
     def fit_error(self, i: int) -> float:
         """Fitting error of live segment ``i`` under :attr:`criterion` (inf: it interpolates)."""
-        return self._native.fit_error(i)
+        return self._native.fit_error(_label("i", i))
 
     def mse(self, i: int) -> float:
         """Plain mean squared 3-D distance of segment ``i`` to its surface."""
-        return self._native.mse(i)
+        return self._native.mse(_label("i", i))
 
     def union_error(self, i: int, j: int) -> float:
         """Fitting error of the union of live segments ``i`` and ``j`` (nothing changes)."""
-        return self._native.union_error(i, j)
+        return self._native.union_error(_label("i", i), _label("j", j))
 
     def should_merge(self, i: int, j: int) -> bool:
         """Eq. 4.8: ``e_i|S_i| + e_j|S_j| > e_ij (|S_i| + |S_j|)``."""
-        return self._native.should_merge(i, j)
+        return self._native.should_merge(_label("i", i), _label("j", j))
 
     def merge(self, i: int, j: int) -> float:
         """Merge live segment ``j`` into ``i``; returns the merged segment's error."""
-        return self._native.merge(i, j)
+        return self._native.merge(_label("i", i), _label("j", j))
 
     def find(self, label: int) -> int:
         """The live segment (its label) an original label belongs to now."""
-        return self._native.find(label)
+        return self._native.find(_label("label", label))
 
     def labels(self) -> I32:
         """``H x W`` label image with merged labels replaced by their live segment."""

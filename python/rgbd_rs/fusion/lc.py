@@ -46,11 +46,12 @@ class LcParams:
 
     def resolved(self, width: int) -> tuple[int, float]:
         """``(radius, gamma_s)`` for an image ``width`` pixels wide."""
-        r = self.radius
-        if r is None:
+        if self.radius is None:
             r = _rgbd_rs.LcConfig.for_width(_validate.size("width", width)).radius
+        else:
+            r = _validate.integer("radius", self.radius, minimum=1, maximum=MAX_RADIUS)
         if self.gamma_s is not None:
-            return r, self.gamma_s
+            return r, _validate.real("gamma_s", self.gamma_s, positive=True)
         return r, _FULL_RES.gamma_s * r / _FULL_RES.radius
 
     def native(self, width: int, target_sign: int) -> _rgbd_rs.LcConfig:
@@ -99,6 +100,10 @@ def lc_fuse(
             f"disparities: got {type(disparities).__name__}, expected a non-empty list of maps"
         )
     ds = [map2d(f"disparities[{i}]", d, (h, w)) for i, d in enumerate(disparities)]
+    if confidences is not None and not isinstance(confidences, (list, tuple)):
+        raise InvalidArgumentError(
+            f"confidences: got {type(confidences).__name__}, expected a list of maps or None"
+        )
     cs_in = [None] * len(ds) if confidences is None else list(confidences)
     if len(cs_in) != len(ds):
         raise InvalidArgumentError(
@@ -158,6 +163,11 @@ def lc_refine(
     ref_name = _validate.choice("reference", reference, ("left", "right"))
     lft = rgb8("left", left)
     rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
+    d = map2d("disparity", disparity, (lft.shape[0], lft.shape[1]))
+    if not np.isfinite(d).any():
+        raise InvalidArgumentError(
+            "disparity: got only NaN, expected at least one valid disparity to refine"
+        )
     ref, tgt, sign = views(lft, rgt, ref_name)
-    out, _ = lc_fuse(ref, tgt, [disparity], None, target_sign=sign, params=params)
+    out, _ = lc_fuse(ref, tgt, [d], None, target_sign=sign, params=params)
     return out
