@@ -25,6 +25,19 @@ def _describe_shape(shape: Sequence[int | None]) -> str:
     return "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
 
 
+def asarray(name: str, value: object) -> np.ndarray:
+    """``np.asarray(value)``; ragged or non-array input raises naming ``name``."""
+    if isinstance(value, np.ndarray):
+        return value
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged lists and the like
+        raise InvalidArgumentError(
+            f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
+            "expected a numpy array"
+        ) from None
+
+
 def array(
     name: str,
     value: object,
@@ -38,15 +51,7 @@ def array(
 
     Returns it as a C-contiguous array of ``dtype``. ``finite`` rejects NaN/inf.
     """
-    if not isinstance(value, np.ndarray):
-        try:
-            value = np.asarray(value)
-        except (TypeError, ValueError) as exc:  # ragged lists and the like
-            raise InvalidArgumentError(
-                f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
-                "expected a numpy array"
-            ) from None
-    assert isinstance(value, np.ndarray)
+    value = asarray(name, value)
     if value.dtype.kind not in "iuf":
         raise InvalidArgumentError(
             f"{name}: got dtype {value.dtype}, expected a real numeric array (int/uint/float)"
@@ -115,8 +120,7 @@ def image(name: str, value: object) -> tuple[np.ndarray, bool]:
 
     The flag says whether the input was 2-D (so callers can squeeze the result back).
     """
-    if not isinstance(value, np.ndarray):
-        value = np.asarray(value)
+    value = asarray(name, value)
     if value.ndim == 2:
         return array(name, value[:, :, None], shape=(None, None, None)), True
     if value.ndim == 3:

@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
-from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 
 __all__ = ["Distortion", "PinholeCamera", "Pose", "StereoRig", "ToFStereoRig"]
 
@@ -40,13 +40,7 @@ ROTATION_TOL = 1e-5
 
 def _flat(name: str, value: object) -> np.ndarray:
     """``value`` raveled to 1-D; ragged or non-array input raises naming ``name``."""
-    try:
-        return np.ravel(np.asarray(value))
-    except (TypeError, ValueError) as exc:
-        raise InvalidArgumentError(
-            f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
-            "expected a sequence of numbers"
-        ) from None
+    return np.ravel(_validate.asarray(name, value))
 
 
 def _camera_arg(name: str, value: object) -> PinholeCamera:
@@ -144,7 +138,10 @@ class Pose:
         m = _validate.array("matrix", matrix, shape=(None, 4), dtype=np.float64, finite=True)
         if m.shape[0] not in (3, 4):
             raise ShapeMismatchError(f"matrix: got shape {m.shape}, expected (3, 4) or (4, 4)")
-        return cls(m[:3, :3], m[:3, 3])
+        try:
+            return cls(m[:3, :3], m[:3, 3])
+        except RgbdError as e:  # the rotation block is part of the argument the caller named
+            raise type(e)(f"matrix: {e}") from None
 
     def as_matrix(self) -> F64:
         """The 4x4 homogeneous matrix."""
@@ -378,10 +375,7 @@ class PinholeCamera:
         gives float32 with NaN where the source has no sample; integer input keeps its dtype with
         0 there.
         """
-        try:
-            src = np.asarray(image)
-        except (TypeError, ValueError):  # ragged input: the validator words the error
-            src = _validate.array("image", image, shape=(None, None))
+        src = _validate.asarray("image", image)
         img, was_2d = _validate.image("image", src)
         if img.shape[:2] != (self.height, self.width):
             raise ShapeMismatchError(

@@ -61,10 +61,7 @@ def disparity_to_depth(disparity: npt.ArrayLike, baseline: float, focal: float) 
 
 
 def _as_map(name: str, value: npt.ArrayLike) -> F32:
-    try:
-        arr = np.asarray(value)
-    except (TypeError, ValueError):  # ragged: the validator words the error
-        return _validate.array(name, value, shape=(None,))
+    arr = _validate.asarray(name, value)
     return _validate.array(name, arr, shape=(None,) * max(arr.ndim, 1), allow_empty=True).reshape(
         arr.shape
     )

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 
 __all__ = [
@@ -42,16 +43,6 @@ def _path(value: object, name: str = "path") -> Path:
     if isinstance(value, (str, os.PathLike)) and str(value):
         return Path(value)
     raise InvalidArgumentError(f"{name}: got {value!r}, expected a file path (str or Path)")
-
-
-def _asarray(name: str, value: object) -> np.ndarray:
-    try:
-        return np.asarray(value)
-    except (TypeError, ValueError) as exc:  # ragged lists and the like
-        raise InvalidArgumentError(
-            f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
-            "expected a numpy array"
-        ) from None
 
 
 def _read_bytes(path: Path) -> bytes:
@@ -88,7 +79,7 @@ def write_npz(path: str | Path, arrays: Mapping[str, npt.ArrayLike]) -> Path:
         for key, value in arrays.items():
             if not isinstance(key, str) or not key:
                 raise InvalidArgumentError(f"arrays: got key {key!r}, expected non-empty names")
-            arr = _asarray(f"arrays[{key!r}]", value)
+            arr = _validate.asarray(f"arrays[{key!r}]", value)
             if arr.dtype.kind not in "biuf":
                 raise InvalidArgumentError(
                     f"arrays[{key!r}]: got dtype {arr.dtype}, expected a bool/int/float array"
@@ -148,7 +139,7 @@ def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
     ``image`` is ``H x W`` or ``H x W x C`` (C = 1, 3 or 4) of uint8 or uint16.
     """
     out = _path(path)
-    img = _asarray("image", image)
+    img = _validate.asarray("image", image)
     if not isinstance(rgb, (bool, np.bool_)):
         raise InvalidArgumentError(f"rgb: got {rgb!r}, expected True or False")
     if img.dtype not in _PNG_DTYPES:

@@ -52,10 +52,7 @@ class Mesh:
 
     def __post_init__(self) -> None:
         v = _validate.array("vertices", self.vertices, shape=(None, 3), finite=True)
-        try:
-            t = np.asarray(self.triangles)
-        except (TypeError, ValueError):  # ragged input: the validator words the error
-            t = _validate.array("triangles", self.triangles, shape=(None, 3))
+        t = _validate.asarray("triangles", self.triangles)
         if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
             raise InvalidArgumentError(
                 f"triangles: got {t.dtype} array of shape {t.shape}, expected integer (M, 3)"

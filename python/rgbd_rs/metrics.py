@@ -33,10 +33,7 @@ def rms_error(
     t = _validate.array("truth", truth, shape=e.shape)
     keep = np.isfinite(e) & np.isfinite(t)
     if mask is not None:
-        try:
-            m = np.asarray(mask)
-        except (TypeError, ValueError):  # ragged input: the validator words the error
-            m = _validate.array("mask", mask, shape=(None,))
+        m = _validate.asarray("mask", mask)
         if m.dtype != np.bool_:
             raise InvalidArgumentError(f"mask: got dtype {m.dtype}, expected a boolean array")
         if m.shape != e.shape:
@@ -76,10 +73,7 @@ def edge_alignment(depth: npt.ArrayLike, image: npt.ArrayLike, max_distance: flo
     occluding contours on the colour image's edges.
     """
     d = _validate.array("depth", depth, shape=(None, None))
-    try:
-        img = np.asarray(image)
-    except (TypeError, ValueError):  # ragged input: the validator words the error
-        img = _validate.array("image", image, shape=(None,))
+    img = _validate.asarray("image", image)
     if img.dtype != np.uint8:
         raise InvalidArgumentError(f"image: got dtype {img.dtype}, expected uint8")
     if img.shape[:2] != d.shape or img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] < 3):

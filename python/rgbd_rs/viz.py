@@ -49,10 +49,7 @@ def colorize(
 
 
 def _u8_image(name: str, value: object) -> U8:
-    try:
-        img = np.asarray(value)
-    except (TypeError, ValueError):  # ragged input: the validator words the error
-        img = _validate.array(name, value, shape=(None,))
+    img = _validate.asarray(name, value)
     if img.dtype != np.uint8:
         raise InvalidArgumentError(f"{name}: got dtype {img.dtype}, expected uint8")
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3) or img.size == 0:

@@ -15,10 +15,7 @@ U8 = npt.NDArray[np.uint8]
 
 def rgb8(name: str, value: object, size: tuple[int, int] | None = None) -> U8:
     """An ``H x W x 3`` uint8 image (grey ``H x W`` is replicated); ``size`` = ``(W, H)``."""
-    try:
-        arr = np.asarray(value)
-    except (TypeError, ValueError):  # ragged input: the validator words the error
-        arr = _validate.array(name, value, shape=(None,))
+    arr = _validate.asarray(name, value)
     if arr.ndim == 2:
         arr = np.repeat(arr[:, :, None], 3, axis=2)
     if arr.ndim != 3 or arr.shape[2] != 3:
