@@ -58,16 +58,18 @@ impl UpsampleParams {
     }
 }
 
-/// A ToF sample with what the filter reads of its pixel and the channel value it carries
-/// (NaN = none), stored contiguously per row, sorted by x.
+/// A ToF sample with what the filter reads of its pixel, stored contiguously per row, sorted by
+/// x (16 bytes; the carried channel lives in a parallel array so the plain filter stays lean).
 #[derive(Clone, Copy)]
 struct Tap {
     x: u32,
     z: f32,
-    a: f32,
     color: [u8; 3],
     label: i32,
 }
+
+/// Per row: the samples, and the channel value each carries (empty rows without a channel).
+type Rows = (Vec<Vec<Tap>>, Vec<Vec<f32>>);
 
 fn sample_rows(
     sparse: &[f32],
@@ -75,27 +77,29 @@ fn sample_rows(
     image: &[u8],
     labels: Option<&[i32]>,
     width: usize,
-) -> Vec<Vec<Tap>> {
+) -> Rows {
     sparse
         .chunks(width)
         .enumerate()
         .map(|(y, row)| {
-            row.iter()
+            let xs = row
+                .iter()
                 .enumerate()
                 .filter(|(_, z)| z.is_finite() && **z > 0.0)
-                .map(|(x, &z)| {
-                    let q = y * width + x;
-                    Tap {
-                        x: x as u32,
-                        z,
-                        a: channel.map_or(f32::NAN, |c| c[q]),
-                        color: [image[3 * q], image[3 * q + 1], image[3 * q + 2]],
-                        label: labels.map_or(0, |l| l[q]),
-                    }
+                .map(|(x, _)| y * width + x);
+            let taps = xs
+                .clone()
+                .map(|q| Tap {
+                    x: (q - y * width) as u32,
+                    z: sparse[q],
+                    color: [image[3 * q], image[3 * q + 1], image[3 * q + 2]],
+                    label: labels.map_or(0, |l| l[q]),
                 })
-                .collect()
+                .collect();
+            let carried = channel.map_or_else(Vec::new, |c| xs.map(|q| c[q]).collect());
+            (taps, carried)
         })
-        .collect()
+        .unzip()
 }
 
 /// Result of [`upsample_depth`].
@@ -133,7 +137,7 @@ pub fn upsample_depth(
     if let Some(c) = channel {
         check_len("channel", c, n, "H x W of the depth map's size")?;
     }
-    let rows = sample_rows(sparse, channel, image, labels, width);
+    let (rows, rows_a) = sample_rows(sparse, channel, image, labels, width);
     let r = params.radius as i64;
     let side = 2 * params.radius + 1;
     let spatial: Vec<f32> = (0..side * side)
@@ -153,49 +157,29 @@ pub fn upsample_depth(
     } else {
         (0..height).map(|_| &mut [][..]).collect()
     };
+    let ctx = Ctx {
+        rows: &rows,
+        rows_a: &rows_a,
+        image,
+        labels,
+        width,
+        height,
+        r,
+        side,
+        spatial: &spatial,
+        gc: &gc,
+        inv_2r2,
+    };
     out.par_chunks_mut(width)
         .zip(carried_rows.par_iter_mut())
         .enumerate()
         .try_for_each(|(y, (out_row, a_row))| {
             check_interrupt()?;
-            let y0 = (y as i64 - r).max(0) as usize;
-            let y1 = (y as i64 + r).min(height as i64 - 1) as usize;
-            let mut cursor = vec![0usize; y1 - y0 + 1];
-            // Samples of other segments as (Gs, z, a): only they need a second look.
-            let mut others: Vec<(f32, f32, f32)> = Vec::with_capacity(side * side);
-            for (x, o) in out_row.iter_mut().enumerate() {
-                let p = y * width + x;
-                let cp = &image[3 * p..3 * p + 3];
-                let lp = labels.map_or(0, |l| l[p]);
-                others.clear();
-                let mut same = Sums::default();
-                let mut all = Sums::default();
-                let lo = (x as i64 - r).max(0) as u32;
-                let hi = (x as i64 + r) as u32;
-                for (k, yq) in (y0..=y1).enumerate() {
-                    let row = &rows[yq];
-                    let mut c = cursor[k];
-                    while c < row.len() && row[c].x < lo {
-                        c += 1;
-                    }
-                    cursor[k] = c;
-                    let srow = (yq as i64 - y as i64 + r) as usize * side;
-                    for t in row[c..].iter().take_while(|t| t.x <= hi) {
-                        let ws = spatial[srow + (t.x as i64 - x as i64 + r) as usize];
-                        all.add(ws, t.z, t.a);
-                        // Without labels every tap carries label 0 like p: one segment.
-                        if t.label == lp {
-                            same.add(ws * gc[sum_abs(cp, &t.color)], t.z, t.a);
-                        } else {
-                            others.push((ws, t.z, t.a));
-                        }
-                    }
-                }
-                let (z, a) = estimate(&same, &all, &others, inv_2r2);
-                *o = z;
-                if let Some(slot) = a_row.get_mut(x) {
-                    *slot = a;
-                }
+            // Monomorphised: without a channel the inner loop does no channel work at all.
+            if channel.is_some() {
+                ctx.row::<true>(y, out_row, a_row);
+            } else {
+                ctx.row::<false>(y, out_row, a_row);
             }
             Ok(())
         })?;
@@ -206,27 +190,90 @@ pub fn upsample_depth(
     })
 }
 
+/// What every row of the filter reads.
+struct Ctx<'a> {
+    rows: &'a [Vec<Tap>],
+    rows_a: &'a [Vec<f32>],
+    image: &'a [u8],
+    labels: Option<&'a [i32]>,
+    width: usize,
+    height: usize,
+    r: i64,
+    side: usize,
+    spatial: &'a [f32],
+    gc: &'a [f32],
+    inv_2r2: f32,
+}
+
+impl Ctx<'_> {
+    /// Filters output row `y` (and its carried channel when `CARRY`).
+    fn row<const CARRY: bool>(&self, y: usize, out_row: &mut [f32], a_row: &mut [f32]) {
+        let (r, side, width) = (self.r, self.side, self.width);
+        let y0 = (y as i64 - r).max(0) as usize;
+        let y1 = (y as i64 + r).min(self.height as i64 - 1) as usize;
+        let mut cursor = vec![0usize; y1 - y0 + 1];
+        // Samples of other segments as (Gs, z, a): only they need a second look.
+        let mut others: Vec<(f32, f32, f32)> = Vec::with_capacity(side * side);
+        for (x, o) in out_row.iter_mut().enumerate() {
+            let p = y * width + x;
+            let cp = &self.image[3 * p..3 * p + 3];
+            let lp = self.labels.map_or(0, |l| l[p]);
+            others.clear();
+            let mut same = Sums::<CARRY>::default();
+            let mut all = Sums::<CARRY>::default();
+            let lo = (x as i64 - r).max(0) as u32;
+            let hi = (x as i64 + r) as u32;
+            for (k, yq) in (y0..=y1).enumerate() {
+                let row = &self.rows[yq];
+                let row_a = &self.rows_a[yq];
+                let mut c = cursor[k];
+                while c < row.len() && row[c].x < lo {
+                    c += 1;
+                }
+                cursor[k] = c;
+                let srow = (yq as i64 - y as i64 + r) as usize * side;
+                for (i, t) in row[c..].iter().enumerate().take_while(|(_, t)| t.x <= hi) {
+                    let ws = self.spatial[srow + (t.x as i64 - x as i64 + r) as usize];
+                    let a = if CARRY { row_a[c + i] } else { f32::NAN };
+                    all.add(ws, t.z, a);
+                    // Without labels every tap carries label 0 like p: one segment.
+                    if t.label == lp {
+                        same.add(ws * self.gc[sum_abs(cp, &t.color)], t.z, a);
+                    } else {
+                        others.push((ws, t.z, a));
+                    }
+                }
+            }
+            let (z, a) = estimate(&same, &all, &others, self.inv_2r2);
+            *o = z;
+            if CARRY {
+                a_row[x] = a;
+            }
+        }
+    }
+}
+
 /// Total weight below which a sum counts as empty: products of weights this small are subnormal
 /// in f32 and their ratio is noise (a lone sample at 0.3 m read as 0.4 m, found by the proptest
 /// against the f64 reference).
 const MIN_WEIGHT: f32 = 1e-30;
 
-/// Running weighted sums of the depth and of the carried channel (whose weight sum counts only
-/// the samples that carry a value).
+/// Running weighted sums of the depth and, when `CARRY`, of the carried channel (whose weight
+/// sum counts only the samples that carry a value).
 #[derive(Default, Clone, Copy)]
-struct Sums {
+struct Sums<const CARRY: bool> {
     w: f32,
     wz: f32,
     wa_w: f32,
     wa: f32,
 }
 
-impl Sums {
+impl<const CARRY: bool> Sums<CARRY> {
     #[inline]
     fn add(&mut self, w: f32, z: f32, a: f32) {
         self.w += w;
         self.wz += w * z;
-        if a.is_finite() {
+        if CARRY && a.is_finite() {
             self.wa_w += w;
             self.wa += w * a;
         }
@@ -245,7 +292,12 @@ impl Sums {
 /// The two-pass estimate: `z0` from the same-segment samples (Gs Gc), or from all samples (Gs)
 /// where p's segment holds none — colour across segments means little; then the same-segment
 /// sums plus the other segments' samples weighted by depth agreement with `z0` (Gs Gr).
-fn estimate(same: &Sums, all: &Sums, others: &[(f32, f32, f32)], inv_2r2: f32) -> (f32, f32) {
+fn estimate<const CARRY: bool>(
+    same: &Sums<CARRY>,
+    all: &Sums<CARRY>,
+    others: &[(f32, f32, f32)],
+    inv_2r2: f32,
+) -> (f32, f32) {
     let Some(first) = same.mean().or_else(|| all.mean()) else {
         return (f32::NAN, f32::NAN);
     };
