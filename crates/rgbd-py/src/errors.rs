@@ -2,6 +2,7 @@
 //! helper that runs core code without the GIL, and the single helper that borrows numpy memory.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::mpsc::{self, RecvTimeoutError};
 use std::thread;
 use std::time::Duration;
 
@@ -70,17 +71,30 @@ where
     let mut signal: Option<PyErr> = None;
     let out = py.detach(|| {
         thread::scope(|s| {
-            let worker = s.spawn(|| catch_unwind(AssertUnwindSafe(f)));
-            while !worker.is_finished() {
-                thread::park_timeout(SIGNAL_POLL);
-                if signal.is_none() {
-                    if let Err(e) = Python::attach(|py| py.check_signals()) {
-                        rgbd_error::request_interrupt();
-                        signal = Some(e);
+            // The result comes back through a channel, so the caller wakes the moment it is sent
+            // (polling `is_finished` would round every call up to the polling period).
+            let (tx, rx) = mpsc::channel();
+            s.spawn(move || {
+                // The receiver lives until the scope ends, so this send cannot fail.
+                let _ = tx.send(catch_unwind(AssertUnwindSafe(f)));
+            });
+            loop {
+                match rx.recv_timeout(SIGNAL_POLL) {
+                    Ok(out) => break out,
+                    Err(RecvTimeoutError::Timeout) if signal.is_none() => {
+                        if let Err(e) = Python::attach(|py| py.check_signals()) {
+                            rgbd_error::request_interrupt();
+                            signal = Some(e);
+                        }
+                    }
+                    Err(RecvTimeoutError::Timeout) => {}
+                    // The worker ended without sending: it can only have panicked past
+                    // catch_unwind, which the scope re-raises when it joins.
+                    Err(RecvTimeoutError::Disconnected) => {
+                        break Err(Box::new("worker thread ended without a result"))
                     }
                 }
             }
-            worker.join().unwrap_or_else(Err)
         })
     });
     match signal {
