@@ -1,0 +1,31 @@
+"""Torch networks of rgbd_rs and the one trainer they share.
+
+:func:`train` (single process or under ``torchrun``) with its :class:`TrainConfig`, and the
+checkpoints it writes (:func:`load_checkpoint`), which hold the architecture, its configuration
+and the input normalisation alongside the weights.
+"""
+
+from rgbd_rs.nn.checkpoint import FORMAT, Checkpoint, load_checkpoint, save_checkpoint
+from rgbd_rs.nn.train import (
+    EpochStats,
+    TrainConfig,
+    TrainResult,
+    is_main_process,
+    seed_everything,
+    split,
+    train,
+)
+
+__all__ = [
+    "FORMAT",
+    "Checkpoint",
+    "EpochStats",
+    "TrainConfig",
+    "TrainResult",
+    "is_main_process",
+    "load_checkpoint",
+    "save_checkpoint",
+    "seed_everything",
+    "split",
+    "train",
+]

@@ -1,0 +1,88 @@
+"""The process group of a training run: one process, or one of ``torchrun``'s processes.
+
+``torchrun`` sets ``WORLD_SIZE``, ``RANK``, ``LOCAL_RANK``, ``MASTER_ADDR`` and ``MASTER_PORT``;
+with ``WORLD_SIZE > 1`` :func:`setup` initialises the default process group from them (gloo on
+CPU, nccl on CUDA, each process on GPU ``LOCAL_RANK``) unless the caller already did.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import torch
+import torch.distributed as dist
+
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+
+
+def is_main_process() -> bool:
+    """True in a single process and on rank 0 under torchrun (also before the process group is
+    initialised, from the ``RANK`` environment variable)."""
+    if dist.is_available() and dist.is_initialized():
+        return dist.get_rank() == 0
+    return os.environ.get("RANK", "0") == "0"
+
+
+@dataclass(frozen=True)
+class Group:
+    """This process's place in the run; collectives are no-ops in a single process."""
+
+    rank: int
+    world: int
+    device: torch.device
+    #: setup() initialised the process group, so close() destroys it.
+    owns: bool = False
+
+    def sum(self, values: list[float]) -> list[float]:
+        """Element-wise sum of ``values`` over all processes (float64)."""
+        if self.world == 1:
+            return values
+        t = torch.tensor(values, dtype=torch.float64, device=self.device)
+        dist.all_reduce(t)
+        return [float(v) for v in t.tolist()]
+
+    def barrier(self) -> None:
+        """Wait for every process."""
+        if self.world == 1:
+            return
+        if self.device.type == "cuda":  # nccl needs to know the device, or it warns
+            dist.barrier(device_ids=[self.device.index or 0])
+        else:
+            dist.barrier()
+
+    def close(self) -> None:
+        """Destroy the process group if :func:`setup` created it."""
+        if self.owns and dist.is_initialized():
+            dist.destroy_process_group()
+
+
+def _env_int(name: str, default: int) -> int:
+    raw = os.environ.get(name, str(default))
+    try:
+        return int(raw)
+    except ValueError:
+        raise RgbdError(f"environment variable {name}: got {raw!r}, expected an integer") from None
+
+
+def setup(device: str) -> Group:
+    """Resolve ``device`` (``"auto"``, ``"cpu"``, ``"cuda"``, ``"cuda:N"``) and join the process
+    group when ``WORLD_SIZE > 1``."""
+    world = _env_int("WORLD_SIZE", 1)
+    local = _env_int("LOCAL_RANK", 0)
+    if device == "auto":
+        device = "cuda" if torch.cuda.is_available() else "cpu"
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise InvalidArgumentError(f"device: got {device!r} but CUDA is not available")
+    dev = torch.device(f"cuda:{local}" if device == "cuda" and world > 1 else device)
+    if dev.type == "cuda":
+        torch.cuda.set_device(dev)
+    if world <= 1:
+        return Group(0, 1, dev)
+    if not dist.is_available():
+        raise RgbdError(f"WORLD_SIZE={world} but this torch build has no torch.distributed")
+    owns = not dist.is_initialized()
+    if owns:
+        backend = "nccl" if dev.type == "cuda" else "gloo"
+        dist.init_process_group(backend=backend, init_method="env://")
+    return Group(dist.get_rank(), dist.get_world_size(), dev, owns)

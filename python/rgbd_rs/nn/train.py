@@ -1,0 +1,445 @@
+"""The one trainer of the package's networks (confidence, segmentation, shape classification).
+
+:func:`train` runs the same code in one process or in each process started by ``torchrun``
+(DistributedDataParallel: gloo on CPU, nccl on CUDA). Calling convention, per batch::
+
+    batch = tuple of tensors          # the dataset's items (tuples of tensors), collated
+    output = model(batch[0])          # the first element is the network input
+    loss = loss_fn(output, batch)     # a scalar tensor: the MEAN loss over the batch
+
+Deterministic by seed: call :func:`seed_everything` with ``config.seed`` before building the
+model, and two runs on the same data end with bit-identical weights on CPU. Each epoch's order
+comes from a generator seeded with (seed, epoch), so a resumed run sees the same batches; the
+checkpoint ``out_dir/last.pt`` (written after every epoch and every ``checkpoint_steps`` steps)
+holds the optimizer, scheduler and RNG states, so interrupted + resumed training ends with the
+same weights as uninterrupted training. Datasets that draw random augmentations should draw
+them from the global generators in the main process (``num_workers=0``) or derive them from the
+item index, for the resumption to be exact.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import random
+import sys
+from collections.abc import Callable, Mapping, Sized
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn.parallel import DistributedDataParallel
+from torch.utils.data import DataLoader, Dataset, DistributedSampler, Subset
+from tqdm import tqdm
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.nn.checkpoint import (
+    Checkpoint,
+    capture_rng,
+    git_revision,
+    load_checkpoint,
+    package_version,
+    plain,
+    restore_rng,
+    resume_differences,
+    save_checkpoint,
+)
+from rgbd_rs.nn.distributed import Group, is_main_process, setup
+
+__all__ = [
+    "EpochStats",
+    "TrainConfig",
+    "TrainResult",
+    "is_main_process",
+    "seed_everything",
+    "split",
+    "train",
+]
+
+OPTIMIZERS = ("sgd", "adam")
+#: File names inside ``out_dir``.
+LAST, BEST = "last.pt", "best.pt"
+#: TrainConfig fields that may differ when resuming: they do not change the weights' trajectory
+#: (``epochs`` may grow to train further).
+RESUMABLE_CHANGES = frozenset({"epochs", "num_workers", "checkpoint_steps", "device"})
+
+Batch = tuple[Any, ...]
+LossFn = Callable[[Any, Batch], torch.Tensor]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Hyper-parameters of one training run; every field is validated on construction.
+
+    ``batch_size`` is per process (under torchrun the effective batch is ``batch_size`` times the
+    number of processes). ``lr`` decays by ``lr_gamma`` every ``lr_step`` epochs (StepLR;
+    ``lr_step=0`` keeps it constant). ``momentum`` is used by SGD only. ``checkpoint_steps > 0``
+    also writes ``last.pt`` every that many optimizer steps within an epoch, so an interrupted
+    epoch loses at most that many steps. ``grad_clip`` clips the gradients' global L2 norm.
+    ``device``: ``"auto"`` (CUDA when available, else CPU), ``"cpu"``, ``"cuda"``, ``"cuda:N"``.
+    """
+
+    epochs: int = 10
+    batch_size: int = 8
+    optimizer: str = "adam"
+    lr: float = 1e-3
+    momentum: float = 0.9
+    weight_decay: float = 0.0
+    lr_step: int = 0
+    lr_gamma: float = 0.1
+    seed: int = 0
+    num_workers: int = 0
+    checkpoint_steps: int = 0
+    grad_clip: float | None = None
+    device: str = "auto"
+
+    def __post_init__(self) -> None:
+        _validate.integer("epochs", self.epochs, minimum=1)
+        _validate.integer("batch_size", self.batch_size, minimum=1)
+        _validate.choice("optimizer", self.optimizer, OPTIMIZERS)
+        reals = {
+            "lr": _validate.real("lr", self.lr, positive=True),
+            "momentum": _validate.real("momentum", self.momentum, nonnegative=True),
+            "weight_decay": _validate.real("weight_decay", self.weight_decay, nonnegative=True),
+            "lr_gamma": _validate.real("lr_gamma", self.lr_gamma, positive=True),
+        }
+        if reals["momentum"] >= 1:
+            raise InvalidArgumentError(f"momentum: got {self.momentum}, expected 0 <= momentum < 1")
+        if self.grad_clip is not None:
+            reals["grad_clip"] = _validate.real("grad_clip", self.grad_clip, positive=True)
+        _validate.integer("lr_step", self.lr_step)
+        _validate.integer("seed", self.seed, maximum=2**32 - 1)  # numpy's seed range
+        _validate.integer("num_workers", self.num_workers)
+        _validate.integer("checkpoint_steps", self.checkpoint_steps)
+        if not (
+            isinstance(self.device, str)
+            and self.device.startswith("cuda:")
+            and self.device[5:].isdigit()
+        ):
+            _validate.choice("device", self.device, ("auto", "cpu", "cuda"))
+        for name, value in reals.items():  # one type per field, so saved configs compare equal
+            object.__setattr__(self, name, value)
+        for name in ("epochs", "batch_size", "lr_step", "seed", "num_workers", "checkpoint_steps"):
+            object.__setattr__(self, name, int(getattr(self, name)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields as a plain dict (what checkpoints store)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
+        """Inverse of :meth:`to_dict`; unknown keys raise naming them."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise InvalidArgumentError(f"config: got unknown fields {unknown}, expected {known}")
+        return cls(**data)
+
+
+@dataclass(frozen=True)
+class EpochStats:
+    """One completed epoch: 1-based number, mean train loss, mean validation loss, its LR."""
+
+    epoch: int
+    train_loss: float
+    val_loss: float | None
+    lr: float
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    """What :func:`train` did. ``best_*`` are None when there was no validation set."""
+
+    history: tuple[EpochStats, ...]
+    best_epoch: int | None
+    best_val_loss: float | None
+    last_checkpoint: Path
+    best_checkpoint: Path | None
+
+
+def seed_everything(seed: int) -> None:
+    """Seed Python's, numpy's and torch's (CPU and CUDA) global generators."""
+    seed = _validate.integer("seed", seed, maximum=2**32 - 1)
+    random.seed(seed)
+    np.random.seed(seed)  # noqa: NPY002 - datasets draw augmentations from the global generator
+    torch.manual_seed(seed)
+
+
+def split(dataset: Dataset[Any], fraction: float, seed: int = 0) -> tuple[Subset[Any], Subset[Any]]:
+    """Split ``dataset`` into (train, validation) subsets, ``fraction`` of it for validation.
+
+    Deterministic for a given ``seed`` and length; each side gets at least one item. Items are
+    drawn independently: data with correlated items (frames of one scene) should be split by
+    group by the caller instead.
+    """
+    fraction = _validate.real("fraction", fraction)
+    if not 0 < fraction < 1:
+        raise InvalidArgumentError(f"fraction: got {fraction}, expected 0 < fraction < 1")
+    n = _length("dataset", dataset)
+    if n < 2:
+        raise InvalidArgumentError(f"dataset: got {n} items, expected at least 2 to split")
+    seed = _validate.integer("seed", seed)
+    n_val = min(max(round(n * fraction), 1), n - 1)
+    order = torch.randperm(n, generator=torch.Generator().manual_seed(seed)).tolist()
+    return Subset(dataset, sorted(order[n_val:])), Subset(dataset, sorted(order[:n_val]))
+
+
+def _length(name: str, dataset: object) -> int:
+    if not isinstance(dataset, Dataset) or not isinstance(dataset, Sized):
+        raise InvalidArgumentError(
+            f"{name}: got {type(dataset).__name__}, expected a torch.utils.data.Dataset with len()"
+        )
+    return len(dataset)
+
+
+def _to_device(batch: Any, device: torch.device) -> Batch:
+    items = (batch,) if isinstance(batch, torch.Tensor) else tuple(batch)
+    return tuple(
+        x.to(device, non_blocking=True) if isinstance(x, torch.Tensor) else x for x in items
+    )
+
+
+def _count(x: Any) -> int:
+    return int(x.shape[0]) if isinstance(x, torch.Tensor) else len(x)
+
+
+def _seed_worker(worker_id: int) -> None:
+    s = torch.initial_seed() % 2**32  # distinct per worker, derived from the loader's generator
+    np.random.seed(s)  # noqa: NPY002 - the global generator, as in the main process
+    random.seed(s)
+
+
+def _loader(
+    data: Dataset[Any], indices: list[int], cfg: TrainConfig, g: Group, stream: list[int]
+) -> DataLoader[Any]:
+    """Batches of ``data[indices]`` in that order; worker seeds from (seed, *stream)."""
+    seed = int(np.random.SeedSequence([cfg.seed, *stream]).generate_state(1)[0])
+    gen = torch.Generator().manual_seed(seed)
+    return DataLoader(
+        data,
+        batch_size=cfg.batch_size,
+        sampler=indices,
+        num_workers=cfg.num_workers,
+        generator=gen,  # also keeps the loader from drawing from the global torch generator
+        worker_init_fn=_seed_worker if cfg.num_workers else None,
+        pin_memory=g.device.type == "cuda",
+    )
+
+
+def _mean_loss(loss: torch.Tensor, where: str) -> float:
+    if not isinstance(loss, torch.Tensor) or loss.numel() != 1:
+        raise RgbdError(f"loss_fn: returned {type(loss).__name__}, expected a scalar tensor")
+    value = float(loss.item())
+    if not math.isfinite(value):
+        raise RgbdError(
+            f"loss_fn: returned {value} at {where}; lower lr, set grad_clip or check the data "
+            "(the last finite state is in last.pt)"
+        )
+    return value
+
+
+def _evaluate(
+    model: nn.Module, data: Dataset[Any], loss_fn: LossFn, cfg: TrainConfig, g: Group
+) -> float:
+    model.eval()
+    total = count = 0.0
+    with torch.no_grad():
+        indices = list(range(g.rank, _length("val_set", data), g.world))  # no padding: exact mean
+        for raw in _loader(data, indices, cfg, g, [1]):
+            batch = _to_device(raw, g.device)
+            n = _count(batch[0])
+            total += _mean_loss(loss_fn(model(batch[0]), batch), "validation") * n
+            count += n
+    model.train()
+    total, count = g.sum([total, count])
+    return total / count
+
+
+def train(
+    model: nn.Module,
+    train_set: Dataset[Any],
+    val_set: Dataset[Any] | None,
+    loss_fn: LossFn,
+    config: TrainConfig,
+    out_dir: str | os.PathLike[str],
+    *,
+    arch: str,
+    arch_config: Mapping[str, Any],
+    normalisation: Mapping[str, Any],
+    quiet: bool = False,
+    resume: bool = True,
+) -> TrainResult:
+    """Train ``model`` in place; write ``out_dir/last.pt`` and (with validation) ``best.pt``.
+
+    ``arch`` names the architecture and ``arch_config`` holds its constructor arguments, so
+    :func:`~rgbd_rs.nn.checkpoint.load_checkpoint` can rebuild and check it; ``normalisation``
+    holds the input statistics inference must apply (plain values or tensors). ``val_set=None``
+    trains without validation (no ``best.pt``; see :func:`split` to make one). ``resume=True``
+    continues from ``out_dir/last.pt`` when it exists (a finished run returns at once; a larger
+    ``config.epochs`` trains further); any other difference in arch, arch_config, normalisation
+    or the fields that shape training raises :class:`RgbdError` listing what differs.
+    ``resume=False`` starts afresh and overwrites ``out_dir``'s checkpoints. Under torchrun every
+    process calls this; only rank 0 writes files and shows the progress bar (also hidden when
+    ``quiet`` or stderr is not a terminal). See the module docstring for the calling convention.
+    """
+    if not isinstance(model, nn.Module):
+        raise InvalidArgumentError(f"model: got {type(model).__name__}, expected a torch nn.Module")
+    if _length("train_set", train_set) == 0:
+        raise InvalidArgumentError("train_set: got an empty dataset, expected at least one item")
+    if val_set is not None and _length("val_set", val_set) == 0:
+        raise InvalidArgumentError("val_set: got an empty dataset, expected at least one item")
+    if not callable(loss_fn):
+        raise InvalidArgumentError(f"loss_fn: got {type(loss_fn).__name__}, expected a callable")
+    if not isinstance(config, TrainConfig):
+        raise InvalidArgumentError(f"config: got {type(config).__name__}, expected TrainConfig")
+    if not isinstance(arch, str) or not arch:
+        raise InvalidArgumentError(f"arch: got {arch!r}, expected a non-empty str")
+    for name, value in (("arch_config", arch_config), ("normalisation", normalisation)):
+        if not isinstance(value, Mapping):
+            raise InvalidArgumentError(f"{name}: got {type(value).__name__}, expected a dict")
+    now: dict[str, Any] = {
+        "arch": arch,
+        "arch_config": plain("arch_config", arch_config),
+        "normalisation": plain("normalisation", normalisation),
+        "config": config.to_dict(),
+    }
+    g = setup(config.device)
+    now["world_size"] = g.world
+    try:
+        return _run(
+            model, train_set, val_set, loss_fn, config, Path(out_dir), now, g, quiet, resume
+        )
+    finally:
+        g.close()
+
+
+def _run(
+    model: nn.Module,
+    train_set: Dataset[Any],
+    val_set: Dataset[Any] | None,
+    loss_fn: LossFn,
+    cfg: TrainConfig,
+    out: Path,
+    now: dict[str, Any],
+    g: Group,
+    quiet: bool,
+    resume: bool,
+) -> TrainResult:
+    main = g.rank == 0
+    last_path, best_path = out / LAST, out / BEST
+    model.to(g.device)
+    params = [p for p in model.parameters() if p.requires_grad]
+    opt: torch.optim.Optimizer
+    if cfg.optimizer == "sgd":
+        opt = torch.optim.SGD(params, cfg.lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
+    else:
+        opt = torch.optim.Adam(params, cfg.lr, weight_decay=cfg.weight_decay)
+    gamma = cfg.lr_gamma if cfg.lr_step else 1.0
+    sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_step or 1, gamma=gamma)
+    history: list[dict[str, Any]] = []
+    best_val: float | None = None
+    best_epoch: int | None = None
+    start_epoch = start_step = 0
+    partial = {"loss_sum": 0.0, "samples": 0.0}
+    if resume and last_path.is_file():
+        ckpt = load_checkpoint(last_path, map_location="cpu")
+        diffs = resume_differences(ckpt, **now, may_change=RESUMABLE_CHANGES)
+        if diffs:
+            raise RgbdError(
+                f"{last_path}: cannot resume: " + "; ".join(diffs) + ". Pass resume=False "
+                f"(CLI: --no-resume) to start afresh in {out}, or choose another output folder"
+            )
+        model.load_state_dict(ckpt.model_state)
+        opt.load_state_dict(ckpt.optimizer_state)  # type: ignore[arg-type]
+        sched.load_state_dict(ckpt.scheduler_state)  # type: ignore[arg-type]
+        restore_rng(ckpt.rng_state)  # type: ignore[arg-type]
+        history, best_val, best_epoch = list(ckpt.history), ckpt.best_val_loss, ckpt.best_epoch
+        start_epoch, start_step = ckpt.epoch, ckpt.step
+        if main and ckpt.partial:
+            partial = dict(ckpt.partial)  # the other ranks' shares are already summed in
+    else:
+        seed_everything(cfg.seed)
+        if main:
+            best_path.unlink(missing_ok=True)  # a stale best.pt from an earlier run
+    g.barrier()  # every rank has read last.pt before rank 0 overwrites it
+    net: nn.Module = model
+    if g.world > 1:
+        ids = [g.device.index or 0] if g.device.type == "cuda" else None
+        net = DistributedDataParallel(model, device_ids=ids)
+    version, revision = package_version(), git_revision()
+
+    def save(epoch: int, step: int, sums: dict[str, float], path: Path = last_path) -> None:
+        ckpt = Checkpoint(
+            path=path, arch=now["arch"], arch_config=now["arch_config"],
+            normalisation=now["normalisation"], model_state=model.state_dict(),
+            config=now["config"], version=version, git_revision=revision, epoch=epoch,
+            step=step, world_size=g.world, optimizer_state=opt.state_dict(),
+            scheduler_state=sched.state_dict(), rng_state=capture_rng(), history=history,
+            best_val_loss=best_val, best_epoch=best_epoch, partial=sums,
+        )  # fmt: skip
+        save_checkpoint(ckpt, path)
+
+    show = not quiet and main and sys.stderr.isatty()
+    net.train()
+    for epoch in range(start_epoch, cfg.epochs):
+        sampler: DistributedSampler[Any] = DistributedSampler(
+            train_set, num_replicas=g.world, rank=g.rank, shuffle=True, seed=cfg.seed
+        )
+        sampler.set_epoch(epoch)
+        order = list(sampler)
+        steps = math.ceil(len(order) / cfg.batch_size)
+        skip = start_step if epoch == start_epoch else 0
+        loss_sum, samples = (partial["loss_sum"], partial["samples"]) if skip else (0.0, 0.0)
+        loader = _loader(train_set, order[skip * cfg.batch_size :], cfg, g, [0, epoch])
+        bar = tqdm(
+            total=steps, initial=skip, desc=f"epoch {epoch + 1}/{cfg.epochs}", unit="step",
+            disable=not show, dynamic_ncols=True,
+        )  # fmt: skip
+        with bar:
+            for step, raw in enumerate(loader, start=skip + 1):
+                batch = _to_device(raw, g.device)
+                opt.zero_grad(set_to_none=True)
+                loss = loss_fn(net(batch[0]), batch)
+                value = _mean_loss(loss, f"epoch {epoch + 1} step {step}")
+                loss.backward()  # type: ignore[no-untyped-call]
+                if cfg.grad_clip is not None:
+                    nn.utils.clip_grad_norm_(params, cfg.grad_clip)
+                opt.step()
+                n = _count(batch[0])
+                loss_sum, samples = loss_sum + value * n, samples + n
+                bar.update()
+                bar.set_postfix(loss=f"{loss_sum / samples:.4g}")
+                if cfg.checkpoint_steps and step % cfg.checkpoint_steps == 0 and step < steps:
+                    total = g.sum([loss_sum, samples])
+                    if main:
+                        save(epoch, step, {"loss_sum": total[0], "samples": total[1]})
+            loss_sum, samples = g.sum([loss_sum, samples])
+            lr = float(sched.get_last_lr()[0])
+            val = _evaluate(model, val_set, loss_fn, cfg, g) if val_set is not None else None
+            sched.step()
+            train_loss = loss_sum / samples
+            history.append(
+                {"epoch": epoch + 1, "train_loss": train_loss, "val_loss": val, "lr": lr}
+            )
+            improved = val is not None and (best_val is None or val < best_val)
+            if improved:
+                best_val, best_epoch = val, epoch + 1
+            if main:
+                save(epoch + 1, 0, {})
+                if improved:
+                    save(epoch + 1, 0, {}, best_path)
+            shown = {"loss": f"{train_loss:.4g}"} | ({} if val is None else {"val": f"{val:.4g}"})
+            bar.set_postfix(shown)
+    g.barrier()
+    return TrainResult(
+        history=tuple(EpochStats(**h) for h in history),
+        best_epoch=best_epoch,
+        best_val_loss=best_val,
+        last_checkpoint=last_path,
+        best_checkpoint=best_path if best_epoch is not None else None,
+    )
