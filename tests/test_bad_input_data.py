@@ -40,7 +40,7 @@ from rgbd_rs.io import (
     write_npz,
     write_png,
 )
-from rgbd_rs.metrics import depth_edges, edge_alignment, rms_error
+from rgbd_rs.metrics import bad_pixel_rate, depth_edges, edge_alignment, edge_band, rms_error
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
 SHAPE = ShapeMismatchError
@@ -329,6 +329,23 @@ CASES: list[Case] = [
     Case(
         "rms_error", lambda: rms_error(D, D, mask=[[1, 2], [3]]), ARG, r"^mask: got list", "ragged"
     ),
+    Case("bad_pixel_rate", lambda: bad_pixel_rate(D, D, -1.0), ARG, r"^threshold: got -1"),
+    Case(
+        "bad_pixel_rate",
+        lambda: bad_pixel_rate(D, D[:3], 1.0),
+        SHAPE,
+        r"^truth: got shape \(3, 8\)",
+        "shape",
+    ),
+    Case(
+        "bad_pixel_rate",
+        lambda: bad_pixel_rate(D, D, 1.0, mask=np.ones((6, 8))),
+        SHAPE,
+        r"^mask: got float64",
+        "float mask",
+    ),
+    Case("edge_band", lambda: edge_band(D, width=-1), ARG, r"^width: got -1"),
+    Case("edge_band", lambda: edge_band(np.ones(3)), SHAPE, r"^depth: got shape \(3,\)", "1-D"),
 ]
 
 

@@ -80,9 +80,10 @@ def fuse_inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     from rgbd_rs.io import write_png
 
     d = tmp_path_factory.mktemp("fuse_inputs")
-    img = np.random.default_rng(0).integers(0, 255, (135, 240, 3)).astype(np.uint8)
-    write_png(d / "l.png", img)
-    write_png(d / "r.png", img)
+    tex = np.random.default_rng(0).integers(0, 255, (135, 270, 3)).astype(np.uint8)
+    # A wall at 1 m: 22 px of disparity on this rig (right x sees left x + d); the ToF agrees.
+    write_png(d / "l.png", tex[:, :240])
+    write_png(d / "r.png", tex[:, 22:262])
     np.save(d / "depth.npy", np.ones((424, 512), np.float32))
     np.save(d / "amp.npy", np.ones((424, 512), np.float32))
     save_rig(d / "calib.json", synth3_rig(0.125))
@@ -129,6 +130,8 @@ def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str)
         "strings in the calibration",
         "malformed calibration",
         "calibration is a list",
+        "a camera lacks a key",
+        "bad --reference",
     ],
 )
 def test_bad_fuse_runs_end_in_one_line(
@@ -172,6 +175,11 @@ def test_bad_fuse_runs_end_in_one_line(
             {"calib": _bad_file(tmp_path, "l.json", json.dumps([1]).encode())},
             ("--calib", "l.json"),
         ),
+        "a camera lacks a key": (
+            {"calib": _edit_json(good["--calib"], tmp_path / "k.json", None)},
+            ("--calib", "k.json", "calibration: camera 'tof' has no key 'fx'"),
+        ),
+        "bad --reference": ({"reference": Path("middle")}, ("--reference", "'middle'")),
     }[case]
     _assert_one_line_error(run(*_fuse_argv(good, **replace)), *needles)
 
@@ -185,7 +193,10 @@ def _edit_json(src: Path, dst: Path, fx: object) -> Path:
     import json
 
     doc = json.loads(src.read_text())
-    doc["tof"]["fx"] = fx
+    if fx is None:
+        del doc["tof"]["fx"]
+    else:
+        doc["tof"]["fx"] = fx
     dst.write_text(json.dumps(doc))
     return dst
 
@@ -240,19 +251,25 @@ def test_unwritable_output_is_one_line(tmp_path: Path) -> None:
 
 def test_eval_and_train_are_groups_pipelines_extend() -> None:
     """`rgbd eval WHAT`: fusion registers its WHAT from its own module."""
-    from rgbd_rs.cli import build_parser
     from rgbd_rs.cli._args import GROUPS, Commands
 
     assert set(GROUPS) == {"eval", "train"}
     res = run("eval", "--help")
     assert res.returncode == 0 and "fusion" in res.stdout
-    # A later pipeline adds `rgbd eval segmentation` without touching fusion's module.
-    import argparse
+    # A later pipeline adds `rgbd eval segmentation` without touching fusion's module: every
+    # pipeline registers with the same Commands, which shares the groups.
+    from rgbd_rs.cli import PIPELINES
+    from rgbd_rs.cli._args import Parser
 
-    parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    Commands(sub).group_command("train", "demo_what", lambda args: 0, help="h", description="d")
-    assert parser.parse_args(["train", "demo_what"]).run is not None
+    parser = Parser(prog="rgbd")
+    commands = Commands(parser.add_subparsers(dest="command"))
+    for pipeline in PIPELINES:
+        pipeline.register(commands)
+    commands.group_command("eval", "demo_what", lambda args: 0, help="h", description="d")
+    assert parser.parse_args(["eval", "demo_what"]).run is not None
+    assert parser.parse_args(["eval", "fusion"]).run is not None
+    res = run("train", "--help")
+    assert res.returncode == 0 and "confidence" in res.stdout
 
 
 def test_a_warning_is_one_line_and_the_run_succeeds(
@@ -271,3 +288,32 @@ def test_a_warning_is_one_line_and_the_run_succeeds(
 def test_a_folder_given_as_a_file_is_named(fuse_inputs: dict[str, Path], tmp_path: Path) -> None:
     res = run(*_fuse_argv(fuse_inputs, calib=tmp_path))
     _assert_one_line_error(res, "--calib", "is a folder")
+
+
+def test_fuse_prints_the_search_range_and_each_inputs_coverage(
+    fuse_inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import re
+
+    assert main(_fuse_argv(fuse_inputs, out=tmp_path / "a")) == 0
+    out = capsys.readouterr().out
+    # The wall at 22 px: the range is the smallest SGM step that covers it with a margin.
+    assert "SGM search range: 0-26 px (from the ToF disparities)" in out
+    cover = re.search(
+        r"valid pixels on the right camera: ToF (\S+)%, SGM (\S+)%, fused (\S+)%", out
+    )
+    assert cover is not None, out
+    tof, sgm, fused = (float(v) for v in cover.groups())
+    assert tof > 90 and 50 < sgm < 90 and fused > 90
+    argv = [*_fuse_argv(fuse_inputs, out=tmp_path / "b"), "--reference", "left"]
+    assert main([*argv, "--max-disparity", "40"]) == 0
+    out = capsys.readouterr().out
+    assert "SGM search range: 0-40 px (--max-disparity)" in out
+    assert "valid pixels on the left camera" in out
+
+
+def test_fuse_help_documents_the_calibration_layout() -> None:
+    res = run("fuse", "--help")
+    assert res.returncode == 0
+    for needle in ("examples/calibration.json", '"tof_to_reference"', "baseline", "--reference"):
+        assert needle in res.stdout, needle

@@ -10,7 +10,7 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
-__all__ = ["depth_edges", "edge_alignment", "rms_error"]
+__all__ = ["bad_pixel_rate", "depth_edges", "edge_alignment", "edge_band", "rms_error"]
 
 #: Relative depth step that counts as a depth edge in :func:`edge_alignment` (5 %).
 DEPTH_EDGE_REL_STEP = 0.05
@@ -45,6 +45,46 @@ def rms_error(
         )
     diff = e[keep] - t[keep]
     return float(np.sqrt(np.mean(diff**2)))
+
+
+def bad_pixel_rate(
+    estimate: npt.ArrayLike,
+    truth: npt.ArrayLike,
+    threshold: float,
+    mask: npt.ArrayLike | None = None,
+) -> float:
+    """Fraction of the compared pixels (both finite, and ``mask``) whose absolute error exceeds
+    ``threshold`` (the ">1 px" / ">2 px" bad-pixel rates of stereo benchmarks)."""
+    t = _validate.real("threshold", threshold, nonnegative=True)
+    e = _validate.array("estimate", estimate, shape=(None, None))
+    g = _validate.array("truth", truth, shape=e.shape)
+    keep = np.isfinite(e) & np.isfinite(g)
+    if mask is not None:
+        m = _validate.asarray("mask", mask)
+        if m.dtype != np.bool_ or m.shape != e.shape:
+            raise ShapeMismatchError(
+                f"mask: got {m.dtype} of shape {m.shape}, expected bool of shape {e.shape}"
+            )
+        keep &= m
+    if not keep.any():
+        raise InvalidArgumentError(
+            "mask: got no pixel where estimate and truth are both finite, expected at least one"
+        )
+    return float(np.mean(np.abs(e[keep] - g[keep]) > t))
+
+
+def edge_band(
+    depth: npt.ArrayLike, width: int = 2, rel_step: float = DEPTH_EDGE_REL_STEP
+) -> npt.NDArray[np.bool_]:
+    """Pixels within ``width`` pixels (chessboard distance) of a depth edge of ``depth`` (or of a
+    disparity map: a relative step is the same in both); the edge pixel is the nearer side, so
+    ``width >= 1`` covers both sides."""
+    w = _validate.integer("width", width, maximum=1000)
+    edges = depth_edges(depth, rel_step)
+    if w == 0:
+        return edges
+    kernel = np.ones((2 * w + 1, 2 * w + 1), np.uint8)
+    return np.asarray(cv2.dilate(edges.astype(np.uint8), kernel) > 0)
 
 
 def depth_edges(

@@ -50,6 +50,12 @@ def register(commands: Commands) -> None:
         default=0.5,
         help="stereo size relative to 1920x1080 (default 0.5; at most 4, 7680x4320)",
     )
+    syn.add_argument(
+        "--vary-tof",
+        action="store_true",
+        help="give every scene its own randomised ToF sensor (frequency, power, noise, multipath,"
+        " mixed pixels, amplitude unit, flying pixels): training data of the confidence ConvNet",
+    )
     syn.add_argument("--preview", action="store_true", help="write OUT/preview.png only")
     syn.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -85,6 +91,7 @@ def run_synth(args: argparse.Namespace) -> int:
         test=args.test,
         seed=args.seed,
         scale=args.scale,
+        vary_tof=args.vary_tof,
         quiet=args.quiet,
     )
     print(f"wrote {args.train} + {args.test} scenes; manifest {path}")

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -35,6 +35,7 @@ from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.calibration import load_rig, save_rig
 from rgbd_rs.data.synth_scene import random_scene, shared_meshes
+from rgbd_rs.data.tof_variation import apply, random_variation
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.geometry import depth_to_disparity
 from rgbd_rs.io import (
@@ -156,7 +157,8 @@ def render_sample(
 
 def scene_rng(seed: int, split: Split, index: int, stream: int = 0) -> np.random.Generator:
     """Generator ``stream`` of scene ``index`` of ``split`` (independent of every other scene):
-    stream 0 draws the scene and colour noise, stream 1 the ToF seed."""
+    stream 0 draws the scene and colour noise, stream 1 the ToF seed, stream 2 the varied ToF
+    sensor of a ``vary_tof`` dataset."""
     return np.random.default_rng([seed, 0 if split == "train" else 1, index, stream])
 
 
@@ -166,12 +168,27 @@ def tof_seed(seed: int, split: Split, index: int) -> int:
 
 
 def generate(
-    seed: int, split: Split, index: int, rig: ToFStereoRig, meshes: list[Mesh] | None = None
+    seed: int,
+    split: Split,
+    index: int,
+    rig: ToFStereoRig,
+    meshes: list[Mesh] | None = None,
+    *,
+    vary_tof: bool = False,
 ) -> tuple[SynthSample, RenderScene]:
-    """Build and render scene ``index`` of ``split``."""
+    """Build and render scene ``index`` of ``split``; ``vary_tof`` draws the scene's own ToF
+    sensor (:mod:`rgbd_rs.data.tof_variation`, from a stream of its own)."""
     rng = scene_rng(seed, split, index)
     scene = random_scene(rng, shared_meshes() if meshes is None else meshes).build()
-    return render_sample(scene, rig, rng, tof_seed=tof_seed(seed, split, index))[0], scene
+    if not vary_tof:
+        return render_sample(scene, rig, rng, tof_seed=tof_seed(seed, split, index))[0], scene
+    vrng = scene_rng(seed, split, index, 2)
+    variation = random_variation(vrng)
+    sample, _ = render_sample(
+        scene, rig, rng, model=variation.model, tof_seed=tof_seed(seed, split, index)
+    )
+    depth, amplitude = apply(sample.tof_depth, sample.tof_amplitude, variation, vrng)
+    return replace(sample, tof_depth=depth, tof_amplitude=amplitude), scene
 
 
 def _write_scene(folder: Path, s: SynthSample) -> dict[str, str]:
@@ -193,9 +210,14 @@ def write_dataset(
     test: int = 15,
     seed: int = 0,
     scale: float = 0.5,
+    vary_tof: bool = False,
     quiet: bool = False,
 ) -> Path:
     """Generate (or resume) a dataset in ``out``; returns the manifest path.
+
+    ``vary_tof`` gives every scene its own randomised ToF sensor (frequency, power, noise,
+    multipath, mixed pixels, amplitude unit, flying pixels; :mod:`rgbd_rs.data.tof_variation`),
+    the training data of the confidence ConvNet.
 
     Re-running with the same arguments skips scenes already written (verified by hash) and
     completes the rest; other arguments on an existing dataset raise RgbdError.
@@ -219,6 +241,8 @@ def write_dataset(
         "test": n_test,
         "meshes": len(meshes),
     }
+    if vary_tof:  # only then: datasets made before the option keep their parameters
+        params["vary_tof"] = True
     manifest_path = out / "manifest.json"
     manifest: dict[str, Any] = {"format": FORMAT, "params": params, "complete": False, "scenes": {}}
     if manifest_path.exists():
@@ -241,7 +265,7 @@ def write_dataset(
             (folder / f).is_file() and sha256(folder / f) == h for f, h in known.items()
         ):
             continue
-        sample, _ = generate(seed, split, i, rig, meshes)
+        sample, _ = generate(seed, split, i, rig, meshes, vary_tof=bool(vary_tof))
         manifest["scenes"][key] = _write_scene(folder, sample)
         write_json(manifest_path, manifest)
     manifest["complete"] = True

@@ -29,11 +29,18 @@ from rgbd_rs.fusion.crosscheck import warp_to_target
 from rgbd_rs.fusion.fuse import fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.meshes import Mesh
-from rgbd_rs.metrics import rms_error
+from rgbd_rs.metrics import bad_pixel_rate, edge_band, rms_error
+from rgbd_rs.nn.confidence import ConfidenceEstimator
 from rgbd_rs.render import Material, Scene, ToFModel
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
 METHODS = ("Interpolated ToF", "SGM", "LC uniform", "LC heuristic", "LC oracle confidence")
+#: The learned-confidence row, evaluated when an estimator is given (before the oracle).
+CONVNET = "LC ConvNet"
+#: Band around ground-truth depth edges where the edge measures are taken (px).
+EDGE_BAND = 2
+#: Bad-pixel thresholds (px).
+BAD_THRESHOLDS = (1.0, 2.0)
 #: Error (px) at which the oracle confidence reaches 0. Chosen (METHOD_NOTES §3: T unknown).
 ORACLE_T = 3.0
 #: Middlebury virtual rig: the 2005/2006 sets' focal (3740 px at full size, here scaled with the
@@ -59,10 +66,21 @@ class Sample:
 
 @dataclass
 class SceneResult:
+    """Per method: ``rms`` (all compared pixels) and ``measures`` (``rms``, ``bad1``, ``bad2``,
+    ``edge_rms``, ``edge_bad1``, ``edge_bad2``: bad-pixel fractions, and the same measures in a
+    ``EDGE_BAND``-pixel band around ground-truth depth edges)."""
+
     name: str
     rms: dict[str, float]
     pixels: int
     maps: dict[str, F32] = field(default_factory=dict, repr=False)
+    measures: dict[str, dict[str, float]] = field(default_factory=dict)
+    edge_pixels: int = 0
+
+    @property
+    def methods(self) -> tuple[str, ...]:
+        """The methods evaluated, in table order."""
+        return tuple(self.rms)
 
 
 def non_occluded(disparity: npt.ArrayLike, target_sign: int) -> npt.NDArray[np.bool_]:
@@ -131,9 +149,28 @@ def synth_samples(root: str | Path, split: str = "test") -> Iterator[Sample]:
         )
 
 
-def evaluate_sample(s: Sample, params: LcParams | None = None) -> SceneResult:
-    """All five methods on one sample, RMS on the common valid non-occluded pixels."""
-    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, params=params)
+def _measures(
+    d: F32, gt: F32, mask: npt.NDArray[np.bool_], band: npt.NDArray[np.bool_]
+) -> dict[str, float]:
+    out: dict[str, float] = {"rms": rms_error(d, gt, mask)}
+    for t in BAD_THRESHOLDS:
+        out[f"bad{t:g}"] = bad_pixel_rate(d, gt, t, mask)
+    edge = mask & band
+    if edge.any():
+        out["edge_rms"] = rms_error(d, gt, edge)
+        for t in BAD_THRESHOLDS:
+            out[f"edge_bad{t:g}"] = bad_pixel_rate(d, gt, t, edge)
+    return out
+
+
+def evaluate_sample(
+    s: Sample, params: LcParams | None = None, estimator: ConfidenceEstimator | None = None
+) -> SceneResult:
+    """Every method on one sample, measured on the common valid non-occluded pixels; with an
+    ``estimator``, also LC with the ConvNet's confidences (:data:`CONVNET`)."""
+    out = fuse(
+        s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, confidence="heuristic", params=params
+    )
     ref, tgt, sign = views(s.left, s.right, s.rig.reference)
     tof_d, st_d = out.tof.disparity, out.stereo_disparity
     uni, _ = lc_fuse(ref, tgt, [tof_d, st_d], None, target_sign=sign, params=params)
@@ -149,28 +186,55 @@ def evaluate_sample(s: Sample, params: LcParams | None = None) -> SceneResult:
         ref, tgt, [tof_d, st_d], [oracle(tof_d), oracle(st_d)], target_sign=sign, params=params
     )
     maps = dict(zip(METHODS, (tof_d, st_d, uni, out.disparity, orc), strict=True))
+    if estimator is not None:
+        p_t, p_s = estimator(ref, tgt, tof_d, out.tof.amplitude, st_d, reference=s.rig.reference)
+        net, _ = lc_fuse(ref, tgt, [tof_d, st_d], [p_t, p_s], target_sign=sign, params=params)
+        maps = {k: maps[k] for k in METHODS[:4]} | {CONVNET: net, METHODS[4]: orc}
+        maps["P_T"], maps["P_S"] = p_t, p_s
+    methods = [k for k in maps if k not in ("P_T", "P_S")]
     mask = np.isfinite(gt) & non_occluded(gt, sign)
-    for m in maps.values():
-        mask &= np.isfinite(m)
+    for k in methods:
+        mask &= np.isfinite(maps[k])
     if not mask.any():
         raise RgbdError(f"{s.name}: no pixel is valid in every map; nothing to evaluate")
-    rms = {k: rms_error(v, gt, mask) for k, v in maps.items()}
+    band = edge_band(gt, EDGE_BAND)
+    measures = {k: _measures(maps[k], gt, mask, band) for k in methods}
+    rms = {k: m["rms"] for k, m in measures.items()}
     maps["gt"] = gt
     maps["mask"] = mask.astype(np.float32)
-    return SceneResult(s.name, rms, int(mask.sum()), maps)
+    return SceneResult(s.name, rms, int(mask.sum()), maps, measures, int((mask & band).sum()))
 
 
 def markdown_table(results: list[SceneResult], title: str) -> str:
-    """Per-scene RMS and the average over scenes (thesis Table 3.2 layout, transposed)."""
-    head = "| scene | pixels | " + " | ".join(METHODS) + " |"
-    rule = "|---|---:|" + "---:|" * len(METHODS)
+    """Per-scene RMS and the average over scenes (thesis Table 3.2 layout, transposed), then the
+    scene-averaged bad-pixel rates and the same measures in the band around depth edges."""
+    methods = results[0].methods
+    head = "| scene | pixels | " + " | ".join(methods) + " |"
+    rule = "|---|---:|" + "---:|" * len(methods)
     rows = [
-        f"| {r.name} | {r.pixels} | " + " | ".join(f"{r.rms[k]:.3f}" for k in METHODS) + " |"
+        f"| {r.name} | {r.pixels} | " + " | ".join(f"{r.rms[k]:.3f}" for k in methods) + " |"
         for r in results
     ]
-    avg = {k: float(np.mean([r.rms[k] for r in results])) for k in METHODS}
-    rows.append("| **mean** | | " + " | ".join(f"**{avg[k]:.3f}**" for k in METHODS) + " |")
-    return f"### {title}\n\nRMS disparity error (px)\n\n" + "\n".join([head, rule, *rows]) + "\n"
+    avg = {k: float(np.mean([r.rms[k] for r in results])) for k in methods}
+    rows.append("| **mean** | | " + " | ".join(f"**{avg[k]:.3f}**" for k in methods) + " |")
+    text = f"### {title}\n\nRMS disparity error (px)\n\n" + "\n".join([head, rule, *rows])
+    keys = [("rms", "RMS (px)")] + [(f"bad{t:g}", f"> {t:g} px (%)") for t in BAD_THRESHOLDS]
+    keys += [(f"edge_{k}", f"edge band {label}") for k, label in keys]
+    head2 = "| measure (mean over scenes) | " + " | ".join(methods) + " |"
+    rows2 = []
+    for key, label in keys:
+        vals = [[r.measures[k][key] for r in results if key in r.measures[k]] for k in methods]
+        if not all(vals):
+            continue
+        scale = 100.0 if "bad" in key else 1.0
+        cells = " | ".join(f"{scale * float(np.mean(v)):.3f}" for v in vals)
+        rows2.append(f"| {label} | {cells} |")
+    text += (
+        f"\n\nAll compared pixels and a {EDGE_BAND}-px band around ground-truth depth edges "
+        f"({sum(r.edge_pixels for r in results)} of {sum(r.pixels for r in results)} pixels)\n\n"
+        + "\n".join([head2, "|---|" + "---:|" * len(methods), *rows2])
+    )
+    return text + "\n"
 
 
 def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
@@ -195,6 +259,23 @@ def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
     return tile(cells, labels, columns=8, width=240)
 
 
+def confidence_figure(samples: list[Sample], results: list[SceneResult]) -> U8:
+    """BGR picture in the thesis Fig. 3.5 layout: colour view, estimated ToF confidence, estimated
+    stereo confidence (bright = reliable), beside the GT-derived targets for comparison."""
+    cells, labels = [], []
+    for s, r in zip(samples, results, strict=True):
+        ref = s.right if s.rig.reference == "right" else s.left
+        gt = r.maps["gt"]
+        cells.append(as_bgr(ref))
+        labels.append(f"{s.name} colour")
+        for key, src, short in (("P_T", "Interpolated ToF", "ToF"), ("P_S", "SGM", "stereo")):
+            e = np.abs(r.maps[src] - gt)
+            target = np.where(np.isfinite(e), 1 - np.minimum(e, ORACLE_T) / ORACLE_T, np.nan)
+            cells += [colorize(r.maps[key], 0, 1), colorize(target.astype(np.float32), 0, 1)]
+            labels += [f"{short} confidence (ConvNet)", f"{short} target (GT)"]
+    return tile(cells, labels, columns=5, width=240)
+
+
 def evaluate(
     samples: Iterable[Sample],
     out: str | Path | None,
@@ -202,13 +283,15 @@ def evaluate(
     title: str,
     figure_rows: int = 5,
     params: LcParams | None = None,
+    estimator: ConfidenceEstimator | None = None,
     quiet: bool = False,
 ) -> list[SceneResult]:
-    """Evaluate every sample; with ``out``, write ``OUT/table.md`` and ``OUT/figure.png``."""
+    """Evaluate every sample; with ``out``, write ``OUT/table.md`` and ``OUT/figure.png`` (and,
+    with an ``estimator``, ``OUT/confidence.png``: thesis Fig. 3.5's colour, P_T, P_S)."""
     results: list[SceneResult] = []
     shown: list[Sample] = []
     for s in tqdm(list(samples), desc=title, disable=quiet, unit="scene"):
-        r = evaluate_sample(s, params)
+        r = evaluate_sample(s, params, estimator)
         if len(shown) < figure_rows:
             shown.append(s)
         else:
@@ -219,4 +302,6 @@ def evaluate(
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "table.md").write_text(markdown_table(results, title))
         save_png(folder / "figure.png", figure(shown, results[: len(shown)]))
+        if estimator is not None:
+            save_png(folder / "confidence.png", confidence_figure(shown, results[: len(shown)]))
     return results

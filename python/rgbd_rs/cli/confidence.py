@@ -1,0 +1,79 @@
+"""``rgbd train confidence``: train the ToF + stereo confidence ConvNet (thesis §3.6-3.7)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rgbd_rs.cli._args import Commands, integer, real
+
+
+def register(commands: Commands) -> None:
+    """Add ``rgbd train confidence``."""
+    p = commands.group_command(
+        "train",
+        "confidence",
+        run_train,
+        help="train the ToF + stereo confidence ConvNet",
+        description="Train the confidence ConvNet of thesis §3.6 on a `rgbd synth --vary-tof` "
+        "dataset, validating on the Middlebury pairs with simulated ToF (never trained on). "
+        "Clue caches go to OUT/cache (resumable; --shard i/n fans the caching out), checkpoints "
+        "to OUT/last.pt and OUT/best.pt; re-running the same command resumes. Runs under "
+        "torchrun for DistributedDataParallel training. Copy OUT/best.pt to "
+        "python/rgbd_rs/nn/weights/confidence.pt to ship it.",
+    )
+    p.add_argument("--data", type=Path, required=True, help="rgbd synth dataset folder")
+    p.add_argument("--out", type=Path, default=Path("out/train_confidence"), help="output folder")
+    p.add_argument("--width", type=integer(1, 1024), default=32, help="filters per layer (32)")
+    p.add_argument("--epochs", type=integer(1), default=10, help="epochs (10)")
+    p.add_argument("--batch-size", type=integer(1), default=16, help="patches per step (16)")
+    p.add_argument("--lr", type=real(0, 10), default=1e-3, help="Adam learning rate (1e-3)")
+    p.add_argument("--patch", type=integer(8, 1024), default=64, help="patch side (64)")
+    p.add_argument("--per-scene", type=integer(1), default=30, help="patches per scene (30)")
+    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed (0)")
+    p.add_argument(
+        "--checkpoint-steps", type=integer(0), default=50, help="also save every N steps (50)"
+    )
+    p.add_argument(
+        "--shard",
+        type=_shard,
+        default=None,
+        help="only cache the clues of every n-th scene from i (i/n), then stop",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        i, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"got {text!r}, expected i/n (e.g. 0/4)") from None
+    if not 0 <= i < n:
+        raise argparse.ArgumentTypeError(f"got {text!r}, expected 0 <= i < n")
+    return i, n
+
+
+def run_train(args: argparse.Namespace) -> int:
+    from rgbd_rs.nn.confidence_train import Recipe, prepare_caches, train_confidence
+    from rgbd_rs.nn.train import TrainConfig
+
+    if args.shard is not None:
+        train, val = prepare_caches(
+            args.data, args.out / "cache", shard=args.shard, quiet=args.quiet
+        )
+        print(f"cached {len(train)} training and {len(val)} validation scenes (shard {args.shard})")
+        return 0
+    config = TrainConfig(
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        optimizer="adam",
+        lr=args.lr,
+        lr_step=10,
+        lr_gamma=0.9,
+        seed=args.seed,
+        checkpoint_steps=args.checkpoint_steps,
+    )
+    recipe = Recipe(width=args.width, patch=args.patch, per_scene=args.per_scene)
+    best = train_confidence(args.data, args.out, recipe=recipe, config=config, quiet=args.quiet)
+    print(f"best checkpoint: {best}")
+    return 0

@@ -1,0 +1,143 @@
+"""The four input clues of the confidence ConvNet (thesis §3.6, eq. 3.2-3.6).
+
+For a rectified pair on the reference camera (right, as the thesis; left works too):
+
+- ``Delta_LR = |I_L'/mu_L - I_R/mu_R|`` (eq. 3.2): the grey target image warped onto the
+  reference with the stereo disparity (``I_L'``), each image divided by its own mean, absolute
+  difference;
+- ``D_T``, ``D_S``: the ToF and stereo disparities (pixels) on the reference camera;
+- ``A_T``: the ToF amplitude on the reference camera divided by its per-frame median (our
+  choice: the thesis divides by a training-set sigma alone, which ties the network to one sensor's
+  amplitude unit; the per-frame median makes the clue unit-free, so amplitudes in DN, in 0-1 or in
+  any other unit give the same input).
+
+:func:`compute_clues` returns these raw maps; :func:`normalise` divides each by the sigma of eq.
+3.3-3.6 (the average over the training scenes of each clue's per-scene standard deviation, stored
+in the checkpoint, never hard-coded). Invalid pixels (NaN in any input) become 0 after
+normalisation and are flagged in :attr:`Clues.valid`: NaN never reaches the network.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.fusion._inputs import F32, map2d, rgb8
+
+#: Clue names, in channel order.
+NAMES = ("delta_lr", "tof_disparity", "stereo_disparity", "tof_amplitude")
+
+
+@dataclass(frozen=True)
+class Clues:
+    """Raw clues ``4 x H x W`` float32 (NaN where undefined) in :data:`NAMES` order."""
+
+    maps: F32
+
+    @property
+    def valid(self) -> npt.NDArray[np.bool_]:
+        """``4 x H x W``: where each clue is defined."""
+        return np.isfinite(self.maps)
+
+
+def _grey(img: np.ndarray) -> F32:
+    return np.asarray(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), dtype=np.float32)
+
+
+def compute_clues(
+    reference_image: npt.ArrayLike,
+    target_image: npt.ArrayLike,
+    tof_disparity: npt.ArrayLike,
+    tof_amplitude: npt.ArrayLike,
+    stereo_disparity: npt.ArrayLike,
+    *,
+    reference: Literal["left", "right"] = "right",
+) -> Clues:
+    """The raw clues of eq. 3.2 and 3.4-3.6 on the reference camera.
+
+    Args:
+        reference_image, target_image: uint8 RGB of the reference camera and the other one.
+        tof_disparity, tof_amplitude: the ToF reprojected on the reference (``H x W``, NaN none).
+        stereo_disparity: SGM on the reference (``d = u_left - u_right``, NaN none).
+        reference: which camera of the pair the maps lie on ("right" as the thesis).
+    """
+    ref = rgb8("reference_image", reference_image)
+    h, w = ref.shape[:2]
+    tgt = rgb8("target_image", target_image, (w, h))
+    d_t = map2d("tof_disparity", tof_disparity, (h, w))
+    a_t = map2d("tof_amplitude", tof_amplitude, (h, w))
+    d_s = map2d("stereo_disparity", stereo_disparity, (h, w))
+    side = _validate.choice("reference", reference, ("left", "right"))
+    g_r, g_t = _grey(ref), _grey(tgt)
+    # Reference pixel x sees the target at x + d (reference right) or x - d (reference left).
+    sign = 1.0 if side == "right" else -1.0
+    xs = np.arange(w, dtype=np.float32)[None, :] + sign * d_s
+    ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w))
+    ok = np.isfinite(xs) & (xs >= 0) & (xs <= w - 1)
+    warped = cv2.remap(
+        g_t,
+        np.where(ok, xs, -1).astype(np.float32),
+        np.ascontiguousarray(ys),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    )
+    mu_r = float(g_r.mean()) or 1.0
+    mu_t = float(g_t.mean()) or 1.0
+    delta = np.where(ok, np.abs(warped / mu_t - g_r / mu_r), np.nan)
+    with np.errstate(invalid="ignore"):
+        amp_ok = np.isfinite(a_t) & (a_t > 0)
+    scale = float(np.median(a_t[amp_ok])) if amp_ok.any() else 1.0
+    amp = np.where(amp_ok & np.isfinite(d_t), a_t / scale, np.nan)
+    maps = np.stack([delta, d_t, d_s, amp]).astype(np.float32)
+    return Clues(maps)
+
+
+def scene_sigmas(clues: Clues) -> F32:
+    """Per-scene standard deviation of each clue over its valid pixels (NaN if none)."""
+    out = np.full(len(NAMES), np.nan, np.float32)
+    for k in range(len(NAMES)):
+        v = clues.maps[k][np.isfinite(clues.maps[k])]
+        if v.size > 1:
+            out[k] = np.std(v)
+    return out
+
+
+def training_sigmas(per_scene: npt.ArrayLike) -> F32:
+    """Eq. 3.3-3.6's sigma: the average over training scenes of each clue's per-scene std."""
+    s = np.asarray(per_scene, dtype=np.float64)
+    if s.ndim != 2 or s.shape[1] != len(NAMES):
+        raise InvalidArgumentError(
+            f"per_scene: got shape {s.shape}, expected (scenes, {len(NAMES)})"
+        )
+    sig = np.nanmean(np.where(s > 0, s, np.nan), axis=0) if np.isfinite(s).any() else s[0]
+    if not np.all(np.isfinite(sig) & (sig > 0)):
+        raise InvalidArgumentError(f"per_scene: got sigma {sig.tolist()}, expected positive values")
+    return np.asarray(sig, dtype=np.float32)
+
+
+def normalise(clues: Clues, sigmas: npt.ArrayLike) -> F32:
+    """``4 x H x W`` network input: each clue divided by its sigma, invalid pixels set to 0."""
+    sig = _validate.array("sigmas", sigmas, shape=(len(NAMES),), finite=True)
+    if np.any(sig <= 0):
+        raise InvalidArgumentError(f"sigmas: got {sig.tolist()}, expected positive values")
+    x = clues.maps / sig[:, None, None]
+    return np.where(np.isfinite(x), x, 0).astype(np.float32)
+
+
+def target_confidence(disparity: npt.ArrayLike, gt: npt.ArrayLike, threshold: float) -> F32:
+    """Training target (thesis §3.7): ``1 - min(|d - gt|, T)/T``; NaN where either is missing.
+
+    The thesis' sentence gives ``min(|err|, T)/T`` (an error, 1 = bad); its figures show bright =
+    reliable, so the confidence is one minus that (METHOD_NOTES §3)."""
+    d = np.asarray(disparity, dtype=np.float32)
+    g = np.asarray(gt, dtype=np.float32)
+    t = _validate.real("threshold", threshold, positive=True)
+    e = np.abs(d - g)
+    return np.where(np.isfinite(e), 1 - np.minimum(e, t) / t, np.nan).astype(np.float32)

@@ -1,0 +1,152 @@
+"""The ToF + stereo confidence ConvNet of thesis §3.6 (Fig. 3.3).
+
+Six convolutions, ReLU after all but the last, ``width`` filters (128 in the thesis) in the first
+five and 2 in the last, 5x5 then 3x3, no pooling. The input is padded by 7 pixels by replicating
+its border (2 for the 5x5 layer + 5 x 1 for the 3x3 ones) and every convolution is "valid", so the
+output has exactly the input's size and no layer sees zero padding. Output channel 0 is the ToF
+confidence P_T, channel 1 the stereo confidence P_S; training regresses them with an MSE loss
+(§3.7) and :func:`predict` clamps them to [0, 1].
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import RgbdError
+
+#: Name stored in checkpoints; a checkpoint of another architecture is refused.
+ARCH = "confidence-convnet/1"
+#: Channels in and out.
+IN_CHANNELS = 4
+OUT_CHANNELS = 2
+#: Replicate padding that makes the output the input's size: (5 - 1)/2 + 5 * (3 - 1)/2.
+PAD = 7
+
+
+class ConfidenceNet(nn.Module):
+    """Fig. 3.3's network; ``width`` filters in the five hidden layers."""
+
+    def __init__(self, width: int = 128) -> None:
+        super().__init__()
+        w = _validate.integer("width", width, minimum=1, maximum=4096)
+        self.width = w
+        layers: list[nn.Module] = [nn.Conv2d(IN_CHANNELS, w, 5)]
+        layers += [nn.Conv2d(w, w, 3) for _ in range(4)]
+        layers.append(nn.Conv2d(w, OUT_CHANNELS, 3))
+        self.layers = nn.ModuleList(layers)
+        for conv in self.layers:
+            assert isinstance(conv, nn.Conv2d)
+            nn.init.xavier_uniform_(conv.weight)  # §3.7: Xavier initialisation
+            assert conv.bias is not None
+            nn.init.zeros_(conv.bias)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``N x 4 x H x W`` normalised clues -> ``N x 2 x H x W`` (P_T, P_S), unclamped."""
+        y = F.pad(x, (PAD, PAD, PAD, PAD), mode="replicate")
+        for i, conv in enumerate(self.layers):
+            y = conv(y)
+            if i < len(self.layers) - 1:
+                y = F.relu(y)
+        return y
+
+
+def predict(
+    net: ConfidenceNet, inputs: npt.ArrayLike, *, tile: int = 256
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    """``(P_T, P_S)`` in [0, 1] for a ``4 x H x W`` normalised clue image.
+
+    Runs in tiles of ``tile`` x ``tile`` output pixels with a 7-pixel halo (the receptive field's
+    radius), so memory stays bounded on large images and the result equals a whole-image pass.
+    """
+    x = _validate.array("inputs", inputs, shape=(IN_CHANNELS, None, None), finite=True)
+    t = _validate.integer("tile", tile, minimum=16, maximum=8192)
+    h, w = x.shape[1:]
+    device = next(net.parameters()).device
+    out = np.empty((OUT_CHANNELS, h, w), np.float32)
+    # Replicate-pad once here; each tile then takes its halo from real or replicated pixels,
+    # exactly what the whole-image pass would see.
+    padded = np.pad(x, ((0, 0), (PAD, PAD), (PAD, PAD)), mode="edge")
+    net.eval()
+    with torch.inference_mode():
+        for y0 in range(0, h, t):
+            for x0 in range(0, w, t):
+                y1, x1 = min(h, y0 + t), min(w, x0 + t)
+                patch = padded[:, y0 : y1 + 2 * PAD, x0 : x1 + 2 * PAD]
+                inp = torch.from_numpy(np.ascontiguousarray(patch))[None].to(device)
+                y = inp
+                for i, conv in enumerate(net.layers):
+                    y = conv(y)
+                    if i < len(net.layers) - 1:
+                        y = F.relu(y)
+                out[:, y0:y1, x0:x1] = y[0].clamp(0, 1).cpu().numpy()
+    return out[0], out[1]
+
+
+#: The shipped checkpoint (trained by ``rgbd train confidence``; README: training recipe).
+WEIGHTS = Path(__file__).parent / "weights" / "confidence.pt"
+
+
+class ConfidenceEstimator:
+    """A trained :class:`ConfidenceNet` with the clue normalisation it was trained with.
+
+    ``ConfidenceEstimator.load()`` reads the checkpoint shipped in the package (no download);
+    ``load(path)`` any checkpoint written by ``rgbd train confidence``. A checkpoint of another
+    architecture or without the normalisation raises :class:`~rgbd_rs.RgbdError` naming the file.
+    """
+
+    def __init__(self, net: ConfidenceNet, sigmas: npt.ArrayLike, source: str = "") -> None:
+        self.net = net
+        self.sigmas = _validate.array("sigmas", sigmas, shape=(IN_CHANNELS,), finite=True)
+        self.source = source
+
+    @classmethod
+    def load(cls, path: str | Path | None = None, *, device: str = "cpu") -> ConfidenceEstimator:
+        """The shipped weights (``path=None``) or the checkpoint at ``path``."""
+        from rgbd_rs.nn.checkpoint import load_checkpoint
+
+        file = WEIGHTS if path is None else Path(path)
+        ckpt = load_checkpoint(file, arch=ARCH, normalisation_keys=("sigmas",))
+        width = ckpt.arch_config.get("width")
+        if not isinstance(width, int) or isinstance(width, bool):
+            raise RgbdError(f"{file}: arch_config holds no integer 'width' ({ckpt.arch_config})")
+        net = ConfidenceNet(width)
+        try:
+            net.load_state_dict(ckpt.model_state)
+        except RuntimeError as exc:  # shapes or keys of another network
+            raise RgbdError(f"{file}: weights do not fit {ARCH} width {width} ({exc})") from None
+        net.to(device)
+        return cls(net, ckpt.normalisation["sigmas"], str(file))
+
+    def __call__(
+        self,
+        reference_image: npt.ArrayLike,
+        target_image: npt.ArrayLike,
+        tof_disparity: npt.ArrayLike,
+        tof_amplitude: npt.ArrayLike,
+        stereo_disparity: npt.ArrayLike,
+        *,
+        reference: Literal["left", "right"] = "right",
+    ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """``(P_T, P_S)`` on the reference camera, 0 where the source has no disparity."""
+        from rgbd_rs.fusion.clues import compute_clues, normalise
+
+        clues = compute_clues(
+            reference_image,
+            target_image,
+            tof_disparity,
+            tof_amplitude,
+            stereo_disparity,
+            reference=reference,
+        )
+        p_t, p_s = predict(self.net, normalise(clues, self.sigmas))
+        p_t = np.where(np.isfinite(clues.maps[1]), p_t, 0).astype(np.float32)
+        p_s = np.where(np.isfinite(clues.maps[2]), p_s, 0).astype(np.float32)
+        return p_t, p_s

@@ -1,0 +1,211 @@
+"""Training data of the confidence ConvNet: per-scene clue caches and patch datasets.
+
+:func:`prepare` runs the fusion pipeline's own stages (``fuse``'s ToF reprojection + upsampling
+and SGM, so the network sees exactly what it sees at inference) on every scene of a synthetic
+dataset or on Middlebury with simulated ToF, and writes ``OUT/<name>.npz`` per scene: the raw
+clues (float16), the target confidences ``1 - min(|err|, T)/T`` of the ToF and the stereo
+disparity (float16, NaN where undefined) and the clues' per-scene standard deviations. Each file
+is written atomically and skipped when present, so an interrupted run resumes, and ``shard=(i,
+n)`` processes every n-th scene from i, so a cluster can fan the job out.
+
+:class:`PatchDataset` cuts random ``patch x patch`` crops with random flips (deterministic by seed
+and index) from the cached scenes; :class:`TileDataset` cuts a fixed grid of tiles (validation).
+Both yield ``(inputs 4xPxP, target 2xPxP, mask 2xPxP)`` float32 tensors, inputs normalised by the
+training sigma (eq. 3.3-3.6), targets 0 and mask 0 where undefined.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import torch
+from torch.utils.data import Dataset
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.fusion.clues import Clues, compute_clues, normalise, scene_sigmas, target_confidence
+from rgbd_rs.fusion.evaluate import ORACLE_T, Sample
+from rgbd_rs.io import read_npz, write_npz
+
+#: The clipping threshold T of the target confidence (px): the evaluation's oracle uses the same.
+TARGET_T = ORACLE_T
+
+
+def scene_arrays(s: Sample) -> dict[str, np.ndarray]:
+    """Clues, targets and per-scene sigma of one sample (what :func:`prepare` caches)."""
+    from rgbd_rs.fusion import LcParams, fuse
+
+    # The smallest LC window: only the stages before LC matter here, and fuse() runs them as
+    # inference will.
+    out = fuse(
+        s.left,
+        s.right,
+        s.tof_depth,
+        s.tof_amplitude,
+        s.rig,
+        confidence="uniform",
+        params=LcParams(radius=1, stride=1),
+    )
+    ref_name = s.rig.reference
+    ref, tgt = (s.right, s.left) if ref_name == "right" else (s.left, s.right)
+    clues = compute_clues(
+        ref,
+        tgt,
+        out.tof.disparity,
+        out.tof.amplitude,
+        out.stereo_disparity,
+        reference=ref_name,
+    )
+    target = np.stack(
+        [
+            target_confidence(out.tof.disparity, s.gt_disparity, TARGET_T),
+            target_confidence(out.stereo_disparity, s.gt_disparity, TARGET_T),
+        ]
+    )
+    return {
+        "clues": clues.maps.astype(np.float16),
+        "target": target.astype(np.float16),
+        "sigmas": scene_sigmas(clues),
+    }
+
+
+def prepare(
+    samples: Iterator[Sample] | Sequence[Sample],
+    out: str | Path,
+    *,
+    shard: tuple[int, int] = (0, 1),
+    quiet: bool = False,
+) -> list[Path]:
+    """Cache every sample's arrays as ``out/<sample.name>.npz``; returns the files of this shard.
+
+    Existing files are kept (resume); ``shard = (i, n)`` takes samples i, i+n, i+2n, ...
+    """
+    from tqdm import tqdm
+
+    i, n = shard
+    n = _validate.integer("shard count", n, minimum=1)
+    i = _validate.integer("shard index", i, maximum=n - 1)
+    folder = Path(out)
+    written = []
+    for k, s in enumerate(tqdm(samples, desc="clues", unit="scene", disable=quiet or None)):
+        if k % n != i:
+            continue
+        path = folder / f"{s.name}.npz"
+        if not path.is_file():
+            write_npz(path, scene_arrays(s))
+        written.append(path)
+    return written
+
+
+def load_scenes(paths: Sequence[Path]) -> list[dict[str, np.ndarray]]:
+    """The cached arrays of ``paths`` (each checked for the keys and shapes it must hold)."""
+    if not paths:
+        raise InvalidArgumentError("paths: got no cached scene, expected at least one .npz")
+    scenes = []
+    for p in paths:
+        a = read_npz(p)
+        ok = {"clues", "target", "sigmas"} <= set(a)
+        ok = ok and a["clues"].ndim == 3 and a["clues"].shape[0] == 4
+        ok = ok and a["target"].shape == (2, *a["clues"].shape[1:])
+        if not ok:
+            raise RgbdError(f"{p}: not a confidence training cache (clues 4xHxW, target 2xHxW)")
+        scenes.append(a)
+    return scenes
+
+
+def sigmas_of(scenes: Sequence[dict[str, np.ndarray]]) -> npt.NDArray[np.float32]:
+    """Eq. 3.3-3.6's sigma over the training scenes."""
+    from rgbd_rs.fusion.clues import training_sigmas
+
+    return training_sigmas(np.stack([s["sigmas"] for s in scenes]))
+
+
+def _item(
+    scene: dict[str, np.ndarray], sig: npt.NDArray[np.float32], y: int, x: int, p: int, flip: int
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    clues = Clues(scene["clues"][:, y : y + p, x : x + p].astype(np.float32))
+    inp = normalise(clues, sig)
+    tgt = scene["target"][:, y : y + p, x : x + p].astype(np.float32)
+    mask = np.isfinite(tgt)
+    tgt = np.where(mask, tgt, 0)
+    arrays = [inp, tgt, mask.astype(np.float32)]
+    if flip & 1:
+        arrays = [a[:, :, ::-1] for a in arrays]
+    if flip & 2:
+        arrays = [a[:, ::-1, :] for a in arrays]
+    t = [torch.from_numpy(np.ascontiguousarray(a)) for a in arrays]
+    return t[0], t[1], t[2]
+
+
+class PatchDataset(Dataset[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]):
+    """``per_scene`` random ``patch``-pixel crops of each scene with random h/v flips.
+
+    Crop ``k`` depends only on ``(seed, k)``: every epoch, process and resumed run sees the same
+    crops (the trainer shuffles their order)."""
+
+    def __init__(
+        self,
+        scenes: Sequence[dict[str, np.ndarray]],
+        sigmas: npt.ArrayLike,
+        *,
+        patch: int = 64,
+        per_scene: int = 30,
+        seed: int = 0,
+    ) -> None:
+        self.scenes = list(scenes)
+        self.sigmas = _validate.array("sigmas", sigmas, shape=(4,), finite=True)
+        self.patch = _validate.integer("patch", patch, minimum=8)
+        self.per_scene = _validate.integer("per_scene", per_scene, minimum=1)
+        self.seed = _validate.integer("seed", seed, maximum=2**32 - 1)
+        for s in self.scenes:
+            if min(s["clues"].shape[1:]) < self.patch:
+                raise InvalidArgumentError(
+                    f"patch: got {self.patch}, expected at most the smallest scene side "
+                    f"{min(s['clues'].shape[1:])}"
+                )
+
+    def __len__(self) -> int:
+        return len(self.scenes) * self.per_scene
+
+    def __getitem__(self, k: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        scene = self.scenes[k // self.per_scene]
+        rng = np.random.default_rng([self.seed, k])
+        h, w = scene["clues"].shape[1:]
+        y = int(rng.integers(0, h - self.patch + 1))
+        x = int(rng.integers(0, w - self.patch + 1))
+        return _item(scene, self.sigmas, y, x, self.patch, int(rng.integers(0, 4)))
+
+
+class TileDataset(Dataset[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]):
+    """Every whole ``tile``-pixel tile of each scene (a fixed validation set)."""
+
+    def __init__(
+        self, scenes: Sequence[dict[str, np.ndarray]], sigmas: npt.ArrayLike, *, tile: int = 128
+    ) -> None:
+        self.scenes = list(scenes)
+        self.sigmas = _validate.array("sigmas", sigmas, shape=(4,), finite=True)
+        t = _validate.integer("tile", tile, minimum=8)
+        self.tiles = [
+            (k, y, x)
+            for k, s in enumerate(self.scenes)
+            for y in range(0, s["clues"].shape[1] - t + 1, t)
+            for x in range(0, s["clues"].shape[2] - t + 1, t)
+        ]
+        self.tile = t
+
+    def __len__(self) -> int:
+        return len(self.tiles)
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        k, y, x = self.tiles[i]
+        return _item(self.scenes[k], self.sigmas, y, x, self.tile, 0)
+
+
+def masked_mse(output: torch.Tensor, batch: Sequence[torch.Tensor]) -> torch.Tensor:
+    """§3.7's MSE between the estimated and target confidences, over defined pixels only."""
+    _, target, mask = batch[0], batch[1], batch[2]
+    diff = (output - target) * mask
+    return diff.square().sum() / mask.sum().clamp(min=1.0)

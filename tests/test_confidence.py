@@ -1,0 +1,140 @@
+"""The confidence ConvNet: clues (eq. 3.2-3.6), the network, its data and a tiny training run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
+from rgbd_rs.fusion.clues import Clues, compute_clues, normalise, target_confidence
+from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
+from rgbd_rs.nn.confidence_data import PatchDataset, TileDataset, masked_mse
+from rgbd_rs.nn.train import TrainConfig, train
+
+RNG = np.random.default_rng(0)
+
+
+def _pair(h: int = 40, w: int = 64, d: float = 5.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A textured right (reference) image and the left one where x_left = x_right + d."""
+    xs = np.arange(w + 16, dtype=np.float32)
+    tex = (128 + 60 * np.sin(xs * 0.7)[None, :] + 40 * np.cos(np.arange(h)[:, None] * 0.3))
+    left_row = np.clip(tex, 0, 255)
+    right = np.repeat(left_row[:, int(d) : int(d) + w, None], 3, axis=2).astype(np.uint8)
+    left = np.repeat(left_row[:, :w, None], 3, axis=2).astype(np.uint8)
+    return right, left, np.full((h, w), d, np.float32)
+
+
+def test_clues_follow_eq_3_2_and_are_unit_free() -> None:
+    right, left, disp = _pair()
+    amp = RNG.uniform(100, 5000, disp.shape).astype(np.float32)
+    tof = disp + RNG.normal(0, 0.1, disp.shape).astype(np.float32)
+    c = compute_clues(right, left, tof, amp, disp, reference="right")
+    assert c.maps.shape == (4, *disp.shape)
+    # Eq. 3.2 on a correctly warped pair: the warped left equals the right image (up to the means).
+    inside = np.isfinite(c.maps[0])
+    assert inside[:, : disp.shape[1] - 6].all()
+    assert np.nanmax(c.maps[0]) < 0.05
+    np.testing.assert_array_equal(c.maps[1], tof)
+    np.testing.assert_array_equal(c.maps[2], disp)
+    for unit in (1e-4, 1e-2, 1e2, 1e4):
+        scaled = compute_clues(right, left, tof, amp * unit, disp, reference="right")
+        np.testing.assert_allclose(scaled.maps, c.maps, rtol=1e-5, equal_nan=True)
+    # A wrong disparity shows in Delta_LR.
+    wrong = compute_clues(right, left, tof, amp, disp + 2, reference="right")
+    assert np.nanmean(wrong.maps[0]) > 5 * np.nanmean(c.maps[0])
+
+
+def test_nan_never_reaches_the_network() -> None:
+    right, left, disp = _pair()
+    d = disp.copy()
+    d[:10] = np.nan
+    amp = np.ones_like(d)
+    c = compute_clues(right, left, d, amp, d, reference="right")
+    assert not c.valid[1, :10].any()
+    x = normalise(c, [0.1, 2.0, 2.0, 0.5])
+    assert np.isfinite(x).all() and (x[1, :10] == 0).all()
+    with pytest.raises(InvalidArgumentError, match="sigmas"):
+        normalise(c, [0.1, 0.0, 2.0, 0.5])
+    with pytest.raises(ShapeMismatchError, match="tof_disparity"):
+        compute_clues(right, left, d[:5], amp, d)
+
+
+def test_target_confidence() -> None:
+    t = target_confidence([0.0, 1.0, 5.0, np.nan], [0.0, 0.0, 0.0, 0.0], 3.0)
+    np.testing.assert_allclose(t[:3], [1.0, 2 / 3, 0.0])
+    assert np.isnan(t[3])
+
+
+def test_network_keeps_the_size_and_tiles_equal_the_whole() -> None:
+    torch.manual_seed(0)
+    net = ConfidenceNet(8)
+    x = RNG.normal(size=(4, 37, 53)).astype(np.float32)
+    with torch.no_grad():
+        whole = net(torch.from_numpy(x)[None])[0].clamp(0, 1).numpy()
+    assert whole.shape == (2, 37, 53)
+    p_t, p_s = predict(net, x, tile=16)
+    np.testing.assert_allclose(p_t, whole[0], atol=1e-5)
+    np.testing.assert_allclose(p_s, whole[1], atol=1e-5)
+    assert sum(p.numel() for p in ConfidenceNet(128).parameters()) == 605_570  # Fig. 3.3
+
+
+def _scene(h: int = 48, w: int = 64) -> dict[str, np.ndarray]:
+    clues = RNG.normal(size=(4, h, w)).astype(np.float16)
+    target = np.clip(0.5 + 0.2 * clues[1:3].astype(np.float32), 0, 1)
+    target[0, :4] = np.nan  # undefined targets are masked
+    return {"clues": clues, "target": target.astype(np.float16), "sigmas": np.ones(4, np.float32)}
+
+
+def test_patches_are_deterministic_and_masked() -> None:
+    scenes = [_scene(), _scene()]
+    a = PatchDataset(scenes, np.ones(4), patch=16, per_scene=5, seed=3)
+    b = PatchDataset(scenes, np.ones(4), patch=16, per_scene=5, seed=3)
+    assert len(a) == 10
+    for k in (0, 7):
+        for x, y in zip(a[k], b[k], strict=True):
+            assert torch.equal(x, y)
+    inp, tgt, mask = a[0]
+    assert inp.shape == (4, 16, 16) and tgt.shape == mask.shape == (2, 16, 16)
+    assert torch.isfinite(tgt).all()
+    out = torch.zeros(1, 2, 16, 16)
+    loss = masked_mse(out, (inp[None], tgt[None], mask[None]))
+    expect = (tgt * mask).square().sum() / mask.sum()
+    assert torch.isclose(loss, expect)
+    with pytest.raises(InvalidArgumentError, match="patch"):
+        PatchDataset(scenes, np.ones(4), patch=100)
+    assert len(TileDataset(scenes, np.ones(4), tile=16)) == 2 * 3 * 4
+
+
+def test_tiny_training_run_loads_as_an_estimator(tmp_path: Path) -> None:
+    scenes = [_scene(), _scene()]
+    sig = np.ones(4, np.float32)
+    config = TrainConfig(epochs=2, batch_size=4, lr=1e-2, seed=0, device="cpu")
+    net = ConfidenceNet(4)
+    res = train(
+        net,
+        PatchDataset(scenes, sig, patch=16, per_scene=4),
+        TileDataset(scenes, sig, tile=32),
+        masked_mse,
+        config,
+        tmp_path,
+        arch="confidence-convnet/1",
+        arch_config={"width": 4},
+        normalisation={"sigmas": sig.tolist(), "target_t": 3.0},
+        quiet=True,
+    )
+    assert res.best_checkpoint is not None
+    est = ConfidenceEstimator.load(res.best_checkpoint)
+    right, left, disp = _pair()
+    p_t, _ = est(right, left, disp, np.ones_like(disp), disp, reference="right")
+    assert p_t.shape == disp.shape and ((p_t >= 0) & (p_t <= 1)).all()
+    with pytest.raises(RgbdError, match=r"best\.pt"):
+        torch.save({"format": "something else"}, tmp_path / "best.pt")
+        ConfidenceEstimator.load(tmp_path / "best.pt")
+
+
+def test_clues_dataclass_valid_mask() -> None:
+    c = Clues(np.array([[[np.nan, 1.0]]] * 4, np.float32))
+    assert c.valid.shape == (4, 1, 2) and not c.valid[:, 0, 0].any()
