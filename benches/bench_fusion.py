@@ -7,6 +7,8 @@
 - LC scaling with the window radius, the window stride and the image size.
 - Upsampling (extended cross bilateral, segmentation term) against a numpy implementation of the
   same filter; mean-shift segmentation (OpenCV) timed separately.
+- The confidence ConvNet's tiled inference (shipped width and the thesis' 128 filters) against
+  one whole-image torch forward.
 - The stages of ``fuse()`` and its total.
 
     python benches/bench_fusion.py             # tables on stdout
@@ -196,6 +198,35 @@ def main() -> None:
     rows.append(
         ("Mean-shift segmentation (OpenCV pyrMeanShiftFiltering + labels)", ms_ms, None, "")
     )
+    # The confidence ConvNet: our tiled inference vs one whole-image torch forward, at the
+    # shipped width and at the thesis' 128 filters (random weights: the speed does not depend
+    # on them).
+    import torch
+
+    from rgbd_rs.fusion.clues import compute_clues, normalise
+    from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
+
+    clues = normalise(
+        compute_clues(s.right, s.left, tof.disparity, tof.amplitude, st), np.ones(4, np.float32)
+    )
+    shipped = ConfidenceEstimator.load().net.width
+    for width in sorted({shipped, 128}):
+        net = ConfidenceNet(width)
+        ours = timeit(lambda net=net: predict(net, clues), 1)  # type: ignore[misc]
+
+        def whole(net: ConfidenceNet = net) -> None:
+            with torch.inference_mode():
+                net(torch.from_numpy(clues)[None])
+
+        rows.append(
+            (
+                f"Confidence ConvNet 960x540, width {width}"
+                + (" (shipped)" if width == shipped else " (thesis)"),
+                ours,
+                timeit(whole, 1),
+                "reference column: one whole-image torch forward (no tiling)",
+            )
+        )
     # The stages of fuse() on this scene (one run each).
     stages = [
         ("mean-shift segmentation", lambda: segment_mean_shift(s.right)),
@@ -219,7 +250,7 @@ def main() -> None:
     ]
     stage_rows = [(name, timeit(fn, 1)) for name, fn in stages]
     if args.markdown:
-        print("| stage | rgbd_rs (ms) | numpy reference (ms) | vs numpy | note |")
+        print("| stage | rgbd_rs (ms) | reference (ms) | vs reference | note |")
         print("|---|---:|---:|---:|---|")
         for name, ms, ref, note in rows:
             r = f"{ref:.0f}" if ref else "-"

@@ -19,8 +19,8 @@ def register(commands: Commands) -> None:
         "dataset, validating on the Middlebury pairs with simulated ToF (never trained on). "
         "Clue caches go to OUT/cache (resumable; --shard i/n fans the caching out), checkpoints "
         "to OUT/last.pt and OUT/best.pt; re-running the same command resumes. Runs under "
-        "torchrun for DistributedDataParallel training. Copy OUT/best.pt to "
-        "python/rgbd_rs/nn/weights/confidence.pt to ship it.",
+        "torchrun for DistributedDataParallel training. --ship writes the best checkpoint's "
+        "inference-only copy to python/rgbd_rs/nn/weights/confidence.pt.",
     )
     p.add_argument("--data", type=Path, required=True, help="rgbd synth dataset folder")
     p.add_argument("--out", type=Path, default=Path("out/train_confidence"), help="output folder")
@@ -40,6 +40,11 @@ def register(commands: Commands) -> None:
         default=None,
         help="only cache the clues of every n-th scene from i (i/n), then stop",
     )
+    p.add_argument(
+        "--ship",
+        action="store_true",
+        help="write the best checkpoint's inference-only copy over the package's shipped weights",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -54,7 +59,7 @@ def _shard(text: str) -> tuple[int, int]:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from rgbd_rs.nn.confidence_train import Recipe, prepare_caches, train_confidence
+    from rgbd_rs.nn.confidence_train import Recipe, prepare_caches, ship, train_confidence
     from rgbd_rs.nn.train import TrainConfig
 
     if args.shard is not None:
@@ -76,4 +81,6 @@ def run_train(args: argparse.Namespace) -> int:
     recipe = Recipe(width=args.width, patch=args.patch, per_scene=args.per_scene)
     best = train_confidence(args.data, args.out, recipe=recipe, config=config, quiet=args.quiet)
     print(f"best checkpoint: {best}")
+    if args.ship:
+        print(f"shipped weights: {ship(best)}")
     return 0

@@ -118,10 +118,7 @@ class ConfidenceEstimator:
         if not isinstance(width, int) or isinstance(width, bool):
             raise RgbdError(f"{file}: arch_config holds no integer 'width' ({ckpt.arch_config})")
         net = ConfidenceNet(width)
-        try:
-            net.load_state_dict(ckpt.model_state)
-        except RuntimeError as exc:  # shapes or keys of another network
-            raise RgbdError(f"{file}: weights do not fit {ARCH} width {width} ({exc})") from None
+        ckpt.load_weights(net)
         net.to(device)
         return cls(net, ckpt.normalisation["sigmas"], str(file))
 

@@ -108,3 +108,13 @@ def train_confidence(
         quiet=quiet,
     )
     return Path(result.best_checkpoint or result.last_checkpoint)
+
+
+def ship(checkpoint: str | Path, dest: str | Path | None = None) -> Path:
+    """Write the inference-only copy of ``checkpoint`` (no optimizer or RNG state) to ``dest``,
+    by default the weights the package ships (``rgbd_rs/nn/weights/confidence.pt``)."""
+    from rgbd_rs.nn.checkpoint import load_checkpoint, save_checkpoint
+    from rgbd_rs.nn.confidence import ARCH, WEIGHTS
+
+    ckpt = load_checkpoint(checkpoint, arch=ARCH, normalisation_keys=("sigmas",))
+    return save_checkpoint(ckpt.stripped(), WEIGHTS if dest is None else dest)
