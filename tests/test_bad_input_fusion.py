@@ -10,6 +10,7 @@ import rgbd_rs.fusion as F
 from bad_input import Case, check, params
 from rgbd_rs import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.data import synth3_rig
+from rgbd_rs.fusion.stereo import search_range
 
 SHAPE = ShapeMismatchError
 ARG = InvalidArgumentError
@@ -71,6 +72,26 @@ CASES: list[Case] = [
         ARG,
         r"^params: got str",
         "params",
+    ),
+    Case(
+        "fuse",
+        lambda: F.fuse(LEFT, LEFT, TOF, TOF, RIG, reference="middle"),
+        ARG,
+        r"^reference: got 'middle'",
+        "reference",
+    ),
+    Case(
+        "search_range",
+        lambda: search_range(D[0]),
+        SHAPE,
+        r"^tof_disparity: got shape \(40,\)",
+    ),
+    Case(
+        "search_range",
+        lambda: search_range(D, width=1),
+        ARG,
+        r"^width: got 1",
+        "width",
     ),
     Case(
         "LcParams",
@@ -233,23 +254,30 @@ CASES: list[Case] = [
     ),
     Case(
         "tof_confidence",
-        lambda: F.tof_confidence(D, D[:5], 0.1, 100.0),
+        lambda: F.tof_confidence(D, D[:5]),
         SHAPE,
         r"^amplitude: got shape \(5, 40\)",
     ),
     Case(
         "tof_confidence",
-        lambda: F.tof_confidence(D, D, 0.0, 100.0),
+        lambda: F.tof_confidence(D, D, read_noise=0.0, shot_noise=0.0),
         ARG,
-        r"^baseline: got 0",
-        "baseline",
+        r"^read_noise/shot_noise: got 0 and 0",
+        "no noise",
     ),
     Case(
         "tof_confidence",
-        lambda: F.tof_confidence(D, D, 0.1, 100.0, read_noise="x"),
+        lambda: F.tof_confidence(D, D, read_noise="x"),
         ARG,
         r"^read_noise: got 'x'",
         "noise",
+    ),
+    Case(
+        "tof_confidence",
+        lambda: F.tof_confidence(D, D, ambient=-1.0),
+        ARG,
+        r"^ambient: got -1",
+        "ambient",
     ),
     Case(
         "segment_mean_shift",

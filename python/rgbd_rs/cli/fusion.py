@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import textwrap
 import time
 from itertools import islice
 from pathlib import Path
@@ -16,18 +17,50 @@ from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 #: 16-bit disparity PNGs store disparity x 256 (the KITTI convention); 0 = invalid.
 DISPARITY_PNG_SCALE = 256.0
 
+FUSE_DESCRIPTION = (
+    "Reproject + upsample the ToF depth onto the reference camera, run SGM on the pair, weight "
+    "both with confidences and fuse them with the locally consistent (LC) method. Writes "
+    "OUT/fused.npz (float32 maps), OUT/disparity.png (16-bit, disparity x 256), OUT/depth_mm.png "
+    "(16-bit millimetres) and OUT/preview.png, and prints the SGM search range and the share of "
+    "valid pixels of each input and of the result. Maps: .npy/.npz in metres, or 16-bit PNG in "
+    "millimetres (depth). The amplitude may be in any unit."
+)
+
+#: The calibration JSON layout (rgbd_rs.data.calibration), shown by `rgbd fuse --help`.
+CALIBRATION_HELP = """\
+calibration JSON (--calib); examples/calibration.json is the synthetic rig:
+  {"stereo": {"left": CAM, "right": CAM, "baseline": 0.12},
+   "tof": CAM,
+   "tof_to_reference": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                        "translation": [0.0, 0.04, 0.0]},
+   "reference": "right"}
+  CAM = {"fx": 727.27, "fy": 727.27, "cx": 479.5, "cy": 269.5,
+         "width": 960, "height": 540,
+         "distortion": [k1, k2, p1, p2, k3, k4, k5, k6]}
+units: pixels and metres; camera frames x right, y down, z forward (OpenCV)
+  stereo      the rectified pair (equal size and fx); the right camera sits
+              baseline metres along +x of the left one, so
+              disparity = u_left - u_right = baseline * fx / z
+  tof         the ToF camera; --tof-depth/--tof-amplitude are height x width
+  tof_to_reference
+              takes ToF-frame points into the frame of the camera named by
+              "reference": p_ref = rotation @ p_tof + translation
+  reference   "right" (the default when absent) or "left"; --reference picks
+              the output camera (the pose is carried across the baseline)
+  distortion  OpenCV order, 4, 5 or 8 values; optional (none)
+"""
+
 
 def register(commands: Commands) -> None:
     fz = commands.command(
         "fuse",
         run_fuse,
         help="fuse a ToF frame with a stereo pair (thesis ch. 3)",
-        description="Reproject + upsample the ToF depth onto the reference camera, run SGM on "
-        "the pair, weight both with confidences and fuse them with the locally consistent (LC) "
-        "method. Writes OUT/fused.npz (float32 maps), OUT/disparity.png (16-bit, disparity x "
-        "256), OUT/depth_mm.png (16-bit millimetres) and OUT/preview.png. Maps: .npy/.npz in "
-        "metres, or 16-bit PNG in millimetres (depth).",
+        description=textwrap.fill(FUSE_DESCRIPTION, 80),
     )
+    # The layout's indentation matters: the description is pre-wrapped above.
+    fz.formatter_class = argparse.RawDescriptionHelpFormatter
+    fz.epilog = CALIBRATION_HELP
     fz.add_argument("--left", type=Path, required=True, help="left colour image (PNG)")
     fz.add_argument("--right", type=Path, required=True, help="right colour image (PNG)")
     fz.add_argument(
@@ -39,6 +72,12 @@ def register(commands: Commands) -> None:
     fz.add_argument("--calib", type=Path, required=True, help="rig calibration JSON")
     fz.add_argument("--out", type=Path, required=True, help="output folder")
     fz.add_argument(
+        "--reference",
+        choices=("left", "right"),
+        help='camera the output lies on (default: the calibration\'s "reference", right when '
+        "absent, as in the thesis)",
+    )
+    fz.add_argument(
         "--confidence",
         choices=("uniform", "heuristic"),
         default="heuristic",
@@ -47,7 +86,10 @@ def register(commands: Commands) -> None:
     fz.add_argument("--tof-confidence", type=Path, help="ToF confidence map (.npy, [0, 1])")
     fz.add_argument("--stereo-confidence", type=Path, help="stereo confidence map (.npy, [0, 1])")
     fz.add_argument(
-        "--max-disparity", type=integer(1), help="SGM search range (default from the ToF)"
+        "--max-disparity",
+        type=integer(1),
+        help="SGM search range in px (default: from the ToF's disparities, robust to flying "
+        "pixels, at most a third of the width)",
     )
     fz.add_argument(
         "--radius", type=integer(1), help="LC window half-size (default: 39x39 at 1920 px)"
@@ -149,6 +191,7 @@ def run_fuse(args: argparse.Namespace) -> int:
         confidence=conf,  # type: ignore[arg-type]
         params=params,
         max_disparity=args.max_disparity,
+        reference=args.reference,
     )
     elapsed = time.perf_counter() - t0
     maps = {
@@ -166,7 +209,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     write_png(args.out / "disparity.png", disp16.astype(np.uint16))
     mm = np.clip(np.nan_to_num(out.depth * 1000.0, nan=0), 0, 65535)
     write_png(args.out / "depth_mm.png", mm.astype(np.uint16))
-    ref = right if rig.reference == "right" else left
+    ref = right if out.reference == "right" else left
     d = out.disparity[np.isfinite(out.disparity)]
     lo, hi = (float(np.percentile(d, 1)), float(np.percentile(d, 99))) if d.size else (0.0, 1.0)
     save_png(
@@ -184,10 +227,19 @@ def run_fuse(args: argparse.Namespace) -> int:
             width=320,
         ),
     )
+    how = "--max-disparity" if args.max_disparity is not None else "from the ToF disparities"
+    print(f"SGM search range: 0-{out.max_disparity} px ({how})")
+
+    def valid(m: npt.NDArray[np.float32]) -> str:
+        return f"{np.isfinite(m).mean():.1%}"
+
     print(
-        f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s: "
-        f"{np.isfinite(out.disparity).mean():.1%} valid; wrote {args.out}/fused.npz, "
-        "disparity.png, depth_mm.png, preview.png"
+        f"valid pixels on the {out.reference} camera: ToF {valid(out.tof.disparity)}, "
+        f"SGM {valid(out.stereo_disparity)}, fused {valid(out.disparity)}"
+    )
+    print(
+        f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s; wrote "
+        f"{args.out}/fused.npz, disparity.png, depth_mm.png, preview.png"
     )
     return 0
 

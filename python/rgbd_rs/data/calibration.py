@@ -1,10 +1,26 @@
 """ToF + stereo rig calibration as JSON (intrinsics, distortion, extrinsics), the format
-``rgbd synth`` writes and ``rgbd fuse`` reads.
+``rgbd synth`` writes and ``rgbd fuse`` reads (``examples/calibration.json`` is the synthetic rig).
 
-Layout: ``{"stereo": {"left": CAM, "right": CAM, "baseline": m}, "tof": CAM,
-"tof_to_reference": {"rotation": 3x3, "translation": [x, y, z]}, "reference": "right"}`` with
-``CAM = {"fx", "fy", "cx", "cy", "width", "height", "distortion": [k1, k2, p1, p2, k3, k4, k5,
-k6]}`` (OpenCV order). Units: pixels and metres.
+Layout (units: pixels and metres; cameras in OpenCV's frame: x right, y down, z forward)::
+
+    {
+      "stereo": {"left": CAM, "right": CAM, "baseline": 0.12},
+      "tof": CAM,
+      "tof_to_reference": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                           "translation": [0.0, 0.04, 0.0]},
+      "reference": "right"
+    }
+
+    CAM = {"fx": 727.27, "fy": 727.27, "cx": 479.5, "cy": 269.5, "width": 960, "height": 540,
+           "distortion": [k1, k2, p1, p2, k3, k4, k5, k6]}
+
+- ``stereo``: the *rectified* pair (equal size and fx); the right camera sits ``baseline``
+  metres along +x of the left one, so disparity ``d = u_left - u_right = baseline * fx / z``.
+- ``tof``: the ToF camera; its depth and amplitude maps are ``height x width``.
+- ``tof_to_reference``: the pose taking points from the ToF camera's frame into the reference
+  camera's frame (``p_ref = rotation @ p_tof + translation``).
+- ``reference``: ``"right"`` (the thesis' output camera, the default when absent) or ``"left"``.
+- ``distortion``: OpenCV order, 4, 5 or 8 coefficients; optional (no distortion).
 """
 
 from __future__ import annotations
@@ -88,13 +104,32 @@ def _numbers(where: str, value: object) -> list[Any]:
     return value
 
 
+#: The keys every camera object of the layout needs (``distortion`` is optional).
+CAMERA_KEYS = ("fx", "fy", "cx", "cy", "width", "height")
+
+
+class _MissingKey(Exception):
+    """A key of the layout is absent (reported with the file's name by :func:`load_rig`)."""
+
+
+def _require(where: str, obj: dict[str, Any], keys: tuple[str, ...]) -> None:
+    for key in keys:
+        if key not in obj:
+            raise _MissingKey(f"{where} has no key {key!r}")
+
+
 def load_rig(path: str | Path) -> ToFStereoRig:
-    """Read a calibration JSON; missing keys or bad values (strings where numbers belong
-    included) raise RgbdError naming the file."""
+    """Read a calibration JSON (layout in the module docstring).
+
+    Missing keys raise RgbdError naming the file and where the key is missing (``calibration:
+    camera 'tof' has no key 'fx'``); bad values (strings where numbers belong included) name the
+    file and the value's place.
+    """
     d = read_json(path)
 
     def cam(where: str, value: object) -> PinholeCamera:
-        c = _object(where, value)
+        c = _object(f"camera {where!r}", value)
+        _require(f"camera {where!r}", c, CAMERA_KEYS)
         return PinholeCamera(
             _number(f"{where}.fx", c["fx"]),
             _number(f"{where}.fy", c["fy"]),
@@ -107,8 +142,11 @@ def load_rig(path: str | Path) -> ToFStereoRig:
 
     try:
         top = _object("the file", d)
+        _require("the file", top, ("stereo", "tof", "tof_to_reference"))
         st = _object("stereo", top["stereo"])
+        _require("'stereo'", st, ("left", "right", "baseline"))
         t = _object("tof_to_reference", top["tof_to_reference"])
+        _require("'tof_to_reference'", t, ("rotation", "translation"))
         return ToFStereoRig(
             tof=cam("tof", top["tof"]),
             stereo=StereoRig(
@@ -122,7 +160,7 @@ def load_rig(path: str | Path) -> ToFStereoRig:
             ),
             reference=top.get("reference", "right"),
         )
-    except KeyError as exc:
-        raise RgbdError(f"{path}: calibration lacks the key {exc}") from exc
+    except _MissingKey as exc:
+        raise RgbdError(f"{path}: calibration: {exc}") from exc
     except (TypeError, ValueError, OverflowError) as exc:
         raise RgbdError(f"{path}: invalid calibration ({exc})") from exc

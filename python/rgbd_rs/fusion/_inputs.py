@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal, cast
+
 import numpy as np
 import numpy.typing as npt
 
@@ -47,3 +49,68 @@ def views(left: U8, right: U8, reference: str) -> tuple[U8, U8, int]:
     """``(reference image, target image, target_sign)``: the target pixel of reference pixel x
     is ``x + sign * d`` with ``d = u_left - u_right``."""
     return (right, left, 1) if reference == "right" else (left, right, -1)
+
+
+def with_reference(rig: ToFStereoRig, reference: str) -> ToFStereoRig:
+    """``rig`` with its output on the ``reference`` camera: ``tof_to_reference`` is carried
+    across the rectified pair (the right camera sits ``baseline`` metres along +x of the left)."""
+    ref = _validate.choice("reference", reference, ("left", "right"))
+    if ref == rig.reference:
+        return rig
+    left_to_right = rig.stereo.left_to_right
+    across = left_to_right.inverse() if ref == "left" else left_to_right
+    side = cast(Literal["left", "right"], ref)
+    return ToFStereoRig(rig.tof, rig.stereo, across.compose(rig.tof_to_reference), side)
+
+
+#: A stereo pair resolves depth only where the disparity is at least this many pixels; ToF depths
+#: whose disparity on the rig lies below it everywhere are "beyond the stereo range".
+MIN_STEREO_DISPARITY = 1.0
+#: Share of the valid ToF pixels that may lie outside the rig's disparity range [1 px, width)
+#: before the depths count as implausible "everywhere" (flying pixels, noise). Chosen.
+IMPLAUSIBLE_SHARE = 0.99
+#: Share of the pixels that must become plausible in another unit for the warning to name it.
+UNIT_MAJORITY = 0.5
+
+
+def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> str | None:
+    """What is implausible about the ToF depths (metres) for ``rig``, or None.
+
+    Checked on the disparities ``b f / z`` the depths would have on the stereo pair: if almost
+    all (``IMPLAUSIBLE_SHARE``) lie below ``MIN_STEREO_DISPARITY`` (beyond the stereo range) or
+    at or above the image width (nearer than any match), the message says so, and names
+    millimetres (or kilometres) when most (``UNIT_MAJORITY``) of the depths divided
+    (multiplied) by 1000 would be plausible.
+    """
+    with np.errstate(invalid="ignore"):
+        z = depth[np.isfinite(depth) & (depth > 0)].astype(np.float64)
+    if z.size == 0:
+        return None
+    bf = rig.stereo.baseline * rig.stereo.focal
+    width = rig.stereo.left.width
+
+    def plausible(scale: float) -> float:
+        d = bf / (z * scale)
+        return float(np.mean((d >= MIN_STEREO_DISPARITY) & (d < width)))
+
+    if plausible(1.0) > 1 - IMPLAUSIBLE_SHARE:
+        return None
+    med = float(np.median(z))
+    d_med = bf / med
+    rig_text = (
+        f"baseline {rig.stereo.baseline:g} m x focal {rig.stereo.focal:.1f} px, "
+        f"{width} px wide: disparities {MIN_STEREO_DISPARITY:g}-{width} px are depths "
+        f"{bf / width:.3g}-{bf / MIN_STEREO_DISPARITY:.3g} m"
+    )
+    for scale, unit in ((1e-3, "millimetres"), (1e3, "kilometres")):
+        if plausible(scale) >= UNIT_MAJORITY:
+            return (
+                f"tof_depth: the ToF depths look like {unit}, not metres (median {med:.4g}, "
+                f"outside the stereo rig's range: {rig_text}); check the depth unit (rgbd fuse "
+                "reads .npy/.npz in metres and 16-bit PNG in millimetres)"
+            )
+    where = "beyond" if d_med < MIN_STEREO_DISPARITY else "nearer than"
+    return (
+        f"tof_depth: the ToF depths lie {where} the stereo rig's range (median {med:.4g} m; "
+        f"{rig_text}); check the depth unit and the calibration's baseline and focal length"
+    )

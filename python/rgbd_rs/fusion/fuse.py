@@ -11,18 +11,36 @@ import numpy.typing as npt
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion._inputs import F32, map2d, rgb8, rig_arg, views
+from rgbd_rs.fusion._inputs import (
+    F32,
+    U8,
+    map2d,
+    rgb8,
+    rig_arg,
+    tof_depth_warning,
+    views,
+    with_reference,
+)
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.stereo import max_search, sgm
+from rgbd_rs.fusion.stereo import search_range, sgm
 from rgbd_rs.fusion.upsample import ToFOnReference, tof_to_reference
 from rgbd_rs.geometry import disparity_to_depth
 
 ConfidenceKind = Literal["uniform", "heuristic"]
-#: Disparity search range when the ToF data cannot suggest one (px at the given resolution).
-DEFAULT_MAX_DISPARITY = 128
-#: Margin over the ToF's 99.9th-percentile disparity when deriving the SGM search range.
-RANGE_MARGIN = 1.15
+#: Swapped left/right images. A pair's match score is the share of the pixels SGM can search
+#: (those at least ``max_disparity`` from the image edge) that SGM matches and, where the ToF has
+#: a disparity, matches within ``SWAP_AGREE`` px of it. Below ``SWAP_SUSPECT_SCORE`` the pair is
+#: also matched with the images exchanged, and a score there of at least ``SWAP_GAIN`` times
+#: (and at least ``SWAP_SUSPECT_SCORE``) means the images were swapped. Chosen on the synthetic
+#: test set and Middlebury: correct pairs score 0.36-0.97, swapped ones 0.01-0.16. Without a ToF
+#: the score is SGM's coverage alone, both orders are always matched, and the exchanged order
+#: must reach ``SWAP_GAIN_STEREO_ONLY`` times the given one (there swapped pairs reach 0.26-0.68
+#: of the correct order's 0.78-0.97, a ratio of 1.3 or more).
+SWAP_AGREE = 2.0
+SWAP_SUSPECT_SCORE = 0.25
+SWAP_GAIN = 2.0
+SWAP_GAIN_STEREO_ONLY = 1.2
 
 
 @dataclass(frozen=True)
@@ -35,6 +53,8 @@ class FusionResult:
         tof: the reprojected and upsampled ToF (depth, disparity, amplitude, segmentation).
         stereo_disparity: the SGM map.
         tof_confidence, stereo_confidence: the weights used (None = uniform).
+        max_disparity: the SGM search range used (given, or from :func:`search_range`).
+        reference: the camera the maps lie on (``"left"`` or ``"right"``).
     """
 
     disparity: F32
@@ -44,18 +64,43 @@ class FusionResult:
     stereo_disparity: F32
     tof_confidence: F32 | None
     stereo_confidence: F32 | None
+    max_disparity: int
+    reference: str
 
 
-def _max_disparity(tof_disp: F32, width: int, requested: int | None) -> int:
-    if requested is not None:
-        return _validate.integer("max_disparity", requested, minimum=1, maximum=width - 1)
-    # A derived range stays within what SGM can search on this width (sgm() words the error
-    # when even the smallest range does not fit).
-    top = max(1, min(width - 1, max_search(width)))
-    finite = tof_disp[np.isfinite(tof_disp)]
-    if finite.size == 0:
-        return min(DEFAULT_MAX_DISPARITY, top)
-    return int(min(top, max(16, np.ceil(np.percentile(finite, 99.9) * RANGE_MARGIN))))
+def _match_score(stereo: F32, tof_disparity: F32, max_disparity: int, sign: int) -> float:
+    """The share of searchable pixels SGM matches, consistently with the ToF where it has one."""
+    w = stereo.shape[1]
+    cols = slice(max_disparity, w) if sign < 0 else slice(0, max(0, w - max_disparity))
+    st, tof = stereo[:, cols], tof_disparity[:, cols]
+    if st.size == 0:
+        return 0.0
+    with np.errstate(invalid="ignore"):
+        good = np.isfinite(st) & ~(np.abs(st - tof) >= SWAP_AGREE)
+    return float(good.mean())
+
+
+def _swap_warning(
+    left: U8, right: U8, reference: str, stereo: F32, tof_disparity: F32, dmax: int
+) -> str | None:
+    """A message when the pair looks swapped: SGM matches few pixels (its left-right check fails,
+    or its disparities disagree with the ToF) as given and far more with the images exchanged,
+    i.e. the pair's disparities as given are negative."""
+    sign = 1 if reference == "right" else -1
+    has_tof = bool(np.isfinite(tof_disparity).any())
+    given = _match_score(stereo, tof_disparity, dmax, sign)
+    if has_tof and given >= SWAP_SUSPECT_SCORE:
+        return None
+    exchanged = sgm(right, left, reference=reference, max_disparity=dmax)
+    swapped = _match_score(exchanged, tof_disparity, dmax, sign)
+    gain = SWAP_GAIN if has_tof else SWAP_GAIN_STEREO_ONLY
+    if swapped < max(SWAP_SUSPECT_SCORE, gain * given):
+        return None
+    return (
+        f"left/right: the images look swapped: SGM matches {given:.0%} of the pixels as given "
+        f"and {swapped:.0%} with left and right exchanged; check that the left image is the "
+        "left camera's (the right camera sits baseline metres along +x of the left one)"
+    )
 
 
 def fuse(
@@ -68,22 +113,31 @@ def fuse(
     confidence: ConfidenceKind | tuple[npt.ArrayLike, npt.ArrayLike] = "heuristic",
     params: LcParams | None = None,
     max_disparity: int | None = None,
+    reference: Literal["left", "right"] | None = None,
 ) -> FusionResult:
     """Fuse a ToF frame with a rectified stereo pair into one sub-pixel disparity map.
 
     Args:
         left, right: the rectified colour pair (uint8 RGB, the rig's image size).
         tof_depth, tof_amplitude: the ToF frame (metres, NaN/<=0 invalid; amplitude >= 0).
-        rig: :class:`~rgbd_rs.ToFStereoRig`; the output lies on ``rig.reference_camera``.
+        rig: :class:`~rgbd_rs.ToFStereoRig`; the output lies on ``rig.reference_camera``
+            unless ``reference`` says otherwise.
         confidence: ``"uniform"`` (equal weights, Dal Mutto 2012), ``"heuristic"``
             (:mod:`rgbd_rs.fusion.confidence`), or ``(tof_conf, stereo_conf)`` maps in [0, 1] on
             the reference camera (e.g. from the confidence ConvNet).
         params: LC constants and window (:class:`LcParams`).
-        max_disparity: SGM search range; default from the ToF disparities (x1.15).
+        max_disparity: SGM search range; default :func:`~rgbd_rs.fusion.stereo.search_range`
+            of the ToF disparities (robust to flying pixels, at most a third of the width).
+        reference: the camera to fuse on, ``"left"`` or ``"right"``; default the rig's.
 
     A ToF frame without any valid pixel gives the stereo-only LC result with a warning.
+    Implausible input warns once each (:class:`RuntimeWarning`), saying what to check: ToF
+    depths that look like millimetres or lie beyond the stereo range of the rig, and a
+    left/right pair that looks swapped.
     """
     r = rig_arg(rig)
+    if reference is not None:
+        r = with_reference(r, reference)
     size = r.stereo.left.size
     lft = rgb8("left", left, size)
     rgt = rgb8("right", right, size)
@@ -106,7 +160,7 @@ def fuse(
             "or a (tof_confidence, stereo_confidence) pair of maps"
         )
     if max_disparity is not None:
-        _max_disparity(np.empty(0, np.float32), w, max_disparity)
+        max_disparity = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         tof = tof_to_reference(tof_depth, tof_amplitude, r, ref_img)
@@ -118,11 +172,18 @@ def fuse(
             RuntimeWarning,
             stacklevel=2,
         )
-    elif caught:
+    else:
         for c in caught:
             warnings.warn(c.message, c.category, stacklevel=2)
-    dmax = _max_disparity(tof.disparity, w, max_disparity)
+        tof_shape = (r.tof.height, r.tof.width)
+        implausible = tof_depth_warning(map2d("tof_depth", tof_depth, tof_shape), r)
+        if implausible is not None:
+            warnings.warn(implausible, RuntimeWarning, stacklevel=2)
+    dmax = search_range(tof.disparity, w) if max_disparity is None else max_disparity
     stereo = sgm(lft, rgt, reference=r.reference, max_disparity=dmax)
+    swapped = _swap_warning(lft, rgt, r.reference, stereo, tof.disparity, dmax)
+    if swapped is not None:
+        warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
     if not np.isfinite(stereo).any() and no_tof:
         raise InvalidArgumentError(
@@ -136,10 +197,10 @@ def fuse(
     elif kind == "uniform":
         ct = cs = None
     else:
-        ct = tof_confidence(tof_disp, tof.amplitude, r.stereo.baseline, r.stereo.focal)
+        ct = tof_confidence(tof_disp, tof.amplitude)
         cs = stereo_confidence(ref_img, tgt_img, stereo, target_sign=sign, max_disparity=dmax)
     disp, plaus = lc_fuse(
         ref_img, tgt_img, [tof_disp, stereo], [ct, cs], target_sign=sign, params=params
     )
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
-    return FusionResult(disp, depth, plaus, tof, stereo, ct, cs)
+    return FusionResult(disp, depth, plaus, tof, stereo, ct, cs, dmax, r.reference)

@@ -5,10 +5,14 @@ reference camera, plus the pointwise matching-cost curve used by the stereo conf
 OpenCV computes disparities for its left input. For a right reference both images are mirrored
 and swapped (mirrored right = a "left" view whose match lies at x - d), then the result is
 mirrored back.
+
+:func:`search_range` derives SGM's search range from a ToF disparity map robustly (flying pixels
+ignored), so one wrong ToF sample cannot blind most of the image.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 import cv2
@@ -31,6 +35,19 @@ UNIQUENESS = 5
 #: OpenCV SGBM searches ``numDisparities`` in steps of this many pixels.
 DISPARITY_STEP = 16
 
+#: :func:`search_range`: the ToF disparity map is median-filtered over this window (flying
+#: pixels, isolated or in thin lines along depth edges, vanish), its ``RANGE_PERCENTILE``-th
+#: percentile is taken and widened by ``RANGE_MARGIN`` (ToF noise, SGM's sub-pixel margin).
+#: Chosen.
+RANGE_MEDIAN_WINDOW = 5
+RANGE_PERCENTILE = 99.5
+RANGE_MARGIN = 1.15
+#: The derived range never exceeds this fraction of the image width: SGM finds nothing in the
+#: first ``max_disparity`` columns beside the image edge, so a wider range would leave most of
+#: the image to the ToF alone (pass ``max_disparity`` to search further). Also the fallback
+#: when the ToF has no valid pixel. Chosen.
+MAX_RANGE_FRACTION = 1 / 3
+
 
 def _num_disparities(min_disparity: int, max_disparity: int) -> int:
     span = max_disparity - min_disparity
@@ -48,6 +65,29 @@ def max_search(width: int, min_disparity: int = 0, block_size: int = BLOCK_SIZE)
     return min_disparity + DISPARITY_STEP * (room // DISPARITY_STEP)
 
 
+def search_range(tof_disparity: npt.ArrayLike, width: int | None = None) -> int:
+    """SGM's ``max_disparity`` for a scene whose ToF disparity (on the reference camera, NaN =
+    none) is ``tof_disparity``.
+
+    The map is median-filtered over ``RANGE_MEDIAN_WINDOW`` x ``RANGE_MEDIAN_WINDOW`` pixels
+    (NaN counts as no disparity), its ``RANGE_PERCENTILE``-th percentile times ``RANGE_MARGIN``
+    is rounded up, and the result is clamped to ``[DISPARITY_STEP, MAX_RANGE_FRACTION x width]``
+    and to :func:`max_search` (what OpenCV SGBM allows on that width). A ToF map without a
+    valid pixel gives the upper clamp. ``width`` defaults to the map's.
+    """
+    d = np.asarray(_validate.array("tof_disparity", tof_disparity, shape=(None, None)), np.float32)
+    w = d.shape[1] if width is None else _validate.integer("width", width, minimum=2)
+    top = max(1, min(w - 1, max_search(w), int(MAX_RANGE_FRACTION * w)))
+    with np.errstate(invalid="ignore"):
+        filled = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
+    smooth = cv2.medianBlur(filled, RANGE_MEDIAN_WINDOW)
+    valid = smooth[smooth > 0]
+    if valid.size == 0:
+        return top
+    want = math.ceil(float(np.percentile(valid, RANGE_PERCENTILE)) * RANGE_MARGIN)
+    return int(min(top, max(DISPARITY_STEP, want)))
+
+
 def sgm(
     left: npt.ArrayLike,
     right: npt.ArrayLike,
@@ -58,6 +98,10 @@ def sgm(
     block_size: int = BLOCK_SIZE,
 ) -> F32:
     """SGBM disparity (``d = u_left - u_right``) on the ``reference`` view; NaN = invalid.
+
+    Invalid means what SGBM marks invalid (left-right check, uniqueness, the image border) and
+    its outputs at the lower end of the search, ``d = min_disparity`` (``d = 0`` by default):
+    SGBM parks pixels there that it could not match and cannot refine them to sub-pixel.
 
     Args:
         left, right: the rectified pair, uint8 RGB (or grey) of equal size.
@@ -108,7 +152,7 @@ def sgm(
         )
         raw = raw[:, ::-1]
     disp = raw.astype(np.float32) / 16.0
-    disp[raw < lo * 16] = np.nan
+    disp[raw <= lo * 16] = np.nan
     return np.ascontiguousarray(disp)
 
 

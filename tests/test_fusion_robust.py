@@ -1,0 +1,233 @@
+"""Fusion on data it was not tuned on: amplitude in any unit, flying ToF pixels, SGBM's parked
+outputs, implausible ToF depths, swapped images, either output camera, the calibration layout."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rgbd_rs import RgbdError
+from rgbd_rs.data.calibration import load_rig, rig_to_dict
+from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
+from rgbd_rs.fusion import FusionResult, fuse, sgm, tof_confidence, tof_to_reference
+from rgbd_rs.fusion._inputs import with_reference
+from rgbd_rs.fusion.stereo import (
+    DISPARITY_STEP,
+    MAX_RANGE_FRACTION,
+    max_search,
+    search_range,
+)
+
+RIG = synth3_rig(0.25)  # 480 x 270
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.fixture(scope="module")
+def scene() -> SynthSample:
+    return generate(0, "test", 1, RIG)[0]
+
+
+@pytest.fixture(scope="module")
+def fused(scene: SynthSample) -> FusionResult:
+    return fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG)
+
+
+def _one_warning(record: list[warnings.WarningMessage], needle: str) -> str:
+    hits = [str(w.message) for w in record if needle in str(w.message)]
+    assert len(hits) == 1, [str(w.message) for w in record]
+    assert all(issubclass(w.category, RuntimeWarning) for w in record)
+    return hits[0]
+
+
+# -- 1. the amplitude's unit ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("scale", [1e-4, 1e4])
+def test_fuse_ignores_the_amplitude_unit(
+    scene: SynthSample, fused: FusionResult, scale: float
+) -> None:
+    amp = (scene.tof_amplitude * scale).astype(np.float32)
+    out = fuse(scene.left, scene.right, scene.tof_depth, amp, RIG)
+    assert out.tof_confidence is not None and fused.tof_confidence is not None
+    # Not all zero (the simulator-unit noise law gave 0 on every pixel at 1e-4).
+    assert np.mean(out.tof_confidence > 0.5) > 0.5
+    np.testing.assert_allclose(out.tof_confidence, fused.tof_confidence, atol=1e-5)
+    np.testing.assert_array_equal(np.isnan(out.disparity), np.isnan(fused.disparity))
+    np.testing.assert_allclose(out.disparity, fused.disparity, atol=1e-3)
+    assert out.max_disparity == fused.max_disparity
+
+
+def test_tof_confidence_over_eight_orders_of_magnitude(scene: SynthSample) -> None:
+    tof = tof_to_reference(scene.tof_depth, scene.tof_amplitude, RIG, scene.right)
+    base = tof_confidence(tof.disparity, tof.amplitude)
+    for scale in np.logspace(-4, 4, 9):
+        scaled = tof_confidence(tof.disparity, (tof.amplitude * scale).astype(np.float32))
+        np.testing.assert_allclose(scaled, base, atol=1e-5, err_msg=f"scale {scale:g}")
+    # Amplitude in 0.1 ... 1 (another sensor's unit): the same map.
+    a = tof.amplitude / np.nanmax(tof.amplitude)
+    np.testing.assert_allclose(tof_confidence(tof.disparity, a), base, atol=1e-5)
+
+
+def test_tof_confidence_distrusts_dark_pixels_relative_to_the_frame() -> None:
+    d = np.full((40, 60), 20.0, np.float32)
+    amp = np.ones((40, 60), np.float32)
+    amp[10:20, 10:20] = 1e-3  # shot noise x sqrt(1000) ~ 32 times the frame's typical pixel
+    amp[25:35, 30:40] = 0.5  # x 1.4: still trusted
+    for unit in (1e-3, 1.0, 2e4):
+        c = tof_confidence(d, amp * unit)
+        assert c[12:18, 12:18].max() == 0
+        assert c[27:33, 32:38].min() == 1 and c[:5, 45:].min() == 1
+    d[0, 0] = np.nan
+    assert tof_confidence(d, amp)[0, 0] == 0
+
+
+# -- 2. the SGM search range ---------------------------------------------------------------------
+
+
+def test_search_range_ignores_flying_pixels(scene: SynthSample, fused: FusionResult) -> None:
+    gt_max = float(np.nanmax(scene.gt_disparity))
+    # On the reference lattice: 0.4 % of the pixels in 2 x 2 blobs at tiny depth (300 px).
+    rng = np.random.default_rng(7)
+    disp = fused.tof.disparity.copy()
+    ys = rng.integers(0, disp.shape[0] - 1, disp.size // 1000)
+    xs = rng.integers(0, disp.shape[1] - 1, disp.size // 1000)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            disp[ys + dy, xs + dx] = 300.0
+    finite = disp[np.isfinite(disp)]
+    assert 0.003 < np.mean(finite == 300) < 0.005
+    # The former rule (99.9th percentile x 1.15) is fooled; the robust one is not.
+    assert np.percentile(finite, 99.9) * 1.15 > 3 * gt_max
+    assert gt_max < search_range(disp) < 1.3 * gt_max
+    # End to end: 0.4 % of the ToF frame's pixels flying at 0.2-0.5 m change nothing.
+    depth = scene.tof_depth.copy()
+    flying = rng.random(depth.shape) < 0.004
+    depth[flying] = rng.uniform(0.2, 0.5, flying.sum())
+    out = fuse(scene.left, scene.right, depth, scene.tof_amplitude, RIG)
+    assert gt_max < out.max_disparity < 1.3 * gt_max
+    assert abs(out.max_disparity - fused.max_disparity) <= 2
+    clean_cover = np.isfinite(fused.stereo_disparity).mean()
+    assert np.isfinite(out.stereo_disparity).mean() > clean_cover - 0.02
+
+
+def test_search_range_clamps_and_falls_back() -> None:
+    w = 300
+    near = np.full((50, w), 250.0, np.float32)  # a wall nearer than SGM can search well
+    assert search_range(near) == int(MAX_RANGE_FRACTION * w)
+    assert search_range(np.full((50, w), np.nan, np.float32)) == int(MAX_RANGE_FRACTION * w)
+    assert search_range(np.full((50, w), 3.0, np.float32)) == DISPARITY_STEP
+    far = np.full((50, w), 40.0, np.float32)
+    far[::7, ::9] = 280.0  # isolated spikes: gone after the median filter
+    assert search_range(far) == int(np.ceil(40 * 1.15))
+    # The map's width by default; a given width bounds it (and OpenCV's limit does too).
+    assert search_range(near, width=2000) == 288
+    assert search_range(np.full((5, 40), 30.0, np.float32)) <= max(1, max_search(40))
+
+
+# -- 3. SGBM's parked outputs --------------------------------------------------------------------
+
+
+def test_sgm_zero_and_invalid_outputs_are_nan(scene: SynthSample) -> None:
+    # Identical views: every match is d = 0, where SGBM also parks what it cannot match.
+    same = sgm(scene.right, scene.right, max_disparity=32)
+    assert not (np.nan_to_num(same, nan=1.0) == 0).any()
+    st = sgm(scene.left, scene.right, max_disparity=64, min_disparity=16)
+    ok = np.isfinite(st)
+    assert ok.mean() > 0.3 and (st[ok] > 16).all()
+    st0 = sgm(scene.left, scene.right, max_disparity=64)
+    assert (st0[np.isfinite(st0)] > 0).all()
+
+
+# -- 4. implausible input warns once -------------------------------------------------------------
+
+
+def test_depth_in_millimetres_warns_once(scene: SynthSample) -> None:
+    with pytest.warns(RuntimeWarning) as record:
+        fuse(scene.left, scene.right, scene.tof_depth * 1000, scene.tof_amplitude, RIG)
+    msg = _one_warning(record, "millimetres")
+    assert "tof_depth" in msg and "check the depth unit" in msg
+
+
+def test_depths_beyond_the_stereo_range_warn_once(scene: SynthSample) -> None:
+    # b f = 43.6 px m on this rig: 60 m is 0.7 px of disparity (and 6 cm would be 727 px).
+    far = np.where(np.isfinite(scene.tof_depth), 60.0, np.nan).astype(np.float32)
+    with pytest.warns(RuntimeWarning) as record:
+        fuse(scene.left, scene.right, far, scene.tof_amplitude, RIG)
+    msg = _one_warning(record, "beyond the stereo rig's range")
+    assert "baseline" in msg and "millimetres" not in msg
+
+
+def test_swapped_images_warn_once(scene: SynthSample) -> None:
+    with pytest.warns(RuntimeWarning) as record:
+        fuse(scene.right, scene.left, scene.tof_depth, scene.tof_amplitude, RIG)
+    msg = _one_warning(record, "look swapped")
+    assert msg.startswith("left/right:") and "left camera's" in msg
+
+
+def test_swapped_images_warn_without_a_tof_too(scene: SynthSample) -> None:
+    nan = np.full_like(scene.tof_depth, np.nan)
+    with pytest.warns(RuntimeWarning) as record:
+        fuse(scene.right, scene.left, nan, scene.tof_amplitude, RIG, max_disparity=64)
+    messages = [str(w.message) for w in record]
+    assert any("no valid ToF pixel" in m for m in messages)
+    _one_warning(record, "look swapped")
+
+
+# -- 5. either output camera; the calibration layout ---------------------------------------------
+
+
+def test_reference_left_is_consistent_with_right(scene: SynthSample, fused: FusionResult) -> None:
+    left = fuse(
+        scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, reference="left"
+    )
+    assert left.reference == "left" and fused.reference == "right"
+    # Right pixel x sees what left pixel x + d sees, with the same disparity.
+    for key in ("tof", "disparity"):
+        r_map = fused.tof.disparity if key == "tof" else fused.disparity
+        l_map = left.tof.disparity if key == "tof" else left.disparity
+        ys, xs = np.nonzero(np.isfinite(r_map) & np.isfinite(scene.gt_disparity))
+        xl = np.rint(xs + r_map[ys, xs]).astype(int)
+        inside = xl < r_map.shape[1]
+        diff = np.abs(l_map[ys[inside], xl[inside]] - r_map[ys[inside], xs[inside]])
+        assert np.mean(diff < 1) > 0.85, key
+
+
+def test_with_reference_carries_the_pose_across_the_baseline() -> None:
+    left = with_reference(RIG, "left")
+    np.testing.assert_allclose(left.tof_to_reference.translation, [0.12, 0.04, 0.0])
+    back = with_reference(left, "right")
+    np.testing.assert_allclose(back.tof_to_reference.translation, RIG.tof_to_reference.translation)
+    assert with_reference(RIG, "right") is RIG
+
+
+def test_example_calibration_is_the_synthetic_rig() -> None:
+    rig = load_rig(EXAMPLES / "calibration.json")
+    assert rig_to_dict(rig) == rig_to_dict(synth3_rig(0.5))
+    assert json.loads((EXAMPLES / "calibration.json").read_text()) == rig_to_dict(rig)
+
+
+@pytest.mark.parametrize(
+    ("path", "match"),
+    [
+        (("tof", "fx"), r"calibration: camera 'tof' has no key 'fx'"),
+        (("stereo", "left", "width"), r"calibration: camera 'stereo\.left' has no key 'width'"),
+        (("stereo", "baseline"), r"calibration: 'stereo' has no key 'baseline'"),
+        (("tof_to_reference", "rotation"), r"calibration: 'tof_to_reference' has no key 'rotat"),
+        (("tof",), r"calibration: the file has no key 'tof'"),
+    ],
+)
+def test_missing_calibration_keys_are_named(
+    tmp_path: Path, path: tuple[str, ...], match: str
+) -> None:
+    doc = rig_to_dict(RIG)
+    where = doc
+    for key in path[:-1]:
+        where = where[key]
+    del where[path[-1]]
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    with pytest.raises(RgbdError, match=r"c\.json: " + match):
+        load_rig(tmp_path / "c.json")
