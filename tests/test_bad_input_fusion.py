@@ -10,7 +10,6 @@ import rgbd_rs.fusion as F
 from bad_input import Case, check, params
 from rgbd_rs import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.data import synth3_rig
-from rgbd_rs.fusion.stereo import search_range
 
 SHAPE = ShapeMismatchError
 ARG = InvalidArgumentError
@@ -79,19 +78,6 @@ CASES: list[Case] = [
         ARG,
         r"^reference: got 'middle'",
         "reference",
-    ),
-    Case(
-        "search_range",
-        lambda: search_range(D[0]),
-        SHAPE,
-        r"^tof_disparity: got shape \(40,\)",
-    ),
-    Case(
-        "search_range",
-        lambda: search_range(D, width=1),
-        ARG,
-        r"^width: got 1",
-        "width",
     ),
     Case(
         "LcParams",

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rgbd_rs import RgbdError
+from rgbd_rs import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.data.calibration import load_rig, rig_to_dict
 from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
 from rgbd_rs.fusion import FusionResult, fuse, sgm, tof_confidence, tof_to_reference
@@ -126,6 +126,12 @@ def test_search_range_clamps_and_falls_back() -> None:
     # The map's width by default; a given width bounds it (and OpenCV's limit does too).
     assert search_range(near, width=2000) == 288
     assert search_range(np.full((5, 40), 30.0, np.float32)) <= max(1, max_search(40))
+    # Bad input names the argument (search_range is not in rgbd_rs.fusion.__all__, so its cases
+    # live here rather than in the bad-input suite).
+    with pytest.raises(ShapeMismatchError, match=r"^tof_disparity: got shape \(300,\)"):
+        search_range(near[0])
+    with pytest.raises(InvalidArgumentError, match=r"^width: got 1"):
+        search_range(near, width=1)
 
 
 # -- 3. SGBM's parked outputs --------------------------------------------------------------------
