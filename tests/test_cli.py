@@ -317,3 +317,19 @@ def test_fuse_help_documents_the_calibration_layout() -> None:
     assert res.returncode == 0
     for needle in ("examples/calibration.json", '"tof_to_reference"', "baseline", "--reference"):
         assert needle in res.stdout, needle
+
+
+@pytest.mark.parametrize("case", ["swapped images", "depth in millimetres"])
+def test_implausible_input_is_one_warning_line(
+    case: str, fuse_inputs: dict[str, Path], tmp_path: Path
+) -> None:
+    if case == "swapped images":
+        replace = {"left": fuse_inputs["--right"], "right": fuse_inputs["--left"]}
+        needle = "rgbd: warning: left/right: the images look swapped"
+    else:
+        replace = {"tof_depth": _save(tmp_path / "mm.npy", np.full((424, 512), 1000.0))}
+        needle = "rgbd: warning: tof_depth: the ToF depths look like millimetres"
+    res = run(*_fuse_argv(fuse_inputs, out=tmp_path / "out", **replace))
+    assert res.returncode == 0, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(needle), res.stderr
