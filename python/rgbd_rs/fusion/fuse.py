@@ -35,7 +35,7 @@ ConfidenceKind = Literal["uniform", "heuristic"]
 #: (and at least ``SWAP_SUSPECT_SCORE``) means the images were swapped. Chosen on the synthetic
 #: test set and Middlebury: correct pairs score 0.36-0.97, swapped ones 0.01-0.16. Without a ToF
 #: the score is SGM's coverage alone, both orders are always matched, and the exchanged order
-#: must reach ``SWAP_GAIN_STEREO_ONLY`` times the given one (there swapped pairs reach 0.26-0.68
+#: must reach ``SWAP_GAIN_STEREO_ONLY`` times the given one (there swapped pairs reach 0.28-0.68
 #: of the correct order's 0.78-0.97, a ratio of 1.3 or more).
 SWAP_AGREE = 2.0
 SWAP_SUSPECT_SCORE = 0.25
@@ -65,7 +65,7 @@ class FusionResult:
     tof_confidence: F32 | None
     stereo_confidence: F32 | None
     max_disparity: int
-    reference: str
+    reference: Literal["left", "right"]
 
 
 def _match_score(stereo: F32, tof_disparity: F32, max_disparity: int, sign: int) -> float:
