@@ -114,7 +114,7 @@ def main() -> None:
     s, _ = generate(0, "test", 1, rig)
     tof = tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right)
     st = sgm(s.left, s.right, max_disparity=96)
-    ct = tof_confidence(tof.disparity, tof.amplitude, rig.stereo.baseline, rig.stereo.focal)
+    ct = tof_confidence(tof.disparity, tof.amplitude)
     cs = stereo_confidence(s.right, s.left, st, max_disparity=96)
     disps, confs = [tof.disparity, st], [ct, cs]
     print(f"threads: {_rgbd_rs.num_threads()}")
@@ -241,9 +241,7 @@ def main() -> None:
         ),
         (
             "ToF confidence",
-            lambda: tof_confidence(
-                tof.disparity, tof.amplitude, rig.stereo.baseline, rig.stereo.focal
-            ),
+            lambda: tof_confidence(tof.disparity, tof.amplitude),
         ),
         ("LC fusion (defaults)", lambda: lc_fuse(s.right, s.left, disps, confs)),
         ("fuse() total", lambda: fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, rig)),
