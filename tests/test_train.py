@@ -275,26 +275,49 @@ def test_split_is_deterministic_and_disjoint() -> None:
 
 
 DDP_SCRIPT = """
+import faulthandler
 import os
 import sys
+
 import torch
-sys.path.insert(0, {tests!r})
-from test_train import Smoothing, Tiny, mse, ARCH, NORM
-from rgbd_rs.nn import TrainConfig, is_main_process, seed_everything, split, train
 import torch.distributed as dist
 
-out = sys.argv[1]
+sys.path.insert(0, {tests!r})
+from test_train import ARCH, NORM, Smoothing, Tiny, mse
+from rgbd_rs.nn import TrainConfig, is_main_process, seed_everything, split, train
+
+faulthandler.dump_traceback_later(100, exit=True)  # a hang ends with the stacks, not orphans
+root, rank = sys.argv[1], int(os.environ["RANK"])
 config = TrainConfig(epochs=2, batch_size=3, lr=1e-2, checkpoint_steps=2, device="cpu")
-rank = int(os.environ["RANK"])
-seed_everything(rank)  # different initial weights per rank: DDP must broadcast rank 0's
-model = Tiny()
-train_set, val_set = split(Smoothing(), 0.2, seed=0)
-result = train(model, train_set, val_set, mse, config, out, arch=ARCH,
-               arch_config={{"width": 4}}, normalisation=NORM)
+
+
+def fit(out, data):
+    seed_everything(rank)  # different initial weights per rank: DDP must broadcast rank 0's
+    model = Tiny()
+    train_set, val_set = split(data, 0.2, seed=0)
+    result = train(model, train_set, val_set, mse, config, out, arch=ARCH,
+                   arch_config={{"width": 4}}, normalisation=NORM)
+    return model, result
+
+
+model, result = fit(f"{{root}}/whole", Smoothing())
 assert not dist.is_initialized()  # train() destroyed the group it created
 assert is_main_process() == (rank == 0)
-torch.save({{"state": model.state_dict(), "val": [h.val_loss for h in result.history]}},
-           f"{{out}}/rank{{rank}}.pt")
+val = [h.val_loss for h in result.history]
+torch.save({{"state": model.state_dict(), "val": val}}, f"{{root}}/whole/rank{{rank}}.pt")
+
+# Per rank and epoch: 8 training items in steps of 3, 3, 2 (last.pt after step 2), then 2
+# validation items; interrupt in epoch 2's third step, then resume in a group the caller made.
+try:
+    fit(f"{{root}}/cut", Smoothing(interrupt_after=10 + 6 + 2))
+    raise AssertionError("not interrupted")
+except KeyboardInterrupt:
+    assert not dist.is_initialized()
+dist.init_process_group("gloo")
+model, _ = fit(f"{{root}}/cut", Smoothing())
+assert dist.is_initialized()
+torch.save({{"state": model.state_dict()}}, f"{{root}}/cut/rank{{rank}}.pt")
+dist.destroy_process_group()
 """
 
 
@@ -308,7 +331,7 @@ def free_port() -> int:
     not torch.distributed.is_available() or not torch.distributed.is_gloo_available(),
     reason="this torch build has no torch.distributed with the gloo backend",
 )
-def test_ddp_two_cpu_processes_end_with_identical_weights(tmp_path: Path) -> None:
+def test_ddp_two_cpu_processes_identical_weights_and_resume(tmp_path: Path) -> None:
     script = tmp_path / "ddp_train.py"
     script.write_text(textwrap.dedent(DDP_SCRIPT.format(tests=str(Path(__file__).parent))))
     env = {
@@ -322,14 +345,23 @@ def test_ddp_two_cpu_processes_end_with_identical_weights(tmp_path: Path) -> Non
         sys.executable, "-m", "torch.distributed.run", "--nnodes=1", "--nproc_per_node=2",
         "--master_addr=127.0.0.1", f"--master_port={free_port()}", str(script),
     ]  # fmt: skip
-    proc = subprocess.run(
-        [*cmd, str(tmp_path)], env=env, capture_output=True, text=True, timeout=120
-    )
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    r0 = torch.load(tmp_path / "rank0.pt", weights_only=True)
-    r1 = torch.load(tmp_path / "rank1.pt", weights_only=True)
-    assert_same_weights(r0["state"], r1["state"])
-    assert r0["val"] == r1["val"]  # validation loss averaged over both ranks
-    last = load_checkpoint(tmp_path / "last.pt", arch=ARCH)
+    log = tmp_path / "torchrun.log"
+    with log.open("w") as f:
+        proc = subprocess.Popen([*cmd, str(tmp_path)], env=env, stdout=f, stderr=subprocess.STDOUT)
+        try:
+            proc.wait(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc.terminate()  # torchrun passes it on to its workers
+            proc.wait(timeout=30)
+    out = log.read_text()
+    assert proc.returncode == 0, out[-4000:]
+    whole = [torch.load(tmp_path / "whole" / f"rank{r}.pt", weights_only=True) for r in (0, 1)]
+    assert_same_weights(whole[0]["state"], whole[1]["state"])
+    assert whole[0]["val"] == whole[1]["val"]  # validation loss averaged over both ranks
+    last = load_checkpoint(tmp_path / "whole" / "last.pt", arch=ARCH)
     assert (last.epoch, last.world_size) == (2, 2)
-    assert_same_weights(last.model_state, r0["state"])
+    assert_same_weights(last.model_state, whole[0]["state"])
+    # Interrupted mid-epoch and resumed on 2 processes: the very same weights.
+    for r in (0, 1):
+        cut = torch.load(tmp_path / "cut" / f"rank{r}.pt", weights_only=True)
+        assert_same_weights(cut["state"], whole[0]["state"])

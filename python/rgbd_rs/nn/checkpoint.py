@@ -150,7 +150,8 @@ class Checkpoint:
     (0 at an epoch boundary). ``config`` is :class:`~rgbd_rs.nn.train.TrainConfig` as a dict.
     ``history`` holds one dict per completed epoch: ``epoch`` (1-based), ``train_loss``,
     ``val_loss`` (None without validation) and ``lr``. ``optimizer_state``, ``scheduler_state``
-    and ``rng_state`` are None in an inference-only copy (:meth:`stripped`).
+    and ``rng_state`` are None in an inference-only copy (:meth:`stripped`); ``rng_state`` is
+    ``{"ranks": [...]}``, the generators' states of each process (one in a single process).
     """
 
     path: Path
@@ -234,8 +235,11 @@ def resume_differences(
             out.append(f"{part}[{key!r}] differs{shown}")
     if ckpt.world_size != world_size:
         out.append(f"{ckpt.world_size} processes in the checkpoint, {world_size} now")
-    if ckpt.optimizer_state is None or ckpt.scheduler_state is None or ckpt.rng_state is None:
+    states = (ckpt.rng_state or {}).get("ranks")
+    if ckpt.optimizer_state is None or ckpt.scheduler_state is None or states is None:
         out.append("it is an inference-only copy without optimizer state")
+    elif not isinstance(states, list) or len(states) != ckpt.world_size:
+        out.append("its RNG states do not match its number of processes")
     return out
 
 

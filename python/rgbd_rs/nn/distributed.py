@@ -7,8 +7,10 @@ CPU, nccl on CUDA, each process on GPU ``LOCAL_RANK``) unless the caller already
 
 from __future__ import annotations
 
+import itertools
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 import torch.distributed as dist
@@ -42,6 +44,22 @@ class Group:
         dist.all_reduce(t)
         return [float(v) for v in t.tolist()]
 
+    def gather(self, obj: object) -> list[Any]:
+        """``obj`` of every process, in rank order (pickled across processes)."""
+        if self.world == 1:
+            return [obj]
+        out: list[Any] = [None] * self.world
+        dist.all_gather_object(out, obj)
+        return out
+
+    def broadcast(self, obj: object) -> Any:
+        """Rank 0's ``obj`` on every process (pickled across processes)."""
+        if self.world == 1:
+            return obj
+        box = [obj]
+        dist.broadcast_object_list(box, src=0)
+        return box[0]
+
     def barrier(self) -> None:
         """Wait for every process."""
         if self.world == 1:
@@ -55,6 +73,10 @@ class Group:
         """Destroy the process group if :func:`setup` created it."""
         if self.owns and dist.is_initialized():
             dist.destroy_process_group()
+
+
+#: train() calls that created a process group in this process (the same count on every rank).
+_CALLS = itertools.count()
 
 
 def _env_int(name: str, default: int) -> int:
@@ -83,6 +105,14 @@ def setup(device: str) -> Group:
         raise RgbdError(f"WORLD_SIZE={world} but this torch build has no torch.distributed")
     owns = not dist.is_initialized()
     if owns:
+        from torch.distributed.distributed_c10d import PrefixStore
+        from torch.distributed.rendezvous import rendezvous
+
+        store, rank, size = next(rendezvous("env://"))
+        # torchrun's store outlives a process group, and a re-created default group reuses its
+        # key prefix: a second train() in the same processes could meet the first one's stale
+        # rendezvous keys and hang. A prefix per call keeps them apart.
+        store = PrefixStore(f"rgbd_rs.train/{next(_CALLS)}", store)
         backend = "nccl" if dev.type == "cuda" else "gloo"
-        dist.init_process_group(backend=backend, init_method="env://")
+        dist.init_process_group(backend=backend, store=store, rank=rank, world_size=size)
     return Group(dist.get_rank(), dist.get_world_size(), dev, owns)

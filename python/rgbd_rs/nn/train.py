@@ -346,8 +346,19 @@ def _run(
     best_epoch: int | None = None
     start_epoch = start_step = 0
     partial = {"loss_sum": 0.0, "samples": 0.0}
-    if resume and last_path.is_file():
-        ckpt = load_checkpoint(last_path, map_location="cpu")
+    # Rank 0 reads last.pt (after its own previous writes: no race, no shared disk needed) and
+    # sends it to the others; an unreadable file fails every rank alike instead of hanging.
+    found: Checkpoint | str | None = None
+    if main and resume and last_path.is_file():
+        try:
+            found = load_checkpoint(last_path, map_location="cpu")
+        except RgbdError as exc:
+            found = str(exc)
+    found = g.broadcast(found)
+    if isinstance(found, str):
+        raise RgbdError(found)
+    if found is not None:
+        ckpt = found
         diffs = resume_differences(ckpt, **now, may_change=RESUMABLE_CHANGES)
         if diffs:
             raise RgbdError(
@@ -357,32 +368,37 @@ def _run(
         model.load_state_dict(ckpt.model_state)
         opt.load_state_dict(ckpt.optimizer_state)  # type: ignore[arg-type]
         sched.load_state_dict(ckpt.scheduler_state)  # type: ignore[arg-type]
-        restore_rng(ckpt.rng_state)  # type: ignore[arg-type]
+        restore_rng(ckpt.rng_state["ranks"][g.rank])  # type: ignore[index]
         history, best_val, best_epoch = list(ckpt.history), ckpt.best_val_loss, ckpt.best_epoch
         start_epoch, start_step = ckpt.epoch, ckpt.step
         if main and ckpt.partial:
             partial = dict(ckpt.partial)  # the other ranks' shares are already summed in
     else:
-        seed_everything(cfg.seed)
+        # Each rank its own stream (dropout, augmentations); rank 0 = a single process's.
+        seed_everything((cfg.seed + g.rank) % 2**32)
         if main:
             best_path.unlink(missing_ok=True)  # a stale best.pt from an earlier run
-    g.barrier()  # every rank has read last.pt before rank 0 overwrites it
     net: nn.Module = model
     if g.world > 1:
         ids = [g.device.index or 0] if g.device.type == "cuda" else None
         net = DistributedDataParallel(model, device_ids=ids)
     version, revision = package_version(), git_revision()
 
-    def save(epoch: int, step: int, sums: dict[str, float], path: Path = last_path) -> None:
+    def save(epoch: int, step: int, sums: dict[str, float], paths: list[Path]) -> None:
+        """Called by every rank (each contributes its RNG state); rank 0 writes ``paths``."""
+        rng = g.gather(capture_rng())
+        if not main:
+            return
         ckpt = Checkpoint(
-            path=path, arch=now["arch"], arch_config=now["arch_config"],
+            path=paths[0], arch=now["arch"], arch_config=now["arch_config"],
             normalisation=now["normalisation"], model_state=model.state_dict(),
             config=now["config"], version=version, git_revision=revision, epoch=epoch,
             step=step, world_size=g.world, optimizer_state=opt.state_dict(),
-            scheduler_state=sched.state_dict(), rng_state=capture_rng(), history=history,
+            scheduler_state=sched.state_dict(), rng_state={"ranks": rng}, history=history,
             best_val_loss=best_val, best_epoch=best_epoch, partial=sums,
         )  # fmt: skip
-        save_checkpoint(ckpt, path)
+        for path in paths:
+            save_checkpoint(ckpt, path)
 
     show = not quiet and main and sys.stderr.isatty()
     net.train()
@@ -416,8 +432,7 @@ def _run(
                 bar.set_postfix(loss=f"{loss_sum / samples:.4g}")
                 if cfg.checkpoint_steps and step % cfg.checkpoint_steps == 0 and step < steps:
                     total = g.sum([loss_sum, samples])
-                    if main:
-                        save(epoch, step, {"loss_sum": total[0], "samples": total[1]})
+                    save(epoch, step, {"loss_sum": total[0], "samples": total[1]}, [last_path])
             loss_sum, samples = g.sum([loss_sum, samples])
             lr = float(sched.get_last_lr()[0])
             val = _evaluate(model, val_set, loss_fn, cfg, g) if val_set is not None else None
@@ -429,10 +444,7 @@ def _run(
             improved = val is not None and (best_val is None or val < best_val)
             if improved:
                 best_val, best_epoch = val, epoch + 1
-            if main:
-                save(epoch + 1, 0, {})
-                if improved:
-                    save(epoch + 1, 0, {}, best_path)
+            save(epoch + 1, 0, {}, [last_path, best_path] if improved else [last_path])
             shown = {"loss": f"{train_loss:.4g}"} | ({} if val is None else {"val": f"{val:.4g}"})
             bar.set_postfix(shown)
     g.barrier()
