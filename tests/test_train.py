@@ -3,6 +3,7 @@ synthetic regression (learn a fixed 3x3 smoothing). Everything runs on CPU in se
 
 from __future__ import annotations
 
+import io
 import os
 import socket
 import subprocess
@@ -125,6 +126,20 @@ def test_loss_decreases_and_checkpoint_holds_everything(
     assert_same_weights(fresh.state_dict(), best.model_state)
     with pytest.raises(RgbdError, match=r"best\.pt: weights do not fit"):
         best.load_weights(Tiny(width=5))
+
+
+class Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_bar_on_a_terminal_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    config = TrainConfig(**{**CONFIG.to_dict(), "epochs": 1})
+    for quiet, shown in ((False, True), (True, False)):
+        monkeypatch.setattr(sys, "stderr", Terminal())
+        run(tmp_path / str(quiet), config, quiet=quiet)
+        text = sys.stderr.getvalue()  # type: ignore[attr-defined]
+        assert ("epoch 1/1" in text and "loss=" in text and "val=" in text) == shown, text
 
 
 def test_same_seed_gives_identical_weights(tmp_path: Path) -> None:

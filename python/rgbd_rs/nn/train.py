@@ -1,7 +1,8 @@
 """The one trainer of the package's networks (confidence, segmentation, shape classification).
 
 :func:`train` runs the same code in one process or in each process started by ``torchrun``
-(DistributedDataParallel: gloo on CPU, nccl on CUDA). Calling convention, per batch::
+(DistributedDataParallel: gloo on CPU, nccl on CUDA; ``torchrun --nproc_per_node=N script.py``
+where the script calls :func:`train` as it would alone). Calling convention, per batch::
 
     batch = tuple of tensors          # the dataset's items (tuples of tensors), collated
     output = model(batch[0])          # the first element is the network input
@@ -9,12 +10,13 @@
 
 Deterministic by seed: call :func:`seed_everything` with ``config.seed`` before building the
 model, and two runs on the same data end with bit-identical weights on CPU. Each epoch's order
-comes from a generator seeded with (seed, epoch), so a resumed run sees the same batches; the
-checkpoint ``out_dir/last.pt`` (written after every epoch and every ``checkpoint_steps`` steps)
-holds the optimizer, scheduler and RNG states, so interrupted + resumed training ends with the
-same weights as uninterrupted training. Datasets that draw random augmentations should draw
-them from the global generators in the main process (``num_workers=0``) or derive them from the
-item index, for the resumption to be exact.
+is a permutation seeded with (seed, epoch) (``DistributedSampler``, which also shards it over
+the processes), so a resumed run sees the same batches; ``out_dir/last.pt`` (written after
+every epoch and every ``checkpoint_steps`` steps) holds the optimizer, scheduler and every
+process's RNG states, so interrupted + resumed training ends with the same weights as
+uninterrupted training. Datasets that draw random augmentations should draw them from the
+global generators in the main process (``num_workers=0``) or derive them from the item index,
+for the resumption to be exact (worker processes are seeded per epoch, not per item).
 """
 
 from __future__ import annotations
