@@ -45,6 +45,11 @@ def register(commands: Commands) -> None:
         action="store_true",
         help="write the best checkpoint's inference-only copy over the package's shipped weights",
     )
+    p.add_argument(
+        "--no-resume",
+        action="store_true",
+        help="start afresh in OUT, overwriting its checkpoints (default: resume from OUT/last.pt)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -60,7 +65,7 @@ def _shard(text: str) -> tuple[int, int]:
 
 def run_train(args: argparse.Namespace) -> int:
     from rgbd_rs.nn.confidence_train import Recipe, prepare_caches, ship, train_confidence
-    from rgbd_rs.nn.train import TrainConfig
+    from rgbd_rs.nn.train import TrainConfig, is_main_process
 
     if args.shard is not None:
         train, val = prepare_caches(
@@ -79,7 +84,16 @@ def run_train(args: argparse.Namespace) -> int:
         checkpoint_steps=args.checkpoint_steps,
     )
     recipe = Recipe(width=args.width, patch=args.patch, per_scene=args.per_scene)
-    best = train_confidence(args.data, args.out, recipe=recipe, config=config, quiet=args.quiet)
+    best = train_confidence(
+        args.data,
+        args.out,
+        recipe=recipe,
+        config=config,
+        resume=not args.no_resume,
+        quiet=args.quiet,
+    )
+    if not is_main_process():  # under torchrun, rank 0 reports and ships
+        return 0
     print(f"best checkpoint: {best}")
     if args.ship:
         print(f"shipped weights: {ship(best)}")

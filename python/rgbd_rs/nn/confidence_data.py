@@ -49,19 +49,17 @@ def scene_arrays(s: Sample) -> dict[str, np.ndarray]:
         confidence="uniform",
         params=LcParams(radius=1, stride=1),
     )
-    ref_name = s.rig.reference
+    ref_name = out.reference
     ref, tgt = (s.right, s.left) if ref_name == "right" else (s.left, s.right)
+    # The ToF disparities LC fuses: those within the SGM search range (fuse() drops the rest).
+    with np.errstate(invalid="ignore"):
+        tof_d = np.where(out.tof.disparity <= out.max_disparity, out.tof.disparity, np.nan)
     clues = compute_clues(
-        ref,
-        tgt,
-        out.tof.disparity,
-        out.tof.amplitude,
-        out.stereo_disparity,
-        reference=ref_name,
+        ref, tgt, tof_d, out.tof.amplitude, out.stereo_disparity, reference=ref_name
     )
     target = np.stack(
         [
-            target_confidence(out.tof.disparity, s.gt_disparity, TARGET_T),
+            target_confidence(tof_d, s.gt_disparity, TARGET_T),
             target_confidence(out.stereo_disparity, s.gt_disparity, TARGET_T),
         ]
     )

@@ -59,6 +59,7 @@ def train_confidence(
     recipe: Recipe | None = None,
     config: object | None = None,
     cache: str | Path | None = None,
+    resume: bool = True,
     quiet: bool = False,
 ) -> Path:
     """Prepare (or reuse) the caches, train, and return the best checkpoint's path."""
@@ -72,7 +73,7 @@ def train_confidence(
         masked_mse,
         sigmas_of,
     )
-    from rgbd_rs.nn.train import TrainConfig, train
+    from rgbd_rs.nn.train import TrainConfig, seed_everything, train
 
     r = recipe or Recipe()
     cfg = config if config is not None else TrainConfig()
@@ -94,6 +95,7 @@ def train_confidence(
     val_set = (
         TileDataset(load_scenes(sorted(val_files)), sig, tile=r.val_tile) if val_files else None
     )
+    seed_everything(cfg.seed)  # the initial weights come from the seed too
     model = ConfidenceNet(r.width)
     result = train(
         model,
@@ -106,6 +108,7 @@ def train_confidence(
         arch_config={"width": r.width},
         normalisation={"sigmas": [float(v) for v in np.asarray(sig)], "target_t": 3.0},
         quiet=quiet,
+        resume=resume,
     )
     return Path(result.best_checkpoint or result.last_checkpoint)
 
