@@ -15,6 +15,7 @@ import rgbd_rs.fusion
 import rgbd_rs.io
 import rgbd_rs.meshes
 import rgbd_rs.metrics
+import rgbd_rs.nn
 import rgbd_rs.render
 import rgbd_rs.surface
 import rgbd_rs.viz
@@ -34,6 +35,7 @@ PUBLIC_MODULES = (
     rgbd_rs.io,
     rgbd_rs.viz,
     rgbd_rs.metrics,
+    rgbd_rs.nn,
 )
 
 #: Public callables with no caller input to check, and why.
@@ -59,6 +61,12 @@ EXEMPT: dict[str, str] = {
     "Synth3Sample": "result container built by Synth3Dataset",
     "MiddleburyPair": "result container built by load_middlebury",
     "AzureKinectCalibration": "result container built by load_azure_kinect_calibration",
+    "EpochStats": "result container built by train",
+    "TrainResult": "result container built by train",
+    "Checkpoint": "result container built by load_checkpoint",
+    "Checkpoint.stripped": "no arguments",
+    "TrainConfig.to_dict": "no arguments",
+    "is_main_process": "no arguments",
 }
 
 
@@ -101,9 +109,10 @@ def all_cases() -> list[Case]:
     from test_bad_input import CASES as CORE
     from test_bad_input_data import CASES as DATA
     from test_bad_input_fusion import CASES as FUSION
+    from test_bad_input_nn import CASES as NN
     from test_bad_input_render import CASES as RENDER
 
-    return [*CORE, *FUSION, *RENDER, *DATA]
+    return [*CORE, *FUSION, *RENDER, *DATA, *NN]
 
 
 def test_every_public_callable_has_a_bad_input_case() -> None:

@@ -20,7 +20,7 @@ RNG = np.random.default_rng(0)
 def _pair(h: int = 40, w: int = 64, d: float = 5.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A textured right (reference) image and the left one where x_left = x_right + d."""
     xs = np.arange(w + 16, dtype=np.float32)
-    tex = (128 + 60 * np.sin(xs * 0.7)[None, :] + 40 * np.cos(np.arange(h)[:, None] * 0.3))
+    tex = 128 + 60 * np.sin(xs * 0.7)[None, :] + 40 * np.cos(np.arange(h)[:, None] * 0.3)
     left_row = np.clip(tex, 0, 255)
     right = np.repeat(left_row[:, int(d) : int(d) + w, None], 3, axis=2).astype(np.uint8)
     left = np.repeat(left_row[:, :w, None], 3, axis=2).astype(np.uint8)
@@ -138,3 +138,54 @@ def test_tiny_training_run_loads_as_an_estimator(tmp_path: Path) -> None:
 def test_clues_dataclass_valid_mask() -> None:
     c = Clues(np.array([[[np.nan, 1.0]]] * 4, np.float32))
     assert c.valid.shape == (4, 1, 2) and not c.valid[:, 0, 0].any()
+
+
+def test_the_shipped_weights_fuse_by_default_and_ignore_the_amplitude_unit() -> None:
+    from rgbd_rs.data.synth import generate, synth3_rig
+    from rgbd_rs.fusion import LcParams, fuse
+    from rgbd_rs.nn.confidence import ARCH, WEIGHTS
+
+    est = ConfidenceEstimator.load()
+    assert est.source == str(WEIGHTS) and WEIGHTS.stat().st_size < 4_000_000
+    from rgbd_rs.nn.checkpoint import load_checkpoint
+
+    ckpt = load_checkpoint(WEIGHTS, arch=ARCH)
+    assert ckpt.optimizer_state is None, "ship the inference-only copy"
+    rig = synth3_rig(0.125)
+    s = generate(0, "test", 0, rig, meshes=[])[0]
+    params = LcParams(radius=3)
+    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, rig, params=params)
+    assert out.tof_confidence is not None and out.stereo_confidence is not None
+    for conf in (out.tof_confidence, out.stereo_confidence):
+        assert ((conf >= 0) & (conf <= 1)).all()
+    for unit in (1e-4, 1e4):
+        scaled = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude * unit, rig, params=params)
+        np.testing.assert_allclose(scaled.tof_confidence, out.tof_confidence, atol=1e-4)
+        same = np.isfinite(scaled.disparity) == np.isfinite(out.disparity)
+        assert same.mean() > 0.999
+        both = np.isfinite(scaled.disparity) & np.isfinite(out.disparity)
+        assert np.abs(scaled.disparity[both] - out.disparity[both]).max() < 0.05
+    # Your own checkpoint works the same way.
+    mine = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, rig, confidence=est, params=params)
+    np.testing.assert_array_equal(mine.disparity, out.disparity)
+
+
+def test_a_checkpoint_of_another_architecture_is_refused(tmp_path: Path) -> None:
+    from rgbd_rs.nn.checkpoint import load_checkpoint, save_checkpoint
+    from rgbd_rs.nn.confidence import WEIGHTS
+
+    ckpt = load_checkpoint(WEIGHTS)
+    import dataclasses
+
+    other = dataclasses.replace(ckpt, arch="segmentation/1", path=tmp_path / "other.pt")
+    save_checkpoint(other, tmp_path / "other.pt")
+    with pytest.raises(RgbdError, match=r"other\.pt"):
+        ConfidenceEstimator.load(tmp_path / "other.pt")
+    wide = dataclasses.replace(ckpt, arch_config={"width": 7}, path=tmp_path / "wide.pt")
+    save_checkpoint(wide, tmp_path / "wide.pt")
+    with pytest.raises(RgbdError, match=r"wide\.pt"):
+        ConfidenceEstimator.load(tmp_path / "wide.pt")
+    nonorm = dataclasses.replace(ckpt, normalisation={}, path=tmp_path / "nonorm.pt")
+    save_checkpoint(nonorm, tmp_path / "nonorm.pt")
+    with pytest.raises(RgbdError, match=r"nonorm\.pt.*sigmas"):
+        ConfidenceEstimator.load(tmp_path / "nonorm.pt")

@@ -79,9 +79,15 @@ def register(commands: Commands) -> None:
     )
     fz.add_argument(
         "--confidence",
-        choices=("uniform", "heuristic"),
-        default="heuristic",
-        help="confidence weights (default heuristic); see also --tof-confidence",
+        choices=("convnet", "uniform", "heuristic"),
+        default="convnet",
+        help="confidence weights (default convnet: the shipped confidence ConvNet); see also "
+        "--weights and --tof-confidence",
+    )
+    fz.add_argument(
+        "--weights",
+        type=Path,
+        help="a checkpoint of `rgbd train confidence` to use instead of the shipped weights",
     )
     fz.add_argument("--tof-confidence", type=Path, help="ToF confidence map (.npy, [0, 1])")
     fz.add_argument("--stereo-confidence", type=Path, help="stereo confidence map (.npy, [0, 1])")
@@ -120,6 +126,12 @@ def register(commands: Commands) -> None:
         "--stride", type=integer(1), default=2, help="LC window sampling step (default 2)"
     )
     ef.add_argument("--cross-check", action="store_true", help="LC with the two-view cross-check")
+    ef.add_argument(
+        "--weights",
+        type=Path,
+        help="confidence ConvNet checkpoint for the 'LC ConvNet' row (default: the shipped one)",
+    )
+    ef.add_argument("--no-convnet", action="store_true", help="leave out the 'LC ConvNet' row")
     ef.add_argument("--out", type=Path, default=Path("out/eval_fusion"), help="output folder")
     ef.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -175,6 +187,10 @@ def run_fuse(args: argparse.Namespace) -> int:
     depth = load_map("--tof-depth", args.tof_depth, png_scale=1e-3)
     amp = load_map("--tof-amplitude", args.tof_amplitude)
     conf: object = args.confidence
+    if args.weights is not None:
+        from rgbd_rs.nn.confidence import ConfidenceEstimator
+
+        conf = ConfidenceEstimator.load(args.weights)
     if args.tof_confidence is not None:
         conf = (
             load_map("--tof-confidence", args.tof_confidence),
@@ -252,6 +268,11 @@ def run_eval(args: argparse.Namespace) -> int:
     if args.synth is None and not args.middlebury:
         raise InvalidArgumentError("--synth/--middlebury: got neither, expected at least one")
     params = LcParams(stride=args.stride, cross_check=args.cross_check)
+    estimator = None
+    if not args.no_convnet:
+        from rgbd_rs.nn.confidence import ConfidenceEstimator
+
+        estimator = ConfidenceEstimator.load(args.weights)
     if args.synth is not None:
         samples = named(
             "--synth", lambda: list(islice(synth_samples(args.synth, args.split), args.limit))
@@ -261,6 +282,7 @@ def run_eval(args: argparse.Namespace) -> int:
             args.out / "synth",
             title=f"synthetic {args.split} set",
             params=params,
+            estimator=estimator,
             quiet=args.quiet,
         )
         print(markdown_table(res, f"synthetic {args.split} set ({len(res)} scenes)"))
@@ -274,6 +296,7 @@ def run_eval(args: argparse.Namespace) -> int:
             args.out / "middlebury",
             title="Middlebury (simulated ToF)",
             params=params,
+            estimator=estimator,
             quiet=args.quiet,
         )
         print(markdown_table(res, "Middlebury (simulated ToF)"))

@@ -3,7 +3,8 @@
 1. :func:`tof_to_reference` — reproject + upsample ToF onto the reference camera
    (:func:`segment_mean_shift`, :func:`upsample_depth`);
 2. :func:`sgm` — OpenCV SGBM as in the thesis;
-3. :func:`tof_confidence`, :func:`stereo_confidence` — deterministic confidences (or your own);
+3. the confidence ConvNet (:func:`compute_clues` + :class:`rgbd_rs.nn.ConfidenceEstimator`, the
+   default), :func:`tof_confidence`, :func:`stereo_confidence` — deterministic ones, or your own;
 4. :func:`lc_fuse` — confidence-weighted locally consistent fusion; :func:`lc_refine` — plain LC.
 
 :func:`fuse` runs them all.
@@ -14,10 +15,11 @@ Example:
     >>> out.disparity, out.depth  # doctest: +SKIP
 """
 
+from rgbd_rs.fusion.clues import compute_clues
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.fuse import FusionResult, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse, lc_refine
-from rgbd_rs.fusion.stereo import cost_curve_stats, sgm
+from rgbd_rs.fusion.stereo import cost_curve_stats, search_range, sgm
 from rgbd_rs.fusion.upsample import (
     ToFOnReference,
     segment_mean_shift,
@@ -29,10 +31,12 @@ __all__ = [
     "FusionResult",
     "LcParams",
     "ToFOnReference",
+    "compute_clues",
     "cost_curve_stats",
     "fuse",
     "lc_fuse",
     "lc_refine",
+    "search_range",
     "segment_mean_shift",
     "sgm",
     "stereo_confidence",

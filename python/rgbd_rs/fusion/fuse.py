@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import functools
+import sys
 import warnings
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal, TypeGuard
 
 import numpy as np
 import numpy.typing as npt
@@ -27,7 +29,22 @@ from rgbd_rs.fusion.stereo import search_range, sgm
 from rgbd_rs.fusion.upsample import ToFOnReference, tof_to_reference
 from rgbd_rs.geometry import disparity_to_depth
 
-ConfidenceKind = Literal["uniform", "heuristic"]
+if TYPE_CHECKING:  # torch is imported only when the ConvNet runs
+    from rgbd_rs.nn.confidence import ConfidenceEstimator
+
+ConfidenceKind = Literal["convnet", "uniform", "heuristic"]
+#: Confidence kinds by name ("convnet" runs the shipped ConvNet, rgbd_rs/nn/weights).
+CONFIDENCE_KINDS = ("convnet", "uniform", "heuristic")
+
+
+@functools.cache
+def shipped_estimator() -> ConfidenceEstimator:
+    """The confidence ConvNet shipped in the package, loaded once per process."""
+    from rgbd_rs.nn.confidence import ConfidenceEstimator
+
+    return ConfidenceEstimator.load()
+
+
 #: Swapped left/right images. A pair's match score is the share of the pixels SGM can search
 #: (those at least ``max_disparity`` from the image edge) that SGM matches and, where the ToF has
 #: a disparity, matches within ``SWAP_AGREE`` px of it. Below ``SWAP_SUSPECT_SCORE`` the pair is
@@ -66,6 +83,13 @@ class FusionResult:
     stereo_confidence: F32 | None
     max_disparity: int
     reference: Literal["left", "right"]
+
+
+def _is_estimator(value: object) -> TypeGuard[ConfidenceEstimator]:
+    """Whether ``value`` is a ConfidenceEstimator (without importing torch when it cannot be:
+    an instance exists only once its module was imported)."""
+    module = sys.modules.get("rgbd_rs.nn.confidence")
+    return module is not None and isinstance(value, module.ConfidenceEstimator)
 
 
 def _match_score(stereo: F32, tof_disparity: F32, max_disparity: int, sign: int) -> float:
@@ -110,7 +134,9 @@ def fuse(
     tof_amplitude: npt.ArrayLike,
     rig: object,
     *,
-    confidence: ConfidenceKind | tuple[npt.ArrayLike, npt.ArrayLike] = "heuristic",
+    confidence: ConfidenceKind
+    | ConfidenceEstimator
+    | tuple[npt.ArrayLike, npt.ArrayLike] = "convnet",
     params: LcParams | None = None,
     max_disparity: int | None = None,
     reference: Literal["left", "right"] | None = None,
@@ -122,9 +148,11 @@ def fuse(
         tof_depth, tof_amplitude: the ToF frame (metres, NaN/<=0 invalid; amplitude >= 0).
         rig: :class:`~rgbd_rs.ToFStereoRig`; the output lies on ``rig.reference_camera``
             unless ``reference`` says otherwise.
-        confidence: ``"uniform"`` (equal weights, Dal Mutto 2012), ``"heuristic"``
+        confidence: ``"convnet"`` (default: the confidence ConvNet of thesis §3.6 with the
+            weights shipped in the package), a :class:`~rgbd_rs.nn.confidence.ConfidenceEstimator`
+            (your own checkpoint), ``"uniform"`` (equal weights, Dal Mutto 2012), ``"heuristic"``
             (:mod:`rgbd_rs.fusion.confidence`), or ``(tof_conf, stereo_conf)`` maps in [0, 1] on
-            the reference camera (e.g. from the confidence ConvNet).
+            the reference camera.
         params: LC constants and window (:class:`LcParams`).
         max_disparity: SGM search range; default :func:`~rgbd_rs.fusion.stereo.search_range`
             of the ToF disparities (robust to flying pixels, at most a third of the width).
@@ -147,8 +175,15 @@ def fuse(
     if params is not None and not isinstance(params, LcParams):
         raise InvalidArgumentError(f"params: got {type(params).__name__}, expected LcParams")
     given: tuple[F32, F32] | None = None
+    estimator = None
+    kind = "given"
     if isinstance(confidence, str):
-        kind = _validate.choice("confidence", confidence, ("uniform", "heuristic"))
+        kind = _validate.choice("confidence", confidence, CONFIDENCE_KINDS)
+        if kind == "convnet":
+            estimator = shipped_estimator()
+    elif _is_estimator(confidence):
+        estimator = confidence
+        kind = "convnet"
     elif isinstance(confidence, (tuple, list)) and len(confidence) == 2:
         given = (
             map2d("confidence[0]", confidence[0], (h, w)),
@@ -156,8 +191,8 @@ def fuse(
         )
     else:
         raise InvalidArgumentError(
-            f"confidence: got {type(confidence).__name__}, expected 'uniform', 'heuristic' "
-            "or a (tof_confidence, stereo_confidence) pair of maps"
+            f"confidence: got {type(confidence).__name__}, expected 'convnet', 'uniform', "
+            "'heuristic', a ConfidenceEstimator or a (tof_confidence, stereo_confidence) pair"
         )
     if max_disparity is not None:
         max_disparity = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
@@ -196,6 +231,8 @@ def fuse(
         ct, cs = given
     elif kind == "uniform":
         ct = cs = None
+    elif estimator is not None:
+        ct, cs = estimator(ref_img, tgt_img, tof_disp, tof.amplitude, stereo, reference=r.reference)
     else:
         ct = tof_confidence(tof_disp, tof.amplitude)
         cs = stereo_confidence(ref_img, tgt_img, stereo, target_sign=sign, max_disparity=dmax)

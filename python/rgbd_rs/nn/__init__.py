@@ -1,11 +1,15 @@
 """Torch networks of rgbd_rs and the one trainer they share.
 
+:class:`ConfidenceNet` / :class:`ConfidenceEstimator`: the ToF + stereo confidence ConvNet of
+thesis §3.6 (``fuse(confidence="convnet")`` runs the shipped weights).
+
 :func:`train` (single process or under ``torchrun``) with its :class:`TrainConfig`, and the
 checkpoints it writes (:func:`load_checkpoint`), which hold the architecture, its configuration
 and the input normalisation alongside the weights.
 """
 
 from rgbd_rs.nn.checkpoint import FORMAT, Checkpoint, load_checkpoint, save_checkpoint
+from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
 from rgbd_rs.nn.train import (
     EpochStats,
     TrainConfig,
@@ -19,11 +23,14 @@ from rgbd_rs.nn.train import (
 __all__ = [
     "FORMAT",
     "Checkpoint",
+    "ConfidenceEstimator",
+    "ConfidenceNet",
     "EpochStats",
     "TrainConfig",
     "TrainResult",
     "is_main_process",
     "load_checkpoint",
+    "predict",
     "save_checkpoint",
     "seed_everything",
     "split",

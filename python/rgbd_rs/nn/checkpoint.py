@@ -250,7 +250,11 @@ def _to_file(ckpt: Checkpoint) -> dict[str, Any]:
 
 
 def save_checkpoint(checkpoint: Checkpoint, path: str | os.PathLike[str]) -> Path:
-    """Write ``checkpoint`` to ``path`` atomically; return the path written."""
+    """Write ``checkpoint`` to ``path`` atomically (mode 0644); return the path written."""
+    if not isinstance(checkpoint, Checkpoint):
+        raise InvalidArgumentError(
+            f"checkpoint: got {type(checkpoint).__name__}, expected a Checkpoint"
+        )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -259,6 +263,7 @@ def save_checkpoint(checkpoint: Checkpoint, path: str | os.PathLike[str]) -> Pat
             torch.save(_to_file(checkpoint), f)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp makes it private; a checkpoint is an ordinary file
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -20,7 +20,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from rgbd_rs import _validate
-from rgbd_rs.errors import RgbdError
+from rgbd_rs.errors import RgbdError, ShapeMismatchError
 
 #: Name stored in checkpoints; a checkpoint of another architecture is refused.
 ARCH = "confidence-convnet/1"
@@ -50,6 +50,9 @@ class ConfidenceNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``N x 4 x H x W`` normalised clues -> ``N x 2 x H x W`` (P_T, P_S), unclamped."""
+        if not isinstance(x, torch.Tensor) or x.ndim != 4 or x.shape[1] != IN_CHANNELS:
+            shape = tuple(x.shape) if isinstance(x, torch.Tensor) else type(x).__name__
+            raise ShapeMismatchError(f"x: got shape {shape}, expected (N, {IN_CHANNELS}, H, W)")
         y = F.pad(x, (PAD, PAD, PAD, PAD), mode="replicate")
         for i, conv in enumerate(self.layers):
             y = conv(y)
