@@ -189,3 +189,15 @@ def test_a_checkpoint_of_another_architecture_is_refused(tmp_path: Path) -> None
     save_checkpoint(nonorm, tmp_path / "nonorm.pt")
     with pytest.raises(RgbdError, match=r"nonorm\.pt.*sigmas"):
         ConfidenceEstimator.load(tmp_path / "nonorm.pt")
+
+
+def test_cached_targets_retarget_to_a_smaller_threshold() -> None:
+    from rgbd_rs.nn.confidence_data import TARGET_T, retarget
+
+    d = np.linspace(0, 5, 51, dtype=np.float32)[None]
+    gt = np.zeros_like(d)
+    cached = target_confidence(d, gt, TARGET_T)
+    np.testing.assert_allclose(retarget(cached, 1.0), target_confidence(d, gt, 1.0), atol=1e-5)
+    assert retarget(cached, TARGET_T) is cached
+    with pytest.raises(InvalidArgumentError, match="target_t"):
+        PatchDataset([_scene()], np.ones(4), patch=16, target_t=4.0)

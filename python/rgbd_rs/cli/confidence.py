@@ -32,6 +32,13 @@ def register(commands: Commands) -> None:
     p.add_argument("--per-scene", type=integer(1), default=30, help="patches per scene (30)")
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed (0)")
     p.add_argument(
+        "--target-t",
+        type=real(0, 3),
+        default=3.0,
+        help="error (px) at which the target confidence reaches 0 (3; at most 3)",
+    )
+    p.add_argument("--init", type=Path, help="start from this checkpoint's weights (fine-tune)")
+    p.add_argument(
         "--checkpoint-steps", type=integer(0), default=50, help="also save every N steps (50)"
     )
     p.add_argument(
@@ -83,12 +90,15 @@ def run_train(args: argparse.Namespace) -> int:
         seed=args.seed,
         checkpoint_steps=args.checkpoint_steps,
     )
-    recipe = Recipe(width=args.width, patch=args.patch, per_scene=args.per_scene)
+    recipe = Recipe(
+        width=args.width, patch=args.patch, per_scene=args.per_scene, target_t=args.target_t
+    )
     best = train_confidence(
         args.data,
         args.out,
         recipe=recipe,
         config=config,
+        init=args.init,
         resume=not args.no_resume,
         quiet=args.quiet,
     )

@@ -121,12 +121,36 @@ def sigmas_of(scenes: Sequence[dict[str, np.ndarray]]) -> npt.NDArray[np.float32
     return training_sigmas(np.stack([s["sigmas"] for s in scenes]))
 
 
+def retarget(target: npt.NDArray[np.float32], t: float) -> npt.NDArray[np.float32]:
+    """Cached targets (clipped at :data:`TARGET_T`) re-expressed for a threshold ``t <=
+    TARGET_T``: the error is ``TARGET_T (1 - target)`` below the clip, so no recomputation."""
+    if t == TARGET_T:
+        return target
+    err = TARGET_T * (1 - target)
+    return np.asarray(1 - np.minimum(err, t) / t, dtype=np.float32)
+
+
+def _check_t(t: float) -> float:
+    v = _validate.real("target_t", t, positive=True)
+    if v > TARGET_T:
+        raise InvalidArgumentError(
+            f"target_t: got {v}, expected at most {TARGET_T} (the caches clip errors there)"
+        )
+    return v
+
+
 def _item(
-    scene: dict[str, np.ndarray], sig: npt.NDArray[np.float32], y: int, x: int, p: int, flip: int
+    scene: dict[str, np.ndarray],
+    sig: npt.NDArray[np.float32],
+    y: int,
+    x: int,
+    p: int,
+    flip: int,
+    target_t: float,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     clues = Clues(scene["clues"][:, y : y + p, x : x + p].astype(np.float32))
     inp = normalise(clues, sig)
-    tgt = scene["target"][:, y : y + p, x : x + p].astype(np.float32)
+    tgt = retarget(scene["target"][:, y : y + p, x : x + p].astype(np.float32), target_t)
     mask = np.isfinite(tgt)
     tgt = np.where(mask, tgt, 0)
     arrays = [inp, tgt, mask.astype(np.float32)]
@@ -152,8 +176,10 @@ class PatchDataset(Dataset[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]):
         patch: int = 64,
         per_scene: int = 30,
         seed: int = 0,
+        target_t: float = TARGET_T,
     ) -> None:
         self.scenes = list(scenes)
+        self.target_t = _check_t(target_t)
         self.sigmas = _validate.array("sigmas", sigmas, shape=(4,), finite=True)
         self.patch = _validate.integer("patch", patch, minimum=8)
         self.per_scene = _validate.integer("per_scene", per_scene, minimum=1)
@@ -174,16 +200,23 @@ class PatchDataset(Dataset[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]):
         h, w = scene["clues"].shape[1:]
         y = int(rng.integers(0, h - self.patch + 1))
         x = int(rng.integers(0, w - self.patch + 1))
-        return _item(scene, self.sigmas, y, x, self.patch, int(rng.integers(0, 4)))
+        flip = int(rng.integers(0, 4))
+        return _item(scene, self.sigmas, y, x, self.patch, flip, self.target_t)
 
 
 class TileDataset(Dataset[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]):
     """Every whole ``tile``-pixel tile of each scene (a fixed validation set)."""
 
     def __init__(
-        self, scenes: Sequence[dict[str, np.ndarray]], sigmas: npt.ArrayLike, *, tile: int = 128
+        self,
+        scenes: Sequence[dict[str, np.ndarray]],
+        sigmas: npt.ArrayLike,
+        *,
+        tile: int = 128,
+        target_t: float = TARGET_T,
     ) -> None:
         self.scenes = list(scenes)
+        self.target_t = _check_t(target_t)
         self.sigmas = _validate.array("sigmas", sigmas, shape=(4,), finite=True)
         t = _validate.integer("tile", tile, minimum=8)
         self.tiles = [
@@ -199,7 +232,7 @@ class TileDataset(Dataset[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]):
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         k, y, x = self.tiles[i]
-        return _item(self.scenes[k], self.sigmas, y, x, self.tile, 0)
+        return _item(self.scenes[k], self.sigmas, y, x, self.tile, 0, self.target_t)
 
 
 def masked_mse(output: torch.Tensor, batch: Sequence[torch.Tensor]) -> torch.Tensor:

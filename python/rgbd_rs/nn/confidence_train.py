@@ -30,6 +30,8 @@ class Recipe:
     patch: int = 64
     per_scene: int = 30
     val_tile: int = 128
+    #: Error (px) at which the target confidence reaches 0 (at most the caches' 3 px).
+    target_t: float = 3.0
 
 
 def prepare_caches(
@@ -59,10 +61,12 @@ def train_confidence(
     recipe: Recipe | None = None,
     config: object | None = None,
     cache: str | Path | None = None,
+    init: str | Path | None = None,
     resume: bool = True,
     quiet: bool = False,
 ) -> Path:
-    """Prepare (or reuse) the caches, train, and return the best checkpoint's path."""
+    """Prepare (or reuse) the caches, train, and return the best checkpoint's path. ``init``
+    starts from a checkpoint's weights (fine-tuning) instead of Xavier initialisation."""
     import numpy as np
 
     from rgbd_rs.nn.confidence import ARCH, ConfidenceNet
@@ -91,12 +95,17 @@ def train_confidence(
         patch=_validate.integer("patch", r.patch, minimum=8),
         per_scene=r.per_scene,
         seed=cfg.seed,
+        target_t=r.target_t,
     )
     val_set = (
         TileDataset(load_scenes(sorted(val_files)), sig, tile=r.val_tile) if val_files else None
     )
     seed_everything(cfg.seed)  # the initial weights come from the seed too
     model = ConfidenceNet(r.width)
+    if init is not None:
+        from rgbd_rs.nn.checkpoint import load_checkpoint
+
+        load_checkpoint(init, arch=ARCH).load_weights(model)
     result = train(
         model,
         train_set,
@@ -106,7 +115,7 @@ def train_confidence(
         out,
         arch=ARCH,
         arch_config={"width": r.width},
-        normalisation={"sigmas": [float(v) for v in np.asarray(sig)], "target_t": 3.0},
+        normalisation={"sigmas": [float(v) for v in np.asarray(sig)], "target_t": r.target_t},
         quiet=quiet,
         resume=resume,
     )
