@@ -66,6 +66,7 @@ wheel: env ## build the wheel, install it into a fresh venv, smoke-test it there
 	cd /tmp && $(CACHE)/wheel-venv/bin/python -c "import rgbd_rs, pathlib; \
 	  p = pathlib.Path(rgbd_rs.__file__); assert 'wheel-venv' in str(p), p; \
 	  assert (p.parent / 'py.typed').exists(); \
+	  assert (p.parent / 'nn' / 'weights' / 'confidence.pt').stat().st_size > 1000; \
 	  import numpy as np; cam = rgbd_rs.PinholeCamera(100., 100., 10., 10., 20, 20); \
 	  print('wheel OK:', p.parent, cam.project(np.array([[0., 0., 1.]])))"
 
