@@ -79,6 +79,12 @@ CASES: list[Case] = [
         r"x\.pt: weights do not fit",
     ),
     Case("ConfidenceNet", lambda: ConfidenceNet(0), ARG, r"^width: got 0"),
+    Case(
+        "ConfidenceNet.body",
+        lambda: NET.body(torch.zeros(1, 4, 20, 20)[:, :3]),
+        SHAPE,
+        r"^x: got shape \(1, 3, 20, 20\)",
+    ),
     Case("predict", lambda: predict(NET, np.zeros((3, 8, 8), np.float32)), SHAPE, r"^inputs"),
     Case(
         "predict",

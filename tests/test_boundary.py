@@ -108,7 +108,7 @@ def test_segment_labels_are_compacted_not_indices() -> None:
     labels[8:] = 2**31 - 2  # formerly a 2^31-entry allocation: interpreter abort
     labels[0, 0] = -3
     fits = SegmentFits(pts, labels, spacing=8)
-    assert fits.n_labels == 2
+    assert fits.n_labels == 2 and fits.label_ids == [5, 2**31 - 2]
     assert fits.size(2**31 - 2) == 128 and fits.size(5) == 127
     fits.merge(5, 2**31 - 2)
     assert fits.find(2**31 - 2) == 5

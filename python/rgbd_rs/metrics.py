@@ -77,8 +77,9 @@ def edge_band(
     depth: npt.ArrayLike, width: int = 2, rel_step: float = DEPTH_EDGE_REL_STEP
 ) -> npt.NDArray[np.bool_]:
     """Pixels within ``width`` pixels (chessboard distance) of a depth edge of ``depth`` (or of a
-    disparity map: a relative step is the same in both); the edge pixel is the nearer side, so
-    ``width >= 1`` covers both sides."""
+    disparity map: a relative step is the same in both). :func:`depth_edges` marks the side with
+    the smaller value (the nearer one for depth, the farther for disparity); ``width >= 1``
+    covers both sides either way."""
     w = _validate.integer("width", width, maximum=1000)
     edges = depth_edges(depth, rel_step)
     if w == 0:

@@ -219,6 +219,11 @@ class SegmentFits:
         return self._native.n_labels
 
     @property
+    def label_ids(self) -> list[int]:
+        """The distinct labels (>= 0) the fits were built with, sorted."""
+        return self._native.label_ids
+
+    @property
     def criterion(self) -> str:
         """``"gcv"`` or ``"mse"``."""
         return self._native.criterion

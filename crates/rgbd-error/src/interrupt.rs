@@ -2,6 +2,11 @@
 //! tiles) and return [`RgbdError::Interrupted`] once the binding saw Ctrl-C and called
 //! [`request_interrupt`]. A request is cleared when the last running kernel has returned, so it
 //! never leaks into the next call.
+//!
+//! The request is process-wide: Ctrl-C on the main thread also stops kernels that other Python
+//! threads run at that moment (they raise `KeyboardInterrupt` too), and a call started on another
+//! thread before those have returned can see the request. A per-call token would need every
+//! kernel to take one; for an interactive Ctrl-C this coarser rule is what users expect.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 

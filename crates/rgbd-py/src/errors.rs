@@ -87,7 +87,9 @@ where
                             signal = Some(e);
                         }
                     }
-                    Err(RecvTimeoutError::Timeout) => {}
+                    // Asked again at every poll until the worker returns: another call ending
+                    // in between may have cleared the shared request.
+                    Err(RecvTimeoutError::Timeout) => rgbd_error::request_interrupt(),
                     // The worker ended without sending: it can only have panicked past
                     // catch_unwind, which the scope re-raises when it joins.
                     Err(RecvTimeoutError::Disconnected) => {

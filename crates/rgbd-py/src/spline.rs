@@ -103,6 +103,9 @@ pub fn fit_surface<'py>(
 #[pyclass(module = "rgbd_rs._rgbd_rs", name = "SegmentFits", frozen)]
 pub struct PySegmentFits {
     inner: RwLock<SegmentFits>,
+    /// Fixed at construction (merges never change them), so reading them takes no lock.
+    ids: Vec<i32>,
+    criterion: Criterion,
 }
 
 impl PySegmentFits {
@@ -153,6 +156,8 @@ impl PySegmentFits {
             SegmentFits::new(p, w, h, 3, l, &grid, lam, criterion)
         })?;
         Ok(Self {
+            ids: inner.label_ids().to_vec(),
+            criterion: inner.criterion,
             inner: RwLock::new(inner),
         })
     }
@@ -160,13 +165,19 @@ impl PySegmentFits {
     /// Number of labels (merged ones included).
     #[getter]
     fn n_labels(&self) -> usize {
-        self.read().n_labels()
+        self.ids.len()
+    }
+
+    /// The distinct labels the fits were built with, sorted.
+    #[getter]
+    fn label_ids(&self) -> Vec<i32> {
+        self.ids.clone()
     }
 
     /// 'gcv' or 'mse'.
     #[getter]
     fn criterion(&self) -> &'static str {
-        match self.read().criterion {
+        match self.criterion {
             Criterion::Gcv => "gcv",
             Criterion::Mse => "mse",
         }

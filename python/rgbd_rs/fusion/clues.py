@@ -19,6 +19,7 @@ normalisation and are flagged in :attr:`Clues.valid`: NaN never reaches the netw
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Literal
 
@@ -112,11 +113,13 @@ def scene_sigmas(clues: Clues) -> F32:
 def training_sigmas(per_scene: npt.ArrayLike) -> F32:
     """Eq. 3.3-3.6's sigma: the average over training scenes of each clue's per-scene std."""
     s = np.asarray(per_scene, dtype=np.float64)
-    if s.ndim != 2 or s.shape[1] != len(NAMES):
+    if s.ndim != 2 or s.shape[1] != len(NAMES) or s.shape[0] == 0:
         raise InvalidArgumentError(
             f"per_scene: got shape {s.shape}, expected (scenes, {len(NAMES)})"
         )
-    sig = np.nanmean(np.where(s > 0, s, np.nan), axis=0) if np.isfinite(s).any() else s[0]
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN column: caught below
+        sig = np.nanmean(np.where(s > 0, s, np.nan), axis=0)
     if not np.all(np.isfinite(sig) & (sig > 0)):
         raise InvalidArgumentError(f"per_scene: got sigma {sig.tolist()}, expected positive values")
     return np.asarray(sig, dtype=np.float32)

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -25,12 +26,15 @@ from rgbd_rs.data.middlebury import load_middlebury
 from rgbd_rs.data.synth import SynthDataset
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, U8, views
+from rgbd_rs.fusion.clues import target_confidence
 from rgbd_rs.fusion.crosscheck import warp_to_target
 from rgbd_rs.fusion.fuse import fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.meshes import Mesh
+
+if TYPE_CHECKING:  # torch is imported only when a ConvNet is evaluated
+    from rgbd_rs.nn.confidence import ConfidenceEstimator
 from rgbd_rs.metrics import bad_pixel_rate, edge_band, rms_error
-from rgbd_rs.nn.confidence import ConfidenceEstimator
 from rgbd_rs.render import Material, Scene, ToFModel
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
@@ -172,15 +176,12 @@ def evaluate_sample(
         s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, confidence="heuristic", params=params
     )
     ref, tgt, sign = views(s.left, s.right, s.rig.reference)
-    tof_d, st_d = out.tof.disparity, out.stereo_disparity
+    tof_d, st_d = out.tof_fused, out.stereo_disparity
     uni, _ = lc_fuse(ref, tgt, [tof_d, st_d], None, target_sign=sign, params=params)
     gt = s.gt_disparity
 
     def oracle(d: F32) -> F32:
-        e = np.abs(d - gt)
-        return np.where(np.isfinite(e), 1 - np.minimum(e, ORACLE_T) / ORACLE_T, 0).astype(
-            np.float32
-        )
+        return np.nan_to_num(target_confidence(d, gt, ORACLE_T))  # undefined -> weight 0
 
     orc, _ = lc_fuse(
         ref, tgt, [tof_d, st_d], [oracle(tof_d), oracle(st_d)], target_sign=sign, params=params
@@ -264,14 +265,13 @@ def confidence_figure(samples: list[Sample], results: list[SceneResult]) -> U8:
     stereo confidence (bright = reliable), beside the GT-derived targets for comparison."""
     cells, labels = [], []
     for s, r in zip(samples, results, strict=True):
-        ref = s.right if s.rig.reference == "right" else s.left
+        ref = views(s.left, s.right, s.rig.reference)[0]
         gt = r.maps["gt"]
         cells.append(as_bgr(ref))
         labels.append(f"{s.name} colour")
         for key, src, short in (("P_T", "Interpolated ToF", "ToF"), ("P_S", "SGM", "stereo")):
-            e = np.abs(r.maps[src] - gt)
-            target = np.where(np.isfinite(e), 1 - np.minimum(e, ORACLE_T) / ORACLE_T, np.nan)
-            cells += [colorize(r.maps[key], 0, 1), colorize(target.astype(np.float32), 0, 1)]
+            target = target_confidence(r.maps[src], gt, ORACLE_T)
+            cells += [colorize(r.maps[key], 0, 1), colorize(target, 0, 1)]
             labels += [f"{short} confidence (ConvNet)", f"{short} target (GT)"]
     return tile(cells, labels, columns=5, width=240)
 

@@ -83,6 +83,9 @@ class FusionResult:
     stereo_confidence: F32 | None
     max_disparity: int
     reference: Literal["left", "right"]
+    #: The ToF disparities LC fused: ``tof.disparity`` within the SGM search range (the rest
+    #: are flying pixels or beyond what the pair can confirm).
+    tof_fused: F32
 
 
 def _is_estimator(value: object) -> TypeGuard[ConfidenceEstimator]:
@@ -240,4 +243,4 @@ def fuse(
         ref_img, tgt_img, [tof_disp, stereo], [ct, cs], target_sign=sign, params=params
     )
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
-    return FusionResult(disp, depth, plaus, tof, stereo, ct, cs, dmax, r.reference)
+    return FusionResult(disp, depth, plaus, tof, stereo, ct, cs, dmax, r.reference, tof_disp)

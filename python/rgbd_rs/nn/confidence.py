@@ -31,6 +31,19 @@ OUT_CHANNELS = 2
 PAD = 7
 
 
+def _check_input(x: object, min_side: int) -> None:
+    if not (
+        isinstance(x, torch.Tensor)
+        and x.ndim == 4
+        and x.shape[1] == IN_CHANNELS
+        and min(x.shape[2:]) >= min_side
+    ):
+        shape = tuple(x.shape) if isinstance(x, torch.Tensor) else type(x).__name__
+        raise ShapeMismatchError(
+            f"x: got shape {shape}, expected (N, {IN_CHANNELS}, H, W) with H, W >= {min_side}"
+        )
+
+
 class ConfidenceNet(nn.Module):
     """Fig. 3.3's network; ``width`` filters in the five hidden layers."""
 
@@ -50,10 +63,14 @@ class ConfidenceNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``N x 4 x H x W`` normalised clues -> ``N x 2 x H x W`` (P_T, P_S), unclamped."""
-        if not isinstance(x, torch.Tensor) or x.ndim != 4 or x.shape[1] != IN_CHANNELS:
-            shape = tuple(x.shape) if isinstance(x, torch.Tensor) else type(x).__name__
-            raise ShapeMismatchError(f"x: got shape {shape}, expected (N, {IN_CHANNELS}, H, W)")
-        y = F.pad(x, (PAD, PAD, PAD, PAD), mode="replicate")
+        _check_input(x, 1)
+        return self.body(F.pad(x, (PAD, PAD, PAD, PAD), mode="replicate"))
+
+    def body(self, x: torch.Tensor) -> torch.Tensor:
+        """The six convolutions on an input already padded by :data:`PAD` pixels (the output is
+        ``2 * PAD`` smaller in each direction)."""
+        _check_input(x, 2 * PAD + 1)
+        y = x
         for i, conv in enumerate(self.layers):
             y = conv(y)
             if i < len(self.layers) - 1:
@@ -84,12 +101,7 @@ def predict(
                 y1, x1 = min(h, y0 + t), min(w, x0 + t)
                 patch = padded[:, y0 : y1 + 2 * PAD, x0 : x1 + 2 * PAD]
                 inp = torch.from_numpy(np.ascontiguousarray(patch))[None].to(device)
-                y = inp
-                for i, conv in enumerate(net.layers):
-                    y = conv(y)
-                    if i < len(net.layers) - 1:
-                        y = F.relu(y)
-                out[:, y0:y1, x0:x1] = y[0].clamp(0, 1).cpu().numpy()
+                out[:, y0:y1, x0:x1] = net.body(inp)[0].clamp(0, 1).cpu().numpy()
     return out[0], out[1]
 
 

@@ -26,6 +26,7 @@ from torch.utils.data import Dataset
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.fusion._inputs import views
 from rgbd_rs.fusion.clues import Clues, compute_clues, normalise, scene_sigmas, target_confidence
 from rgbd_rs.fusion.evaluate import ORACLE_T, Sample
 from rgbd_rs.io import read_npz, write_npz
@@ -50,10 +51,8 @@ def scene_arrays(s: Sample) -> dict[str, np.ndarray]:
         params=LcParams(radius=1, stride=1),
     )
     ref_name = out.reference
-    ref, tgt = (s.right, s.left) if ref_name == "right" else (s.left, s.right)
-    # The ToF disparities LC fuses: those within the SGM search range (fuse() drops the rest).
-    with np.errstate(invalid="ignore"):
-        tof_d = np.where(out.tof.disparity <= out.max_disparity, out.tof.disparity, np.nan)
+    ref, tgt, _ = views(s.left, s.right, ref_name)
+    tof_d = out.tof_fused  # the ToF disparities LC fuses (within the SGM search range)
     clues = compute_clues(
         ref, tgt, tof_d, out.tof.amplitude, out.stereo_disparity, reference=ref_name
     )

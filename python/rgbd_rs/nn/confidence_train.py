@@ -14,9 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from rgbd_rs import _validate
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.errors import RgbdError
+from rgbd_rs.fusion.evaluate import ORACLE_T as TARGET_T
 
 #: Middlebury scenes of the shared data (validation only).
 MIDDLEBURY = ("Cones", "Reindeer", "Wood2")
@@ -30,8 +30,8 @@ class Recipe:
     patch: int = 64
     per_scene: int = 30
     val_tile: int = 128
-    #: Error (px) at which the target confidence reaches 0 (at most the caches' 3 px).
-    target_t: float = 3.0
+    #: Error (px) at which the target confidence reaches 0 (at most the caches' TARGET_T).
+    target_t: float = TARGET_T
 
 
 def prepare_caches(
@@ -92,13 +92,15 @@ def train_confidence(
     train_set = PatchDataset(
         scenes,
         sig,
-        patch=_validate.integer("patch", r.patch, minimum=8),
+        patch=r.patch,
         per_scene=r.per_scene,
         seed=cfg.seed,
         target_t=r.target_t,
     )
     val_set = (
-        TileDataset(load_scenes(sorted(val_files)), sig, tile=r.val_tile) if val_files else None
+        TileDataset(load_scenes(sorted(val_files)), sig, tile=r.val_tile, target_t=r.target_t)
+        if val_files
+        else None
     )
     seed_everything(cfg.seed)  # the initial weights come from the seed too
     model = ConfidenceNet(r.width)
