@@ -86,7 +86,7 @@ impl LcParams {
             .max(1.0) as usize;
         Self {
             radius,
-            gamma_s: GAMMA_S_FULL_RES * radius as f32 / half as f32,
+            gamma_s: Self::gamma_s_for_radius(radius),
             gamma_c: 30.0,
             gamma_t: 25.0,
             truncation: 69.0,
@@ -94,6 +94,11 @@ impl LcParams {
             stride: 2,
             target_sign: 1,
         }
+    }
+
+    /// The literature's γs (12 at the 39 x 39 window) scaled to a window of half-size `radius`.
+    pub fn gamma_s_for_radius(radius: usize) -> f32 {
+        GAMMA_S_FULL_RES * radius as f32 / (WINDOW_FULL_RES / 2) as f32
     }
 
     /// The window step actually used: `stride` capped at the radius (the window's extent is

@@ -122,6 +122,12 @@ impl PyLcConfig {
         Self(LcParams::for_width(width))
     }
 
+    /// The literature's γs scaled to a window of half-size `radius` (what `for_width` uses).
+    #[staticmethod]
+    fn gamma_s_for_radius(radius: usize) -> f32 {
+        LcParams::gamma_s_for_radius(radius)
+    }
+
     /// The same parameters with `target_sign` replaced (the cross-check's other view).
     fn with_target_sign(&self, target_sign: i8) -> PyResult<Self> {
         Self::new(

@@ -16,8 +16,6 @@ from rgbd_rs.fusion.crosscheck import consistent, warp_to_target
 #: The defaults and limits live in crates/rgbd-fusion (``LcParams::for_width``, ``MAX_RADIUS``);
 #: read here through the binding so the two languages cannot disagree.
 _DEFAULTS = _rgbd_rs.LcConfig.for_width(960)
-#: The literature's window and gamma_s (39 x 39, 12) at 1920 px; gamma_s scales with the radius.
-_FULL_RES = _rgbd_rs.LcConfig.for_width(1920)
 #: Largest window half-size.
 MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 
@@ -52,14 +50,14 @@ class LcParams:
             r = _validate.integer("radius", self.radius, minimum=1, maximum=MAX_RADIUS)
         if self.gamma_s is not None:
             return r, _validate.real("gamma_s", self.gamma_s, positive=True)
-        return r, _FULL_RES.gamma_s * r / _FULL_RES.radius
+        return r, _rgbd_rs.LcConfig.gamma_s_for_radius(r)
 
     def native(self, width: int, target_sign: int) -> _rgbd_rs.LcConfig:
         """The validated native parameter object for an image ``width`` pixels wide."""
-        radius, gamma_s = self.resolved(width)
+        radius, gamma_s = self.resolved(width)  # both validated there
         return _rgbd_rs.LcConfig(
-            _validate.integer("radius", radius, minimum=1, maximum=MAX_RADIUS),
-            _validate.real("gamma_s", gamma_s, positive=True),
+            radius,
+            gamma_s,
             _validate.real("gamma_c", self.gamma_c, positive=True),
             _validate.real("gamma_t", self.gamma_t, positive=True),
             _validate.real("truncation", self.truncation, positive=True),
