@@ -6,7 +6,10 @@ use pyo3::prelude::*;
 mod errors;
 mod fusion;
 mod geom;
+mod hha;
+mod oversegment;
 mod render;
+mod segment;
 mod spline;
 
 /// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import).
@@ -59,6 +62,10 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fusion::lc_fuse, m)?)?;
     m.add_class::<fusion::PyLcConfig>()?;
     m.add_class::<fusion::PyUpsampleConfig>()?;
+    // Each segmentation module registers its own functions (one owner per file).
+    hha::register(m)?;
+    oversegment::register(m)?;
+    segment::register(m)?;
     // Limits defined once in the core crates, read by the Python layer.
     m.add("MAX_RADIUS", rgbd_fusion::MAX_RADIUS)?;
     m.add("MAX_SIDE", rgbd_error::MAX_SIDE)?;

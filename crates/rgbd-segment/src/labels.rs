@@ -1,9 +1,12 @@
 //! Connected regions of similar colour: the segmentation of the upsampling filter's
 //! segmentation term (run on a mean-shift filtered image, whose regions are flat).
 
-use rgbd_geom::error::{check_len, invalid, Result};
+use rgbd_error::{check_len, invalid, Result};
 
-use crate::color::sum_abs;
+/// Sum of absolute channel differences of two RGB pixels.
+fn sum_abs(a: &[u8], b: &[u8]) -> usize {
+    (a[0].abs_diff(b[0]) as usize) + (a[1].abs_diff(b[1]) as usize) + (a[2].abs_diff(b[2]) as usize)
+}
 
 fn find(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {

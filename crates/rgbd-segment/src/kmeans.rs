@@ -1,0 +1,1 @@
+//! Seeded k-means (k-means++ initialisation) on embedded pixels.

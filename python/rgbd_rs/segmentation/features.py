@@ -1,0 +1,1 @@
+"""Per-pixel 9-D colour/position/normal vectors of eq. 4.1."""

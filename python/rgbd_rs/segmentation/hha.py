@@ -1,0 +1,1 @@
+"""HHA encoding of a depth map (Gupta et al. 2014)."""

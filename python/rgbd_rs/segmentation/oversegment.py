@@ -1,0 +1,1 @@
+"""Normalized-cuts over-segmentation with the Nyström approximation (thesis §4.4)."""

@@ -1,0 +1,1 @@
+"""The segmentation pipeline: features -> over-segmentation -> fits -> merging."""
