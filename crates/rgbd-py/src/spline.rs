@@ -102,7 +102,8 @@ pub fn fit_surface<'py>(
 /// with the GIL released (so a waiting thread never blocks the one holding the lock).
 #[pyclass(module = "rgbd_rs._rgbd_rs", name = "SegmentFits", frozen)]
 pub struct PySegmentFits {
-    inner: RwLock<SegmentFits>,
+    /// `pub(crate)`: the region merging (segment.rs) merges these fits in place.
+    pub(crate) inner: RwLock<SegmentFits>,
     /// Fixed at construction (merges never change them), so reading them takes no lock.
     ids: Vec<i32>,
     criterion: Criterion,
