@@ -1,6 +1,7 @@
 """Dataset readers and writers: the real Azure Kinect ToF frame (:mod:`.azure_kinect`), Middlebury
-pairs (:mod:`.middlebury`), the synthetic SYNTH3-style dataset (:mod:`.synth`), SYNTH3's own
-MATLAB layout (:mod:`.synth3`) and rig calibration JSON (:mod:`.calibration`)."""
+pairs (:mod:`.middlebury`), NYU Depth v2 labeled frames (:mod:`.nyuv2`), the synthetic
+SYNTH3-style dataset (:mod:`.synth`), SYNTH3's own MATLAB layout (:mod:`.synth3`) and rig
+calibration JSON (:mod:`.calibration`)."""
 
 from rgbd_rs.data.azure_kinect import (
     AzureKinectCalibration,
@@ -11,14 +12,25 @@ from rgbd_rs.data.azure_kinect import (
 )
 from rgbd_rs.data.calibration import load_rig, save_rig
 from rgbd_rs.data.middlebury import MiddleburyPair, load_middlebury
+from rgbd_rs.data.nyuv2 import (
+    LABEL13_NAMES,
+    NYUV2_CAMERA,
+    NyuFrame,
+    load_nyuv2_frame,
+    nyuv2_frames,
+    region_ground_truth,
+)
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.data.synth import SynthDataset, SynthSample, synth3_rig, write_dataset
 from rgbd_rs.data.synth3 import Synth3Dataset, Synth3Sample
 
 __all__ = [
+    "LABEL13_NAMES",
+    "NYUV2_CAMERA",
     "AzureKinectCalibration",
     "AzureKinectFrame",
     "MiddleburyPair",
+    "NyuFrame",
     "Synth3Dataset",
     "Synth3Sample",
     "SynthDataset",
@@ -27,7 +39,10 @@ __all__ = [
     "load_azure_kinect_calibration",
     "load_azure_kinect_frame",
     "load_middlebury",
+    "load_nyuv2_frame",
     "load_rig",
+    "nyuv2_frames",
+    "region_ground_truth",
     "reproject_to_color",
     "save_rig",
     "synth3_rig",
