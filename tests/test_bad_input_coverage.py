@@ -60,6 +60,7 @@ EXEMPT: dict[str, str] = {
     "SynthSample": "result container built by SynthDataset",
     "Synth3Sample": "result container built by Synth3Dataset",
     "MiddleburyPair": "result container built by load_middlebury",
+    "NyuFrame": "result container built by load_nyuv2_frame",
     "AzureKinectCalibration": "result container built by load_azure_kinect_calibration",
     "EpochStats": "result container built by train",
     "TrainResult": "result container built by train",
@@ -109,10 +110,11 @@ def all_cases() -> list[Case]:
     from test_bad_input import CASES as CORE
     from test_bad_input_data import CASES as DATA
     from test_bad_input_fusion import CASES as FUSION
+    from test_bad_input_metrics import CASES as METRICS
     from test_bad_input_nn import CASES as NN
     from test_bad_input_render import CASES as RENDER
 
-    return [*CORE, *FUSION, *RENDER, *DATA, *NN]
+    return [*CORE, *FUSION, *RENDER, *DATA, *NN, *METRICS]
 
 
 def test_every_public_callable_has_a_bad_input_case() -> None:
