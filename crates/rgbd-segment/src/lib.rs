@@ -10,6 +10,7 @@
 //! "no segment". Errors are the workspace's one enum, `rgbd_error::RgbdError`.
 
 pub mod adjacency;
+pub mod compact;
 pub mod hha;
 pub mod kmeans;
 pub mod labels;

@@ -1,0 +1,64 @@
+//! Label compaction: any `i32` labels (negative = no segment) to slots `0..n`, so per-segment
+//! arrays are sized by the number of segments, never by the largest label.
+
+use rayon::prelude::*;
+
+/// The distinct labels `>= 0` of a label image (sorted) and each pixel's slot among them
+/// (`-1` where the label is negative).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Compact {
+    /// `ids[s]` is the label of slot `s`.
+    pub ids: Vec<i32>,
+    /// Per pixel: the slot of its label, `-1` for no segment.
+    pub slots: Vec<i32>,
+}
+
+impl Compact {
+    /// Compacts `labels`.
+    pub fn new(labels: &[i32]) -> Self {
+        let mut ids: Vec<i32> = labels.iter().copied().filter(|&l| l >= 0).collect();
+        ids.par_sort_unstable();
+        ids.dedup();
+        let slots = labels
+            .par_iter()
+            .map(|&l| {
+                if l < 0 {
+                    -1
+                } else {
+                    ids.binary_search(&l).map_or(-1, |s| s as i32)
+                }
+            })
+            .collect();
+        Self { ids, slots }
+    }
+
+    /// Number of segments.
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// Whether no pixel has a segment.
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+
+    /// The slot of `label`, if present.
+    pub fn slot(&self, label: i32) -> Option<usize> {
+        self.ids.binary_search(&label).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sparse_labels_get_dense_slots() {
+        let c = Compact::new(&[7, -3, 2_000_000_000, 7, 0]);
+        assert_eq!(c.ids, vec![0, 7, 2_000_000_000]);
+        assert_eq!(c.slots, vec![1, -1, 2, 1, 0]);
+        assert_eq!(c.slot(7), Some(1));
+        assert_eq!(c.slot(8), None);
+        assert!(Compact::new(&[-1, -1]).is_empty());
+    }
+}
