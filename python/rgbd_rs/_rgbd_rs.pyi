@@ -5,11 +5,18 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "HHA_ANGLE_RADIUS",
+    "HHA_GRAVITY_RADIUS",
+    "HHA_MAX_MEDIAN_DEPTH_M",
     "MAX_PIXELS",
     "MAX_RADIUS",
     "MAX_SIDE",
     "SPLINE_DEFAULT_LAMBDA",
     "SPLINE_MAX_DEGREE",
+    "T_C",
+    "T_D",
+    "T_SIM",
+    "T_THETA_DEG",
     "InvalidArgumentError",
     "LcConfig",
     "NativeScene",
@@ -21,14 +28,18 @@ __all__ = [
     "depth_to_points",
     "distort_pixels",
     "fit_surface",
+    "hha_encode",
     "label_regions",
     "lc_fuse",
+    "merge_regions",
     "normals_from_points",
     "num_threads",
     "project_points",
     "remap",
     "render_points",
     "reproject_depth",
+    "segment_boundaries",
+    "square_normals",
     "undistort_image",
     "undistort_map",
     "undistort_pixels",
@@ -119,7 +130,13 @@ class SegmentFits:
         degree: int,
         lam: float,
         criterion: str,
+        test_spacing: float,
+        noise_scale: float,
+        noise_power: float,
+        tolerance: float,
     ) -> SegmentFits: ...
+    @staticmethod
+    def seam_defaults() -> tuple[float, float, float, float]: ...
     @property
     def n_labels(self) -> int: ...
     @property
@@ -128,6 +145,7 @@ class SegmentFits:
     def criterion(self) -> str: ...
     def size(self, i: int) -> int: ...
     def fit_error(self, i: int) -> float: ...
+    def seam(self, i: int, j: int) -> int: ...
     def mse(self, i: int) -> float: ...
     def union_error(self, i: int, j: int) -> float: ...
     def should_merge(self, i: int, j: int) -> bool: ...
@@ -237,3 +255,39 @@ def lc_fuse(
     confidences: list[_F32 | None],
     config: LcConfig,
 ) -> tuple[_F32, _F32]: ...
+
+# -- region adjacency and merging (crates/rgbd-py/src/segment.rs) --------------------------------
+
+T_SIM: float
+T_D: float
+T_C: float
+T_THETA_DEG: float
+
+def segment_boundaries(
+    labels: _I32,
+    depth: _F32 | None,
+    lab: _F32 | None,
+    normals: _F32 | None,
+    max_depth_step: float,
+    max_color_distance: float,
+    max_normal_angle: float,
+) -> tuple[_I32, npt.NDArray[np.uint64], npt.NDArray[np.bool_]]: ...
+def merge_regions(
+    fits: SegmentFits, pairs: _I32, pdfs: _F32 | None, t_sim: float
+) -> tuple[_I32, _I32, _I32, npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+# -- HHA and square-window normals (crates/rgbd-py/src/hha.rs) ----------------------------------
+HHA_ANGLE_RADIUS: int
+HHA_GRAVITY_RADIUS: int
+HHA_MAX_MEDIAN_DEPTH_M: float
+
+def hha_encode(
+    depth: _F32, raw_depth: _F32 | None, camera: tuple[float, float, float, float]
+) -> tuple[_U8, npt.NDArray[np.float64], float]: ...
+def square_normals(
+    depth: _F32,
+    raw_depth: _F32 | None,
+    camera: tuple[float, float, float, float],
+    radius: int,
+    toward_camera: bool,
+) -> _F32: ...

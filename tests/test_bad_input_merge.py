@@ -1,0 +1,113 @@
+"""Bad input to :mod:`rgbd_rs.segmentation.merge` (see tests/test_bad_input.py for the
+contract and the meta-test that counts these cases)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rgbd_rs.segmentation.merge as M
+from bad_input import Case, check, params
+from rgbd_rs import InvalidArgumentError, ShapeMismatchError
+from rgbd_rs.surface import SegmentFits
+
+SHAPE = ShapeMismatchError
+ARG = InvalidArgumentError
+
+L = np.repeat(np.arange(4, dtype=np.int32), 4).reshape(4, 4)
+P = np.dstack([*np.meshgrid(np.arange(4.0), np.arange(4.0)), np.full((4, 4), 2.0)]).astype(
+    np.float32
+)
+PDF = np.full((4, 4, 2), 0.5, np.float32)
+
+CASES: list[Case] = [
+    Case("adjacency", lambda: M.adjacency(L.astype(np.float32)), ARG, r"^labels: got dtype"),
+    Case("adjacency", lambda: M.adjacency(L[0]), SHAPE, r"^labels: got shape", "1-D"),
+    Case("adjacency", lambda: M.adjacency(-np.ones((4, 4), int)), ARG, r"^labels: got no", "none"),
+    Case("adjacency", lambda: M.adjacency(L, points=P[:3]), SHAPE, r"^points: got shape", "pts"),
+    Case("adjacency", lambda: M.adjacency(L, lab=P[..., :2]), SHAPE, r"^lab: got shape", "lab"),
+    Case(
+        "adjacency",
+        lambda: M.adjacency(L, normals=P, max_normal_angle=200),
+        ARG,
+        r"^max_normal_angle: got 200",
+        "angle",
+    ),
+    Case(
+        "adjacency",
+        lambda: M.adjacency(L, points=P, max_depth_step=-1),
+        ARG,
+        r"^max_depth_step",
+        "step",
+    ),
+    Case("adjacency", lambda: M.adjacency(L, touching=1), ARG, r"^touching", "touching"),
+    Case("merge_regions", lambda: M.merge_regions(L, P[..., :2]), SHAPE, r"^points: got shape"),
+    Case(
+        "merge_regions",
+        lambda: M.merge_regions(L, P, pdfs=PDF * 2),
+        ARG,
+        r"^pdfs: got per-pixel sums off 1",
+        "sum",
+    ),
+    Case(
+        "merge_regions",
+        lambda: M.merge_regions(L, P, pdfs=PDF[..., :1] * 2),
+        SHAPE,
+        r"^pdfs: got 1 class",
+        "classes",
+    ),
+    Case(
+        "merge_regions",
+        lambda: M.merge_regions(L, P, pdfs=PDF[:2]),
+        SHAPE,
+        r"^pdfs: got shape",
+        "pdf-shape",
+    ),
+    Case(
+        "merge_regions",
+        lambda: M.merge_regions(L, P, pdfs=np.where(PDF > 0, np.nan, 0)),
+        ARG,
+        r"^pdfs: got 32 non-finite",
+        "nan",
+    ),
+    Case(
+        "merge_regions",
+        lambda: M.merge_regions(L, P, pdfs=np.dstack([PDF[..., 0] * 3, PDF[..., 1] - 1])),
+        ARG,
+        r"^pdfs: got a negative",
+        "negative",
+    ),
+    Case("merge_regions", lambda: M.merge_regions(L, P, t_sim=1.5), ARG, r"^t_sim", "t_sim"),
+    Case(
+        "merge_regions",
+        lambda: M.merge_regions(L, P, fits="fits"),  # type: ignore[arg-type]
+        ARG,
+        r"^fits: got str",
+        "fits-type",
+    ),
+    Case(
+        "merge_regions",
+        lambda: M.merge_regions(L, P, fits=SegmentFits(P, L.T.copy())),
+        ARG,
+        r"^fits: got fits of another",
+        "fits-labels",
+    ),
+    Case(
+        "majority_classes",
+        lambda: M.majority_classes(L, PDF[..., :1] * 2),
+        SHAPE,
+        r"^pdfs: got 1 class",
+    ),
+    Case("majority_classes", lambda: M.majority_classes(L[:2], PDF), SHAPE, r"^pdfs", "shape"),
+    Case(
+        "MergeResult.labels_after",
+        lambda: M.merge_regions(L, P).labels_after(99),
+        ARG,
+        r"^steps: got 99",
+    ),
+]
+
+
+@pytest.mark.parametrize("case", params(CASES))
+def test_bad_input(case: Case) -> None:
+    check(case)
