@@ -39,6 +39,7 @@ def register(commands: Commands) -> None:
     p.add_argument(
         "--tuning-frames",
         type=integer(1, 25),
+        metavar="N",
         help="tune on the first N train frames only (default all 25)",
     )
     p.add_argument("--out", type=Path, default=Path("out/eval_segmentation"), help="output folder")
