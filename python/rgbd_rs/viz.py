@@ -13,7 +13,7 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.io import write_png
 
-__all__ = ["as_bgr", "colorize", "save_png", "tile"]
+__all__ = ["as_bgr", "colorize", "outline_segments", "paint_segments", "save_png", "tile"]
 
 U8 = npt.NDArray[np.uint8]
 
@@ -100,6 +100,61 @@ def tile(images: Sequence[U8], labels: Sequence[str], columns: int = 3, width: i
         row += [blank] * (columns - len(row))
         rows.append(np.hstack(row))
     return np.ascontiguousarray(np.vstack(rows))
+
+
+def _label_image(name: str, value: object, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    raw = _validate.asarray(name, value)
+    if raw.dtype.kind not in "iu":
+        raise InvalidArgumentError(f"{name}: got dtype {raw.dtype}, expected an integer array")
+    want = (None, None) if shape is None else shape
+    return _validate.array(name, raw, shape=want, dtype=np.int64)
+
+
+def _boundaries(labels: np.ndarray, width: int) -> npt.NDArray[np.bool_]:
+    """Pixels with a right or lower neighbour of another label, thickened to ``width``."""
+    e = np.zeros(labels.shape, bool)
+    e[:, :-1] |= labels[:, :-1] != labels[:, 1:]
+    e[:-1, :] |= labels[:-1, :] != labels[1:, :]
+    if width > 1:
+        e = cv2.dilate(e.astype(np.uint8), np.ones((width, width), np.uint8)).astype(bool)
+    return e
+
+
+def outline_segments(
+    image: npt.ArrayLike,
+    labels: npt.ArrayLike,
+    color: tuple[int, int, int] = (255, 255, 0),
+    width: int = 2,
+) -> U8:
+    """The RGB ``image`` (``H x W x 3`` uint8) as BGR with the boundaries of ``labels``
+    (``H x W`` int) drawn ``width`` pixels wide in the RGB ``color`` (yellow)."""
+    img = as_bgr(image)
+    lab = _label_image("labels", labels, img.shape[:2])
+    if not (
+        isinstance(color, tuple)
+        and len(color) == 3
+        and all(isinstance(c, int) and 0 <= c <= 255 for c in color)
+    ):
+        raise InvalidArgumentError(f"color: got {color!r}, expected an (r, g, b) tuple of 0..255")
+    w = _validate.integer("width", width, minimum=1, maximum=64)
+    img[_boundaries(lab, w)] = color[::-1]
+    return img
+
+
+def paint_segments(labels: npt.ArrayLike, boundaries: bool = True) -> U8:
+    """A BGR picture of ``labels`` (``H x W`` int): one colour per label (a hash of the label,
+    so the same label has the same colour in every frame of a merge animation), negative labels
+    black, boundaries white unless ``boundaries=False``."""
+    lab = _label_image("labels", labels)
+    if not isinstance(boundaries, bool):
+        raise InvalidArgumentError(f"boundaries: got {boundaries!r}, expected True or False")
+    h = (lab.astype(np.uint64) * np.uint64(2654435761)) & np.uint64(0xFFFFFFFF)
+    rgb = np.stack([(h >> np.uint64(s)) & np.uint64(255) for s in (0, 8, 16)], axis=-1)
+    img = (40 + rgb.astype(np.uint16) * 215 // 255).astype(np.uint8)
+    img[lab < 0] = 0
+    if boundaries:
+        img[_boundaries(lab, 1)] = 255
+    return np.ascontiguousarray(img)
 
 
 def save_png(path: str | Path, image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]) -> Path:

@@ -20,14 +20,14 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from rgbd_rs import __version__
-from rgbd_rs.cli import confidence, data, demo, fusion
+from rgbd_rs.cli import confidence, data, demo, fusion, segmentation, segmentation_eval
 from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message
 from rgbd_rs.errors import RgbdError
 
 __all__ = ["PIPELINES", "build_parser", "main"]
 
 #: The modules whose ``register(commands)`` adds commands, in ``rgbd --help`` order.
-PIPELINES = (demo, data, fusion, confidence)
+PIPELINES = (demo, data, fusion, confidence, segmentation, segmentation_eval)
 
 
 def build_parser() -> argparse.ArgumentParser:

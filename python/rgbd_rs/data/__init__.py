@@ -10,7 +10,7 @@ from rgbd_rs.data.azure_kinect import (
     load_azure_kinect_frame,
     reproject_to_color,
 )
-from rgbd_rs.data.calibration import load_rig, save_rig
+from rgbd_rs.data.calibration import load_camera, load_rig, save_camera, save_rig
 from rgbd_rs.data.middlebury import MiddleburyPair, load_middlebury
 from rgbd_rs.data.nyuv2 import (
     LABEL13_NAMES,
@@ -38,12 +38,14 @@ __all__ = [
     "data_root",
     "load_azure_kinect_calibration",
     "load_azure_kinect_frame",
+    "load_camera",
     "load_middlebury",
     "load_nyuv2_frame",
     "load_rig",
     "nyuv2_frames",
     "region_ground_truth",
     "reproject_to_color",
+    "save_camera",
     "save_rig",
     "synth3_rig",
     "write_dataset",

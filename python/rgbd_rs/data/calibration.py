@@ -118,6 +118,48 @@ def _require(where: str, obj: dict[str, Any], keys: tuple[str, ...]) -> None:
             raise _MissingKey(f"{where} has no key {key!r}")
 
 
+def _camera(where: str, value: object) -> PinholeCamera:
+    c = _object(f"camera {where!r}", value)
+    _require(f"camera {where!r}", c, CAMERA_KEYS)
+    return PinholeCamera(
+        _number(f"{where}.fx", c["fx"]),
+        _number(f"{where}.fy", c["fy"]),
+        _number(f"{where}.cx", c["cx"]),
+        _number(f"{where}.cy", c["cy"]),
+        _integer(f"{where}.width", c["width"]),
+        _integer(f"{where}.height", c["height"]),
+        Distortion.from_opencv(_numbers(f"{where}.distortion", c.get("distortion", [0.0] * 5))),
+    )
+
+
+def save_camera(path: str | Path, camera: PinholeCamera) -> Path:
+    """Write one camera as JSON: the ``CAM`` object of the module docstring (the file
+    ``rgbd segment --calib`` reads)."""
+    if not isinstance(camera, PinholeCamera):
+        raise InvalidArgumentError(
+            f"camera: got {type(camera).__name__}, expected a rgbd_rs.PinholeCamera"
+        )
+    return write_json(path, _cam(camera))
+
+
+def load_camera(path: str | Path) -> PinholeCamera:
+    """Read one camera from JSON: a ``CAM`` object (module docstring) at the top level, e.g.
+    ``{"fx": 518.86, "fy": 519.47, "cx": 325.58, "cy": 253.74, "width": 640, "height": 480}``
+    (``examples/nyu_camera.json``). A rig file (``rgbd fuse --calib``) is read too: its
+    reference stereo camera is returned."""
+    d = read_json(path)
+    try:
+        top = _object("the file", d)
+        if "stereo" in top and "fx" not in top:
+            rig = load_rig(path)
+            return rig.stereo.right if rig.reference == "right" else rig.stereo.left
+        return _camera("camera", top)
+    except _MissingKey as exc:
+        raise RgbdError(f"{path}: calibration: {exc}") from exc
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise RgbdError(f"{path}: invalid calibration ({exc})") from exc
+
+
 def load_rig(path: str | Path) -> ToFStereoRig:
     """Read a calibration JSON (layout in the module docstring).
 
@@ -126,20 +168,7 @@ def load_rig(path: str | Path) -> ToFStereoRig:
     file and the value's place.
     """
     d = read_json(path)
-
-    def cam(where: str, value: object) -> PinholeCamera:
-        c = _object(f"camera {where!r}", value)
-        _require(f"camera {where!r}", c, CAMERA_KEYS)
-        return PinholeCamera(
-            _number(f"{where}.fx", c["fx"]),
-            _number(f"{where}.fy", c["fy"]),
-            _number(f"{where}.cx", c["cx"]),
-            _number(f"{where}.cy", c["cy"]),
-            _integer(f"{where}.width", c["width"]),
-            _integer(f"{where}.height", c["height"]),
-            Distortion.from_opencv(_numbers(f"{where}.distortion", c.get("distortion", [0.0] * 5))),
-        )
-
+    cam = _camera
     try:
         top = _object("the file", d)
         _require("the file", top, ("stereo", "tof", "tof_to_reference"))
