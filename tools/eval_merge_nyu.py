@@ -3,24 +3,57 @@
 On every NYUv2 frame of ../shared/data with a large wall (label13 = 12) and floor (= 5) region,
 the largest connected wall region is split at its median column into two segments (one surface:
 should merge) and tested against the largest floor region (two surfaces: should not). Prints,
-per knot spacing and criterion, how often eq. 4.8 gets each right.
+per criterion and its parameters, how often eq. 4.8 gets each right: the old criteria ("gcv",
+"mse" on the 3-D points, per knot spacing) and the seam test ("seam", per test-grid spacing and
+tolerance; the default marked). Then harder checks for the default seam test:
+
+* the wall halves split at the median *row* (top / bottom: should merge);
+* wall vs floor only on the frames where the two share a seam (the main column also counts pairs
+  that do not meet, which the seam test never merges);
+* wall vs every adjacent region of a geometrically different class (floor, ceiling, bed, chair,
+  sofa, table, furniture; touching the wall, >= 2000 pixels): should not merge;
+* the default with the noise scale off by a factor (another sensor with the Kinect model).
 
     python tools/eval_merge_nyu.py
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
 from rgbd_rs import PinholeCamera
 from rgbd_rs.data.paths import data_root
-from rgbd_rs.surface import SegmentFits
+from rgbd_rs.surface import (
+    DEFAULT_TEST_SPACING,
+    DEFAULT_TOLERANCE,
+    KINECT_V1_NOISE_SCALE,
+    SegmentFits,
+)
 
 NYU = PinholeCamera(
     fx=518.857901, fy=519.469611, cx=325.582449, cy=253.736166, width=640, height=480
 )
 WALL, FLOOR = 12, 5
+#: label13 classes whose surfaces differ from a wall's: bed, ceiling, chair, floor, furniture,
+#: sofa, table (not books, objects, pictures, TVs, windows, which may be flush with the wall).
+OTHER = {1: "bed", 3: "ceiling", 4: "chair", 5: "floor", 6: "furniture", 9: "sofa", 10: "table"}
+
+
+@dataclass
+class Frame:
+    idx: str
+    points: np.ndarray
+    #: 0, 1: wall halves (left / right); 2: floor.
+    labels: np.ndarray
+    #: 0, 1: wall halves (top / bottom).
+    rows: np.ndarray
+    #: 0: the wall; 1..: adjacent regions of OTHER classes.
+    adjacent: np.ndarray
+    #: Whether a wall half and the floor share a seam (default test grid).
+    touching: bool
 
 
 def largest(mask: np.ndarray) -> np.ndarray:
@@ -30,7 +63,11 @@ def largest(mask: np.ndarray) -> np.ndarray:
     return cc == np.argmax(np.bincount(cc[mask]))
 
 
-def cases() -> list[tuple[str, np.ndarray, np.ndarray]]:
+def _near(mask: np.ndarray) -> np.ndarray:
+    return cv2.dilate(mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+
+
+def cases() -> list[Frame]:
     root = data_root()
     if root is None:
         raise SystemExit("shared data not found: set RGBD_DATA")
@@ -42,29 +79,90 @@ def cases() -> list[tuple[str, np.ndarray, np.ndarray]]:
         wall, floor = largest(lab == WALL), largest(lab == FLOOR)
         if wall.sum() < 10000 or floor.sum() < 5000:
             continue
-        mid = np.median(np.nonzero(wall)[1])
+        v, u = np.nonzero(wall)
         col = np.arange(640)[None, :]
+        row = np.arange(480)[:, None]
         labels = np.full(depth.shape, -1, np.int32)
-        labels[wall & (col < mid)] = 0
-        labels[wall & (col >= mid)] = 1
+        labels[wall & (col < np.median(u))] = 0
+        labels[wall & (col >= np.median(u))] = 1
         labels[floor] = 2
-        out.append((idx, NYU.depth_to_points(depth), labels))
+        rows = np.full(depth.shape, -1, np.int32)
+        rows[wall & (row < np.median(v))] = 0
+        rows[wall & (row >= np.median(v))] = 1
+        adjacent = np.full(depth.shape, -1, np.int32)
+        adjacent[wall] = 0
+        near = _near(wall)
+        for c in OTHER:
+            n, cc = cv2.connectedComponents((lab == c).astype(np.uint8))
+            for k in range(1, n):
+                region = cc == k
+                if region.sum() >= 2000 and (region & near).any():
+                    adjacent[region] = adjacent.max() + 1
+        pts = NYU.depth_to_points(depth)
+        s = SegmentFits(pts, labels)
+        touching = s.seam(0, 2) > 0 or s.seam(1, 2) > 0
+        out.append(Frame(idx, pts, labels, rows, adjacent, touching))
     return out
+
+
+def decide(frames: list[Frame], **kw: object) -> tuple[int, int]:
+    same = apart = 0
+    for fr in frames:
+        s = SegmentFits(fr.points, fr.labels, **kw)  # type: ignore[arg-type]
+        same += s.should_merge(0, 1)
+        apart += not (s.should_merge(0, 2) or s.should_merge(1, 2))
+    return same, apart
 
 
 def main() -> None:
     frames = cases()
-    print(f"{len(frames)} NYUv2 frames with a wall and a floor region\n")
-    print("| spacing | criterion | wall halves merged | wall/floor kept apart |")
-    print("|---|---|---|---|")
+    n = len(frames)
+    print(f"{n} NYUv2 frames with a wall and a floor region\n")
+    print("| criterion | spacing | test spacing | tolerance | wall halves merged ", end="")
+    print("| wall/floor kept apart |")
+    print("|---|---|---|---|---|---|")
     for spacing in (8, 16, 32, 64):
         for crit in ("gcv", "mse"):
-            same = apart = 0
-            for _, pts, labels in frames:
-                s = SegmentFits(pts, labels, spacing=spacing, criterion=crit)
-                same += s.should_merge(0, 1)
-                apart += not (s.should_merge(0, 2) or s.should_merge(1, 2))
-            print(f"| {spacing} | {crit} | {same}/{len(frames)} | {apart}/{len(frames)} |")
+            same, apart = decide(frames, spacing=spacing, criterion=crit)
+            print(f"| {crit} | {spacing} | | | {same}/{n} | {apart}/{n} |")
+    for ts in (8, 16, 32):
+        for tol in (0.5, 1.0, 2.0):
+            same, apart = decide(frames, test_spacing=ts, tolerance=tol)
+            default = ts == DEFAULT_TEST_SPACING and tol == DEFAULT_TOLERANCE
+            name = "**seam (default)**" if default else "seam"
+            print(f"| {name} | | {ts} | {tol:g} | {same}/{n} | {apart}/{n} |")
+
+    print("\nHarder checks, default seam test:\n")
+    print("| check | pairs | right |")
+    print("|---|---|---|")
+    ok = sum(SegmentFits(fr.points, fr.rows).should_merge(0, 1) for fr in frames)
+    print(f"| wall halves split at the median row merged | {n} | {ok}/{n} |")
+    touch = [fr for fr in frames if fr.touching]
+    print(
+        f"| wall halves and floor share a seam (the test can see they meet) | {n} | {len(touch)} |"
+    )
+    ok = sum(
+        not (s.should_merge(0, 2) or s.should_merge(1, 2))
+        for s in (SegmentFits(fr.points, fr.labels) for fr in touch)
+    )
+    print(f"| wall/floor kept apart, frames where they touch | {len(touch)} | {ok}/{len(touch)} |")
+    pairs = kept = 0
+    for fr in frames:
+        s = SegmentFits(fr.points, fr.adjacent)
+        for k in range(1, int(fr.adjacent.max()) + 1):
+            if s.seam(0, k) == 0:
+                continue
+            pairs += 1
+            kept += not s.should_merge(0, k)
+    others = "/".join(sorted(OTHER.values()))
+    print(f"| wall vs touching {others} kept apart | {pairs} | {kept}/{pairs} |")
+
+    print("\nDefault seam test with a wrong noise scale (another sensor read with this model):\n")
+    print("| noise scale | wall halves merged | wall/floor kept apart |")
+    print("|---|---|---|")
+    for factor in (0.25, 0.5, 1.0, 2.0, 4.0):
+        same, apart = decide(frames, noise_scale=KINECT_V1_NOISE_SCALE * factor)
+        print(f"| {factor:g} x Kinect v1 | {same}/{n} | {apart}/{n} |")
 
 
 if __name__ == "__main__":

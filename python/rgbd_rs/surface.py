@@ -44,6 +44,17 @@ DEFAULT_LAMBDA: float = _rgbd_rs.SPLINE_DEFAULT_LAMBDA
 #: Highest supported degree.
 MAX_DEGREE: int = _rgbd_rs.SPLINE_MAX_DEGREE
 
+_SEAM = _rgbd_rs.SegmentFits.seam_defaults()
+#: Knot spacing (pixels) of the grid the seam test fits on (see :class:`SegmentFits`).
+DEFAULT_TEST_SPACING: float = _SEAM[0]
+#: Kinect v1 axial depth noise ``sigma_z = a·z²`` (a in 1/m): Khoshelham & Elberink 2012, "Accuracy
+#: and resolution of Kinect depth data for indoor mapping applications", Sensors 12(2).
+KINECT_V1_NOISE_SCALE: float = _SEAM[1]
+#: Exponent of the depth noise of triangulating sensors (``sigma_z ∝ z²``).
+KINECT_V1_NOISE_POWER: float = _SEAM[2]
+#: Allowed extra squared misfit per seam pixel, in noise variances.
+DEFAULT_TOLERANCE: float = _SEAM[3]
+
 
 def _label(name: str, value: object) -> int:
     """A segment label: an integer in ``0..2**31-1``."""
@@ -175,7 +186,19 @@ class SegmentFits:
 
     ``criterion`` picks what :meth:`fit_error` reports:
 
-    * ``"gcv"`` (default): generalised cross-validation ``n·SSE/(n - dof)²``, the MSE corrected for
+    * ``"seam"`` (default): the seam test. Each segment's *variance-stabilised depth*
+      ``g(z) = ∫dz/sigma(z)`` (for ``sigma = a·z²``: disparity in noise units, ``-1/(a·z)``) is
+      fitted on a knot grid of ``test_spacing`` pixels; the error is χ² per pixel (noise
+      variances). The union of two segments changes the fit mostly on their *seam*, the pixels
+      in cells that hold or touch a cell of the other segment, and eq. 4.8 merges when
+      ``χ²(i+j) - χ²(i) - χ²(j) < tolerance · seam``: the two parts agree where they meet to
+      within the sensor noise. :meth:`union_error` is ``(χ²(i+j) - tolerance·seam)/(n_i+n_j)`` so
+      ``e_i·n_i + e_j·n_j - e_ij·(n_i+n_j)`` is the merge gain. Segments without a seam never
+      merge (their union error is inf). The depth is the ``Z`` channel, in the unit of
+      ``noise_scale`` (``sigma_z = noise_scale · z**noise_power``; default Kinect v1, metres).
+      Scaling a scene's depth by ``k`` and ``noise_scale`` by ``k**(1 - noise_power)`` gives the
+      same decisions.
+    * ``"gcv"``: generalised cross-validation ``n·SSE/(n - dof)²``, the MSE corrected for
       the degrees of freedom the fit used. Eq. 4.8 then merges two noisy patches of one surface
       and refuses a union across a depth step.
     * ``"mse"``: the thesis' plain MSE. With a knot grid anchored to the image, the union's fit is
@@ -198,7 +221,11 @@ class SegmentFits:
         spacing: float = DEFAULT_SPACING,
         degree: int = DEFAULT_DEGREE,
         lam: float = DEFAULT_LAMBDA,
-        criterion: str = "gcv",
+        criterion: str = "seam",
+        test_spacing: float = DEFAULT_TEST_SPACING,
+        noise_scale: float = KINECT_V1_NOISE_SCALE,
+        noise_power: float = KINECT_V1_NOISE_POWER,
+        tolerance: float = DEFAULT_TOLERANCE,
     ) -> None:
         p = _validate.array("points", points, shape=(None, None, 3))
         raw = np.asarray(labels)
@@ -207,10 +234,18 @@ class SegmentFits:
         lab = _validate.array("labels", raw, shape=(p.shape[0], p.shape[1]), dtype=np.int64)
         if lab.size and lab.max() > np.iinfo(np.int32).max:
             raise InvalidArgumentError(f"labels: got a label {lab.max()}, expected < 2**31")
-        crit = _validate.choice("criterion", criterion, ("gcv", "mse"))
+        crit = _validate.choice("criterion", criterion, ("seam", "gcv", "mse"))
         s, d, lam_ = _params(spacing, degree, lam)
+        ts = _validate.real("test_spacing", test_spacing, positive=True)
+        if ts < 1.0:
+            raise InvalidArgumentError(
+                f"test_spacing: got {ts}, expected a knot spacing >= 1 pixel"
+            )
+        ns = _validate.real("noise_scale", noise_scale, positive=True)
+        npow = _validate.real("noise_power", noise_power)
+        tol = _validate.real("tolerance", tolerance, nonnegative=True)
         lab32 = np.ascontiguousarray(np.maximum(lab, -1), dtype=np.int32)
-        self._native = _rgbd_rs.SegmentFits(p, lab32, s, d, lam_, crit)
+        self._native = _rgbd_rs.SegmentFits(p, lab32, s, d, lam_, crit, ts, ns, npow, tol)
         self.shape: tuple[int, int] = (p.shape[0], p.shape[1])
 
     @property
@@ -225,7 +260,7 @@ class SegmentFits:
 
     @property
     def criterion(self) -> str:
-        """``"gcv"`` or ``"mse"``."""
+        """``"seam"``, ``"gcv"`` or ``"mse"``."""
         return self._native.criterion
 
     def size(self, i: int) -> int:
@@ -233,7 +268,10 @@ class SegmentFits:
         return self._native.size(_label("i", i))
 
     def fit_error(self, i: int) -> float:
-        """Fitting error of live segment ``i`` under :attr:`criterion` (inf: it interpolates)."""
+        """Fitting error of live segment ``i`` under :attr:`criterion` (inf: it interpolates).
+
+        ``"seam"``: χ² per pixel of its variance-stabilised depth (noise variances).
+        """
         return self._native.fit_error(_label("i", i))
 
     def mse(self, i: int) -> float:
@@ -241,8 +279,15 @@ class SegmentFits:
         return self._native.mse(_label("i", i))
 
     def union_error(self, i: int, j: int) -> float:
-        """Fitting error of the union of live segments ``i`` and ``j`` (nothing changes)."""
+        """Fitting error of the union of live segments ``i`` and ``j`` (nothing changes).
+
+        ``"seam"``: ``(χ²(i+j) - tolerance·seam) / (n_i + n_j)``; inf when there is no seam.
+        """
         return self._native.union_error(_label("i", i), _label("j", j))
+
+    def seam(self, i: int, j: int) -> int:
+        """Seam pixels of live segments ``i`` and ``j`` (``"seam"`` criterion; else 0)."""
+        return self._native.seam(_label("i", i), _label("j", j))
 
     def should_merge(self, i: int, j: int) -> bool:
         """Eq. 4.8: ``e_i|S_i| + e_j|S_j| > e_ij (|S_i| + |S_j|)``."""

@@ -4,7 +4,9 @@ use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArr
 use std::sync::{PoisonError, RwLock, RwLockReadGuard};
 
 use pyo3::prelude::*;
-use rgbd_spline::{fit_mask, Criterion, FitKind, KnotGrid, SegmentFits, SurfaceMaps};
+use rgbd_spline::{
+    fit_mask, Criterion, FitKind, KnotGrid, NoiseModel, SeamTest, SegmentFits, SurfaceMaps,
+};
 
 use crate::errors::{borrow, run, shape_err, InvalidArgumentError};
 use crate::geom::to_numpy;
@@ -129,7 +131,11 @@ impl PySegmentFits {
 #[pymethods]
 impl PySegmentFits {
     #[new]
-    #[pyo3(signature = (points, labels, spacing, degree, lam, criterion))]
+    #[pyo3(signature = (
+        points, labels, spacing, degree, lam, criterion,
+        test_spacing, noise_scale, noise_power, tolerance,
+    ))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         points: PyReadonlyArray3<'_, f32>,
@@ -138,29 +144,50 @@ impl PySegmentFits {
         degree: usize,
         lam: f64,
         criterion: &str,
+        test_spacing: f64,
+        noise_scale: f64,
+        noise_power: f64,
+        tolerance: f64,
     ) -> PyResult<Self> {
         let (h, w) = points_shape(&points)?;
         same_size("labels", labels.shape(), h, w)?;
         let criterion = match criterion {
             "gcv" => Criterion::Gcv,
             "mse" => Criterion::Mse,
+            "seam" => Criterion::Seam,
             other => {
                 return Err(InvalidArgumentError::new_err(format!(
-                    "criterion: got {other:?}, expected 'gcv' or 'mse'"
+                    "criterion: got {other:?}, expected 'seam', 'gcv' or 'mse'"
                 )))
             }
+        };
+        let test = SeamTest {
+            spacing: test_spacing,
+            noise: NoiseModel {
+                scale: noise_scale,
+                power: noise_power,
+            },
+            tolerance,
         };
         let p = borrow("points", &points)?;
         let l = borrow("labels", &labels)?;
         let inner = run(py, || {
             let grid = KnotGrid::new(w, h, spacing, degree)?;
-            SegmentFits::new(p, w, h, 3, l, &grid, lam, criterion)
+            SegmentFits::with_test(p, w, h, 3, l, &grid, lam, criterion, &test)
         })?;
         Ok(Self {
             ids: inner.label_ids().to_vec(),
             criterion: inner.criterion,
             inner: RwLock::new(inner),
         })
+    }
+
+    /// Defaults of the seam test, defined once in rgbd-spline:
+    /// `(test_spacing, noise_scale, noise_power, tolerance)`.
+    #[staticmethod]
+    fn seam_defaults() -> (f64, f64, f64, f64) {
+        let t = SeamTest::default();
+        (t.spacing, t.noise.scale, t.noise.power, t.tolerance)
     }
 
     /// Number of labels (merged ones included).
@@ -175,10 +202,11 @@ impl PySegmentFits {
         self.ids.clone()
     }
 
-    /// 'gcv' or 'mse'.
+    /// 'seam', 'gcv' or 'mse'.
     #[getter]
     fn criterion(&self) -> &'static str {
         match self.criterion {
+            Criterion::Seam => "seam",
             Criterion::Gcv => "gcv",
             Criterion::Mse => "mse",
         }
@@ -202,6 +230,11 @@ impl PySegmentFits {
     fn union_error(&self, py: Python<'_>, i: i64, j: i64) -> PyResult<f64> {
         let (i, j) = (index("i", i)?, index("j", j)?);
         self.query(py, |s| s.union_error(i, j))
+    }
+
+    fn seam(&self, py: Python<'_>, i: i64, j: i64) -> PyResult<usize> {
+        let (i, j) = (index("i", i)?, index("j", j)?);
+        self.query(py, |s| s.seam(i, j))
     }
 
     fn should_merge(&self, py: Python<'_>, i: i64, j: i64) -> PyResult<bool> {

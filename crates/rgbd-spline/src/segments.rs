@@ -7,10 +7,11 @@ use crate::fit::{solve, Fit};
 use crate::grid::{check_grid, check_pixels, check_values, valid_mean, KnotGrid};
 use crate::maps::{surface_maps, SurfaceMaps};
 use crate::normal::{accumulate, Normal, Region};
+use crate::seam::{seam_pixels, SeamTest};
 use rgbd_error::{invalid, RgbdError};
 
 /// Which number `fit_error` reports.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Criterion {
     /// Mean squared 3-D distance to the surface (the thesis' `e`). On an image-anchored grid the
     /// union's function space is a restriction of the parts', so its MSE is never below their
@@ -21,6 +22,25 @@ pub enum Criterion {
     /// surface. Two segments of one surface then score better together (fewer degrees of freedom
     /// per pixel), two surfaces across a step score worse.
     Gcv,
+    /// The seam test of [`crate::seam`] (default): `fit_error` is the segment's χ² per pixel
+    /// against its surface of variance-stabilised depth (in noise variances), `union_error` the
+    /// union's χ² less `tolerance` per seam pixel, per pixel (infinite when the two segments have
+    /// no seam, i.e. do not meet). Eq. 4.8 then merges when the union
+    /// fits its seam to within the sensor noise, and the improvement
+    /// `e_i|S_i| + e_j|S_j| - e_ij(|S_i| + |S_j|) = tolerance·|seam| - Δχ²` orders pairs by how
+    /// long and how continuous their seam is. Parameters: [`SeamTest`].
+    #[default]
+    Seam,
+}
+
+/// The fits of the seam test: one channel (variance-stabilised depth) on the test grid.
+#[derive(Debug, Clone)]
+struct TestFits {
+    spec: SeamTest,
+    grid: KnotGrid,
+    offset: Vec<f64>,
+    normals: Vec<Normal>,
+    fits: Vec<Result<Fit, RgbdError>>,
 }
 
 /// Fits of every segment of a label image, with cheap unions and merges.
@@ -42,11 +62,14 @@ pub struct SegmentFits {
     fits: Vec<Result<Fit, RgbdError>>,
     /// `parent[s] == s` for live segments; a merged segment points at the one it joined (slots).
     parent: Vec<usize>,
+    /// The seam test's fits (`criterion == Seam` only).
+    test: Option<TestFits>,
 }
 
 impl SegmentFits {
     /// Fits every distinct label >= 0 (negative: unlabelled) of `values`
-    /// (`height x width x channels`), in parallel.
+    /// (`height x width x channels`), in parallel. [`Criterion::Seam`] uses the default
+    /// [`SeamTest`] (Kinect v1 noise, 16-pixel test grid, tolerance 1); see [`Self::with_test`].
     #[allow(clippy::too_many_arguments)]
     pub fn new<T: Copy + Into<f64> + Sync>(
         values: &[T],
@@ -58,6 +81,35 @@ impl SegmentFits {
         lambda: f64,
         criterion: Criterion,
     ) -> Result<Self, RgbdError> {
+        Self::with_test(
+            values,
+            width,
+            height,
+            channels,
+            labels,
+            grid,
+            lambda,
+            criterion,
+            &SeamTest::default(),
+        )
+    }
+
+    /// As [`Self::new`] with the parameters of the seam test (used when `criterion` is
+    /// [`Criterion::Seam`]). The depth the test reads is the last channel of `values` (`Z` of an
+    /// `X, Y, Z` point cloud, or a one-channel depth map), in the unit of `test.noise`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_test<T: Copy + Into<f64> + Sync>(
+        values: &[T],
+        width: usize,
+        height: usize,
+        channels: usize,
+        labels: &[i32],
+        grid: &KnotGrid,
+        lambda: f64,
+        criterion: Criterion,
+        test: &SeamTest,
+    ) -> Result<Self, RgbdError> {
+        test.validate()?;
         check_values(values, width, height, channels, lambda)?;
         check_grid(grid, width, height)?;
         check_pixels("labels", labels.len(), width, height)?;
@@ -101,6 +153,13 @@ impl SegmentFits {
             .par_iter()
             .map(|n| solve(n, grid, lambda, &offset, with_dof))
             .collect();
+        let test = (criterion == Criterion::Seam)
+            .then(|| {
+                TestFits::new(
+                    values, width, height, channels, labels, n_labels, lambda, test,
+                )
+            })
+            .transpose()?;
         Ok(Self {
             grid: *grid,
             width,
@@ -114,6 +173,7 @@ impl SegmentFits {
             normals,
             fits,
             parent: (0..n_labels).collect(),
+            test,
         })
     }
 
@@ -174,13 +234,41 @@ impl SegmentFits {
     fn error_of(&self, fit: &Fit) -> f64 {
         match self.criterion {
             Criterion::Mse => fit.mse(),
-            Criterion::Gcv => fit.gcv(),
+            Criterion::Gcv | Criterion::Seam => fit.gcv(),
         }
     }
 
     /// Fitting error of live segment `i` under the chosen [`Criterion`].
     pub fn fit_error(&self, i: usize) -> Result<f64, RgbdError> {
-        Ok(self.error_of(self.fit(i)?))
+        match &self.test {
+            Some(t) => {
+                let s = self.live("i", i)?;
+                let fit = t.fits[s].as_ref().map_err(Clone::clone)?;
+                Ok(fit.sse / self.normals[s].moments.n as f64)
+            }
+            None => Ok(self.error_of(self.fit(i)?)),
+        }
+    }
+
+    /// The seam test's numbers for live segments `i` and `j`: the union's test normal equations
+    /// and fit, its χ² and its seam pixel count.
+    fn test_union(&self, i: usize, j: usize) -> Result<Option<(Normal, Fit, usize)>, RgbdError> {
+        let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
+        if i == j {
+            return Err(invalid("j", j, "a segment other than i"));
+        }
+        let Some(t) = &self.test else { return Ok(None) };
+        let (a, b) = (&t.normals[si], &t.normals[sj]);
+        let u = a.union(b);
+        let fit = solve(&u, &t.grid, self.lambda, &t.offset, false)?;
+        let seam = seam_pixels(a, b, &t.grid);
+        Ok(Some((u, fit, seam)))
+    }
+
+    /// Pixels of the union of live segments `i` and `j` whose test fit the union couples (the
+    /// seam of [`Criterion::Seam`]; 0 under the other criteria).
+    pub fn seam(&self, i: usize, j: usize) -> Result<usize, RgbdError> {
+        Ok(self.test_union(i, j)?.map_or(0, |(_, _, s)| s))
     }
 
     /// The normal equations of the union of live segments `i` and `j`, and their fit.
@@ -200,9 +288,20 @@ impl SegmentFits {
         Ok((u, fit))
     }
 
-    /// Fitting error of the union of live segments `i` and `j` (nothing is changed).
+    /// Fitting error of the union of live segments `i` and `j` (nothing is changed). Under
+    /// [`Criterion::Seam`]: `(χ²_ij - tolerance·|seam|) / (|S_i| + |S_j|)`, so eq. 4.8 is the
+    /// seam test; infinite (never merged) when the segments have no seam.
     pub fn union_error(&self, i: usize, j: usize) -> Result<f64, RgbdError> {
-        Ok(self.error_of(&self.union_fit(i, j)?.1))
+        match (self.test_union(i, j)?, &self.test) {
+            // No seam: the parts do not meet, nothing says they are one surface (and the χ² of
+            // the union equals the parts' up to rounding, which must not decide).
+            (Some((_, _, 0)), Some(_)) => Ok(f64::INFINITY),
+            (Some((_, fit, seam)), Some(t)) => {
+                let n = (self.size(i)? + self.size(j)?) as f64;
+                Ok((fit.sse - t.spec.tolerance * seam as f64) / n)
+            }
+            _ => Ok(self.error_of(&self.union_fit(i, j)?.1)),
+        }
     }
 
     /// Eq. 4.8: whether `e_i|S_i| + e_j|S_j| > e_ij (|S_i| + |S_j|)`.
@@ -212,11 +311,20 @@ impl SegmentFits {
         Ok(lhs > self.union_error(i, j)? * (ni + nj))
     }
 
-    /// Merges live segment `j` into `i`; returns the error of the merged segment.
+    /// Merges live segment `j` into `i`; returns the error of the merged segment
+    /// ([`Self::fit_error`] of `i` afterwards).
     pub fn merge(&mut self, i: usize, j: usize) -> Result<f64, RgbdError> {
         let (union, fit) = self.union_fit(i, j)?;
+        let tested = self.test_union(i, j)?;
         let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
-        let e = self.error_of(&fit);
+        let mut e = self.error_of(&fit);
+        if let (Some((tu, tfit, _)), Some(t)) = (tested, self.test.as_mut()) {
+            e = tfit.sse / union.moments.n as f64;
+            t.normals[si] = tu;
+            t.normals[sj] = Normal::empty(union.k, 1);
+            t.fits[si] = Ok(tfit);
+            t.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
+        }
         let empty = Normal::empty(union.k, union.channels);
         self.normals[si] = union;
         self.normals[sj] = empty;
@@ -224,6 +332,11 @@ impl SegmentFits {
         self.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
         self.parent[sj] = si;
         Ok(e)
+    }
+
+    /// The seam test's parameters (`None` unless the criterion is [`Criterion::Seam`]).
+    pub fn seam_test(&self) -> Option<&SeamTest> {
+        self.test.as_ref().map(|t| &t.spec)
     }
 
     /// The label image with every label replaced by the live segment it belongs to.
@@ -257,5 +370,59 @@ impl SegmentFits {
                 }
             },
         ))
+    }
+}
+
+impl TestFits {
+    /// Fits the variance-stabilised depth (last channel of `values`) of every slot on the test
+    /// grid. `labels` are slots.
+    #[allow(clippy::too_many_arguments)]
+    fn new<T: Copy + Into<f64> + Sync>(
+        values: &[T],
+        width: usize,
+        height: usize,
+        channels: usize,
+        labels: &[i32],
+        n_labels: usize,
+        lambda: f64,
+        spec: &SeamTest,
+    ) -> Result<Self, RgbdError> {
+        let grid = KnotGrid::new(width, height, spec.spacing, 3)?;
+        let noise = spec.noise;
+        let g: Vec<f64> = values
+            .par_chunks_exact(channels)
+            .zip(labels.par_iter())
+            .map(|(px, &l)| {
+                if l < 0 || !px.iter().all(|&x| x.into().is_finite()) {
+                    f64::NAN
+                } else {
+                    noise.stabilize(px[channels - 1].into())
+                }
+            })
+            .collect();
+        let full = Region::full(width, height);
+        let offset = valid_mean(&g, width, 1, full, |_| true);
+        let normals = accumulate(
+            &g,
+            width,
+            height,
+            1,
+            Some(labels),
+            n_labels,
+            &grid,
+            &offset,
+            full,
+        );
+        let fits = normals
+            .par_iter()
+            .map(|n| solve(n, &grid, lambda, &offset, false))
+            .collect();
+        Ok(Self {
+            spec: *spec,
+            grid,
+            offset,
+            normals,
+            fits,
+        })
     }
 }

@@ -1,6 +1,9 @@
 //! Segment fits, unions and merges (thesis §4.5, §4.7 eq. 4.8).
 
-use rgbd_spline::{fit_grid, fit_mask, Criterion, FitKind, KnotGrid, SegmentFits, DEFAULT_LAMBDA};
+use rgbd_spline::{
+    fit_grid, fit_mask, Criterion, FitKind, KnotGrid, NoiseModel, SeamTest, SegmentFits,
+    DEFAULT_LAMBDA, KINECT_V1_NOISE,
+};
 
 const W: usize = 96;
 const H: usize = 64;
@@ -213,4 +216,248 @@ fn bad_input_is_an_error() {
         "segments without valid pixels are reported per segment"
     );
     assert!(s.unwrap().fit_error(0).is_err());
+}
+
+/// Organised cloud of depth `z(u, v)` with Kinect-like noise `σ = a z²` along z.
+fn kinect_cloud(z: impl Fn(f64, f64) -> f64, a: f64, seed: u64) -> Vec<f64> {
+    let e = noise(seed, W * H, 1.0);
+    let mut out = Vec::with_capacity(W * H * 3);
+    for v in 0..H {
+        for u in 0..W {
+            let z0 = z(u as f64, v as f64);
+            let d = z0 + a * z0 * z0 * e[v * W + u];
+            let (x, y) = ((u as f64 - 48.0) / 100.0, (v as f64 - 32.0) / 100.0);
+            out.extend_from_slice(&[x * d, y * d, d]);
+        }
+    }
+    out
+}
+
+fn seam_fits(values: &[f64], labels: &[i32], test: &SeamTest) -> SegmentFits {
+    SegmentFits::with_test(
+        values,
+        W,
+        H,
+        3,
+        labels,
+        &grid(),
+        DEFAULT_LAMBDA,
+        Criterion::Seam,
+        test,
+    )
+    .unwrap()
+}
+
+/// The seam test on the 96x64 test images: an 8-pixel test grid, Kinect v1 noise.
+fn small_test() -> SeamTest {
+    SeamTest {
+        spacing: 8.0,
+        ..SeamTest::default()
+    }
+}
+
+#[test]
+fn seam_test_merges_one_curved_surface_and_not_two_planes_at_an_angle() {
+    let a = KINECT_V1_NOISE;
+    // A cylinder-like bulge (radius ~0.6 m) and a gentle saddle, split in two.
+    let curved: [&dyn Fn(f64, f64) -> f64; 2] =
+        [&|u, _v| 1.8 - 0.3 * ((u - 48.0) / 40.0).cos(), &|u, v| {
+            2.5 + 0.2 * ((u - 48.0) / 48.0).powi(2) - 0.15 * ((v - 32.0) / 32.0).powi(2)
+        }];
+    // Two planes meeting at ~100 degrees (a V along u) and a wall meeting a floor.
+    let vee = |u: f64, _v: f64| 2.5 + 0.02 * (u - 48.0).abs();
+    let wall_floor = |_u: f64, v: f64| {
+        let down = (v - 32.0) / 100.0;
+        if down > 0.0 {
+            f64::min(2.5, 0.5 / down)
+        } else {
+            2.5
+        }
+    };
+    let split_floor: Vec<i32> = (0..W * H)
+        .map(|i| {
+            let down = ((i / W) as f64 - 32.0) / 100.0;
+            i32::from(down > 0.0 && 0.5 / down < 2.5)
+        })
+        .collect();
+    for seed in 0..5 {
+        for z in curved {
+            let s = seam_fits(&kinect_cloud(z, a, seed), &halves(), &small_test());
+            assert!(s.seam(0, 1).unwrap() > 0);
+            assert!(s.should_merge(0, 1).unwrap(), "seed {seed}");
+        }
+        let s = seam_fits(&kinect_cloud(vee, a, seed), &halves(), &small_test());
+        assert!(!s.should_merge(0, 1).unwrap(), "seed {seed}: V merged");
+        let s = seam_fits(
+            &kinect_cloud(wall_floor, a, seed),
+            &split_floor,
+            &small_test(),
+        );
+        assert!(
+            !s.should_merge(0, 1).unwrap(),
+            "seed {seed}: wall/floor merged"
+        );
+    }
+}
+
+#[test]
+fn seam_test_tolerates_far_kinect_noise_only_with_the_right_model() {
+    // A far wall at 4-5 m: Kinect noise σ ≈ 2.3-3.6 cm. With the Kinect model its halves merge;
+    // the model of a sensor 10x quieter sees the noise as structure... but noise alone is never
+    // structure across the seam, so that one merges too: the tolerance only bounds misfit.
+    let far = |u: f64, v: f64| 4.0 + 0.01 * u + 0.002 * v;
+    for seed in 0..5 {
+        let pts = kinect_cloud(far, KINECT_V1_NOISE, seed);
+        let s = seam_fits(&pts, &halves(), &small_test());
+        assert!(s.should_merge(0, 1).unwrap(), "seed {seed}");
+        // Per-pixel χ² of a part is about one noise variance (the model is calibrated).
+        let e = s.fit_error(0).unwrap();
+        assert!((0.5..1.2).contains(&e), "seed {seed}: χ²/n = {e}");
+    }
+}
+
+#[test]
+fn seam_numbers_are_eq_4_8() {
+    let pts = kinect_cloud(
+        |u, v| 2.0 + 0.1 * (u / 30.0).sin() + 0.003 * v,
+        KINECT_V1_NOISE,
+        3,
+    );
+    let labels: Vec<i32> = (0..W * H)
+        .map(|i| ((i % W) / 20 + (i / W) / 25) as i32 % 3)
+        .collect();
+    let mut s = seam_fits(&pts, &labels, &small_test());
+    assert_eq!(s.criterion, Criterion::Seam);
+    assert_eq!(s.seam_test(), Some(&small_test()));
+    let (n0, n2) = (s.size(0).unwrap() as f64, s.size(2).unwrap() as f64);
+    let (e0, e2) = (s.fit_error(0).unwrap(), s.fit_error(2).unwrap());
+    let eu = s.union_error(0, 2).unwrap();
+    let seam = s.seam(0, 2).unwrap() as f64;
+    assert!(seam > 0.0 && seam <= n0 + n2);
+    let gain = e0 * n0 + e2 * n2 - eu * (n0 + n2);
+    assert_eq!(s.should_merge(0, 2).unwrap(), gain > 0.0);
+    let merged = s.merge(0, 2).unwrap();
+    assert_eq!(merged, s.fit_error(0).unwrap());
+    // The union's χ² = e_ij (n0 + n2) + tolerance·seam: the tolerance is spent by the merge.
+    let chi_u = merged * (n0 + n2);
+    assert!((chi_u - (eu * (n0 + n2) + seam)).abs() < 1e-6 * chi_u.max(1.0));
+    assert!((gain - (seam - (chi_u - e0 * n0 - e2 * n2))).abs() < 1e-6 * chi_u.max(1.0));
+    // Merged segments are not live; the other criteria report no seam.
+    assert!(s.seam(0, 2).is_err());
+    let g = fits(&pts, &labels, Criterion::Gcv);
+    assert_eq!(g.seam(0, 2).unwrap(), 0);
+    assert_eq!(g.seam_test(), None);
+}
+
+#[test]
+fn seam_test_never_merges_segments_that_do_not_meet() {
+    let pts = kinect_cloud(|_, _| 2.0, KINECT_V1_NOISE, 0);
+    // Two patches of one plane, 40 pixels apart (5 cells of 8: no shared control point).
+    let labels: Vec<i32> = (0..W * H)
+        .map(|i| match i % W {
+            u if u < 20 => 0,
+            u if u >= 60 => 1,
+            _ => -1,
+        })
+        .collect();
+    let s = seam_fits(&pts, &labels, &small_test());
+    assert_eq!(s.seam(0, 1).unwrap(), 0);
+    assert!(!s.should_merge(0, 1).unwrap());
+}
+
+#[test]
+fn seam_test_is_scale_invariant_with_a_scaled_noise_model() {
+    let z = |u: f64, v: f64| 2.5 + 0.02 * (u - 48.0).abs() + 0.001 * v;
+    let bulge = |u: f64, _v: f64| 1.8 - 0.3 * ((u - 48.0) / 40.0).cos();
+    let labels: Vec<i32> = (0..W * H)
+        .map(|i| ((i % W) / 24 + 4 * ((i / W) / 32)) as i32)
+        .collect();
+    for (shape, p) in [(0, 2.0), (1, 2.0), (0, 0.0), (1, 1.0)] {
+        let pts = if shape == 0 {
+            kinect_cloud(z, KINECT_V1_NOISE, 7)
+        } else {
+            kinect_cloud(bulge, KINECT_V1_NOISE, 7)
+        };
+        let test = SeamTest {
+            noise: NoiseModel {
+                scale: 0.01,
+                power: p,
+            },
+            ..small_test()
+        };
+        for k in [0.001, 3.0, 1000.0] {
+            // Depth in another unit (mm: k = 1000) with σ in that unit.
+            let scaled: Vec<f64> = pts.iter().map(|x| x * k).collect();
+            let test_k = SeamTest {
+                noise: NoiseModel {
+                    scale: 0.01 * f64::powf(k, 1.0 - p),
+                    power: p,
+                },
+                ..test
+            };
+            let (s, sk) = (
+                seam_fits(&pts, &labels, &test),
+                seam_fits(&scaled, &labels, &test_k),
+            );
+            for i in 0..8usize {
+                let (e, ek) = (s.fit_error(i).unwrap(), sk.fit_error(i).unwrap());
+                assert!(
+                    (e - ek).abs() <= 1e-6 * e.max(1e-3),
+                    "{k} {p} {i}: {e} {ek}"
+                );
+                for j in i + 1..8 {
+                    let (u, uk) = (s.union_error(i, j).unwrap(), sk.union_error(i, j).unwrap());
+                    assert!(
+                        (u - uk).abs() <= 1e-6 * u.abs().max(1e-3),
+                        "{k} {p} {i}-{j}"
+                    );
+                    assert_eq!(s.should_merge(i, j), sk.should_merge(i, j));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn seam_test_rejects_bad_parameters() {
+    let pts = cloud(|_, _| 2.0, 0.0, 0);
+    for t in [
+        SeamTest {
+            spacing: 0.0,
+            ..SeamTest::default()
+        },
+        SeamTest {
+            tolerance: f64::NAN,
+            ..SeamTest::default()
+        },
+        SeamTest {
+            noise: NoiseModel {
+                scale: -1.0,
+                power: 2.0,
+            },
+            ..SeamTest::default()
+        },
+    ] {
+        let r = SegmentFits::with_test(
+            &pts,
+            W,
+            H,
+            3,
+            &halves(),
+            &grid(),
+            DEFAULT_LAMBDA,
+            Criterion::Seam,
+            &t,
+        );
+        assert!(r.is_err());
+    }
+    // Segments without a positive depth: their test fit is reported per segment.
+    let mut behind = cloud(|_, _| 2.0, 0.0, 0);
+    for px in behind.chunks_mut(3).take(W * H / 2) {
+        px[2] = -1.0;
+    }
+    let top_bottom: Vec<i32> = (0..W * H).map(|i| i32::from(i >= W * H / 2)).collect();
+    let s = seam_fits(&behind, &top_bottom, &SeamTest::default());
+    assert!(s.fit_error(0).is_err());
+    assert!(s.fit_error(1).is_ok());
 }
