@@ -98,7 +98,7 @@ def test_merge_updates_labels_errors_and_maps() -> None:
     labels[:10] = 2
     labels[0, 0] = -1
     pts = noisy_plane(0.001, 0)
-    s = SegmentFits(pts, labels, spacing=8)
+    s = SegmentFits(pts, labels, spacing=8, criterion="gcv")
     assert s.n_labels == 3 and s.criterion == "gcv"
     size = s.size(0) + s.size(1)
     expected = s.union_error(0, 1)
