@@ -5,9 +5,11 @@ tests/test_bad_input*.py, or is listed in ``EXEMPT`` with the reason it takes no
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import types
 from collections.abc import Iterator
+from pathlib import Path
 
 import rgbd_rs
 import rgbd_rs.data
@@ -17,6 +19,7 @@ import rgbd_rs.meshes
 import rgbd_rs.metrics
 import rgbd_rs.nn
 import rgbd_rs.render
+import rgbd_rs.shapes
 import rgbd_rs.surface
 import rgbd_rs.viz
 from bad_input import Case
@@ -36,6 +39,7 @@ PUBLIC_MODULES = (
     rgbd_rs.viz,
     rgbd_rs.metrics,
     rgbd_rs.nn,
+    rgbd_rs.shapes,
 )
 
 #: Public callables with no caller input to check, and why.
@@ -58,6 +62,7 @@ EXEMPT: dict[str, str] = {
     "ToFModel.ideal": "no arguments",
     "Mesh.bounds": "no arguments",
     "SynthSample": "result container built by SynthDataset",
+    "VoxelGrid": "result container built by voxelize",
     "Synth3Sample": "result container built by Synth3Dataset",
     "MiddleburyPair": "result container built by load_middlebury",
     "NyuFrame": "result container built by load_nyuv2_frame",
@@ -107,14 +112,12 @@ def public_callables() -> dict[str, str]:
 
 
 def all_cases() -> list[Case]:
-    from test_bad_input import CASES as CORE
-    from test_bad_input_data import CASES as DATA
-    from test_bad_input_fusion import CASES as FUSION
-    from test_bad_input_metrics import CASES as METRICS
-    from test_bad_input_nn import CASES as NN
-    from test_bad_input_render import CASES as RENDER
-
-    return [*CORE, *FUSION, *RENDER, *DATA, *NN, *METRICS]
+    """The ``CASES`` of every tests/test_bad_input*.py module (found by name, so a new area's
+    file counts as soon as it exists)."""
+    cases: list[Case] = []
+    for path in sorted(Path(__file__).parent.glob("test_bad_input*.py")):
+        cases += getattr(importlib.import_module(path.stem), "CASES", [])
+    return cases
 
 
 def test_every_public_callable_has_a_bad_input_case() -> None:

@@ -22,9 +22,11 @@ from rgbd_rs.data import (
     data_root,
     load_azure_kinect_calibration,
     load_azure_kinect_frame,
+    load_camera,
     load_middlebury,
     load_rig,
     reproject_to_color,
+    save_camera,
     save_rig,
     synth3_rig,
     write_dataset,
@@ -41,7 +43,7 @@ from rgbd_rs.io import (
     write_png,
 )
 from rgbd_rs.metrics import bad_pixel_rate, depth_edges, edge_alignment, edge_band, rms_error
-from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+from rgbd_rs.viz import as_bgr, colorize, outline_segments, paint_segments, save_png, tile
 
 SHAPE = ShapeMismatchError
 ARG = InvalidArgumentError
@@ -283,6 +285,22 @@ CASES: list[Case] = [
     Case("read_json", lambda: read_json(_file("bad.json", "{")), FILE, r"bad\.json: malformed"),
     Case("sha256", lambda: sha256(TMP / "nothing"), FILE, r"nothing: file not found"),
     # -- viz ------------------------------------------------------------------------------------
+    Case(
+        "load_camera",
+        lambda: load_camera(_file("cam_missing.json", '{"fx": 500, "fy": 500, "cx": 1}')),
+        FILE,
+        r"cam_missing\.json.*has no key 'cy'",
+    ),
+    Case(
+        "load_camera",
+        lambda: load_camera(
+            _file("cam_str.json", '{"fx": "5", "fy": 5, "cx": 1, "cy": 1, "width": 4, "height": 4}')
+        ),
+        FILE,
+        r"cam_str\.json.*fx",
+        "string",
+    ),
+    Case("save_camera", lambda: save_camera(TMP / "c.json", "cam"), ARG, r"^camera: got str"),
     Case("colorize", lambda: colorize(np.zeros((2, 2, 2))), SHAPE, r"^values: got shape"),
     Case("colorize", lambda: colorize(D, vmin="lo"), ARG, r"^vmin: got 'lo'", "vmin"),
     Case("colorize", lambda: colorize(D, colormap=99), ARG, r"^colormap: got 99", "colormap"),
@@ -293,6 +311,34 @@ CASES: list[Case] = [
     Case("tile", lambda: tile([U8], ["a", "b"]), ARG, r"^labels: got", "labels"),
     Case("tile", lambda: tile([D], ["a"]), ARG, r"^images\[0\]: got dtype float32", "float"),
     Case("tile", lambda: tile([U8], ["a"], width=0), ARG, r"^width: got 0", "width"),
+    Case(
+        "outline_segments",
+        lambda: outline_segments(U8, np.zeros((2, 2), np.int32)),
+        SHAPE,
+        r"^labels: got shape",
+    ),
+    Case(
+        "outline_segments",
+        lambda: outline_segments(U8, np.zeros(U8.shape[:2], np.float32)),
+        ARG,
+        r"^labels: got dtype float32",
+        "dtype",
+    ),
+    Case(
+        "outline_segments",
+        lambda: outline_segments(U8, np.zeros(U8.shape[:2], np.int32), color=(0, 0, 300)),
+        ARG,
+        r"^color: got",
+        "color",
+    ),
+    Case("paint_segments", lambda: paint_segments(np.zeros(3, np.int32)), SHAPE, r"^labels"),
+    Case(
+        "paint_segments",
+        lambda: paint_segments(np.zeros((2, 2), np.int32), boundaries=1),  # type: ignore[arg-type]
+        ARG,
+        r"^boundaries: got 1",
+        "flag",
+    ),
     Case("save_png", lambda: save_png(TMP / "v.png", D), ARG, r"^image: got dtype float32"),
     Case("save_png", lambda: save_png(3.5, U8), ARG, r"^path: got 3.5", "path"),
     # -- metrics --------------------------------------------------------------------------------

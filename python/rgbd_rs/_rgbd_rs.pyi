@@ -17,6 +17,7 @@ __all__ = [
     "T_D",
     "T_SIM",
     "T_THETA_DEG",
+    "VOXEL_MAX_RESOLUTION",
     "InvalidArgumentError",
     "LcConfig",
     "NativeScene",
@@ -44,6 +45,9 @@ __all__ = [
     "undistort_map",
     "undistort_pixels",
     "upsample_depth",
+    "density_profiles",
+    "voxelize_mesh",
+    "voxelize_points",
 ]
 
 _CameraArgs = tuple[float, float, float, float, int, int, list[float]]
@@ -291,3 +295,15 @@ def square_normals(
     radius: int,
     toward_camera: bool,
 ) -> _F32: ...
+
+# -- voxelization (crates/rgbd-py/src/voxel.rs) ---------------------------------------------------
+
+VOXEL_MAX_RESOLUTION: int
+
+def voxelize_points(
+    points: _F32, resolution: int, dilate: int
+) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.float64], float]: ...
+def voxelize_mesh(
+    vertices: _F32, faces: npt.NDArray[np.uint32], resolution: int, solid: bool
+) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.float64], float]: ...
+def density_profiles(filled: npt.NDArray[np.uint8]) -> _F32: ...

@@ -1,0 +1,55 @@
+"""Bad input to :mod:`rgbd_rs.shapes` (see tests/test_bad_input.py for the contract and the
+meta-test that counts these cases)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rgbd_rs.shapes as S
+from bad_input import Case, check, params
+from rgbd_rs import InvalidArgumentError, ShapeMismatchError
+from rgbd_rs.meshes import Mesh, box
+
+SHAPE = ShapeMismatchError
+ARG = InvalidArgumentError
+P = np.zeros((4, 3))
+
+CASES: list[Case] = [
+    Case("voxelize", lambda: S.voxelize(np.zeros((0, 3))), SHAPE, r"^shape: got an empty"),
+    Case("voxelize", lambda: S.voxelize(np.zeros((4, 2))), SHAPE, r"^shape: got shape", "2-D"),
+    Case("voxelize", lambda: S.voxelize(np.array([[0.0, np.nan, 0]])), ARG, r"^shape", "nan"),
+    Case("voxelize", lambda: S.voxelize(P, 0), ARG, r"^resolution: got 0", "res"),
+    Case("voxelize", lambda: S.voxelize(P, 4096), ARG, r"^resolution: got 4096", "huge-res"),
+    Case("voxelize", lambda: S.voxelize(P, fill="solid"), ARG, r"^fill: got 'solid'", "fill"),
+    Case("voxelize", lambda: S.voxelize(P, fill="hollow"), ARG, r"^fill", "fill-name"),
+    Case("voxelize", lambda: S.voxelize(P, dilate=-1), ARG, r"^dilate", "dilate"),
+    Case("voxelize", lambda: S.voxelize(box((1, 1, 1)), dilate=1), ARG, r"^dilate", "mesh"),
+    Case(
+        "voxelize",
+        lambda: S.voxelize(Mesh(np.zeros((3, 3), np.float32), np.zeros((0, 3), np.uint32))),
+        ARG,
+        r"^shape: got a mesh with no triangles",
+        "empty-mesh",
+    ),
+    Case(
+        "voxelize",
+        lambda: S.voxelize(np.array([[0.0, 0, 0], [3e38, 0, 0]])),
+        ARG,
+        r"^points: got .*expected a bounding box smaller than 1e30",
+        "huge",
+    ),
+    Case("density_profiles", lambda: S.density_profiles(np.zeros((4, 4, 5))), SHAPE, r"^voxels"),
+    Case(
+        "density_profiles",
+        lambda: S.density_profiles(np.zeros((4, 4, 4), np.float32)),
+        ARG,
+        r"^voxels: got dtype float32",
+        "dtype",
+    ),
+]
+
+
+@pytest.mark.parametrize("case", params(CASES))
+def test_bad_input(case: Case) -> None:
+    check(case)
