@@ -11,6 +11,7 @@ mod oversegment;
 mod render;
 mod segment;
 mod spline;
+mod views;
 mod voxel;
 
 /// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import).
@@ -68,6 +69,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     oversegment::register(m)?;
     segment::register(m)?;
     voxel::register(m)?;
+    views::register(m)?;
     // Limits defined once in the core crates, read by the Python layer.
     m.add("MAX_RADIUS", rgbd_fusion::MAX_RADIUS)?;
     m.add("MAX_SIDE", rgbd_error::MAX_SIDE)?;

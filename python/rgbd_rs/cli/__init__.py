@@ -20,14 +20,22 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from rgbd_rs import __version__
-from rgbd_rs.cli import confidence, data, demo, fusion, segmentation, segmentation_eval
+from rgbd_rs.cli import (
+    confidence,
+    data,
+    demo,
+    fusion,
+    segmentation,
+    segmentation_eval,
+    shapes,
+)
 from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message
 from rgbd_rs.errors import RgbdError
 
 __all__ = ["PIPELINES", "build_parser", "main"]
 
 #: The modules whose ``register(commands)`` adds commands, in ``rgbd --help`` order.
-PIPELINES = (demo, data, fusion, confidence, segmentation, segmentation_eval)
+PIPELINES = (demo, data, fusion, confidence, segmentation, segmentation_eval, shapes)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,1 @@
+"""The six orthographic depth views of a shape (thesis §5.3.1)."""
