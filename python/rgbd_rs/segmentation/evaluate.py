@@ -37,6 +37,7 @@ those modules provide them (the report lists what was not available).
 from __future__ import annotations
 
 import importlib
+import inspect
 import itertools
 import time
 import warnings
@@ -216,11 +217,14 @@ def ours_oversegment(*, n_segments: int) -> Segmenter:
 
 
 def ours_fit_merge() -> Segmenter:
-    """The pipeline's fit-only merging (surface fits alone, the thesis' reference [74])."""
+    """The pipeline's fit-only merging (surface fits alone, the thesis' reference [74]): the
+    pipeline without class PDFs, at its default over-segmentation."""
     segment = _stage("pipeline", "segment")
+    # Fit-only is the pipeline without PDFs; pass mode="fit" where the pipeline names it.
+    extra = {"mode": "fit"} if "mode" in inspect.signature(segment).parameters else {}
 
     def run(rgb: U8, depth: F32, camera: PinholeCamera) -> Labels:
-        return np.asarray(segment(rgb, depth, camera, mode="fit").labels)
+        return np.asarray(segment(rgb, depth, camera, **extra).labels)
 
     return run
 
@@ -390,7 +394,8 @@ def frame_figure(
     peer: str | None,
 ) -> Path:
     """One frame's PNG: colour, depth, ground truth / our over-segmentation, merged, best peer
-    (boundaries drawn; a method that did not run shows a grey panel)."""
+    (boundaries drawn, segment counts in the captions; a method that did not run shows a grey
+    panel)."""
     from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
     blank = np.full((*gt.shape, 3), 128, np.uint8)
@@ -486,7 +491,8 @@ def evaluate(
             available yet (ImportError / AttributeError when built) is listed in
             ``missing`` instead.
         out: a folder for one figure per evaluation frame (``NNNN.png``: colour, depth, ground
-            truth, our over-segmentation, the merged result, the best peer); None = none.
+            truth, our over-segmentation at :data:`COUNT_MATCH_SEGMENTS` (what the merging starts
+            from), the merged result, the peer with the lowest tuning VoI); None = none.
         quiet: no progress bars.
     """
     eval_ids = _frame_list("frames", frames)
@@ -548,6 +554,8 @@ def evaluate(
                 metrics.boundary_recall(ours, gt, tolerance=BOUNDARY_TOLERANCE),
                 metrics.boundary_recall(theirs, gt, tolerance=BOUNDARY_TOLERANCE),
             )
+            # The figure shows the over-segmentation the merging starts from (~300 segments).
+            results[OURS_OVER] = ours
         if folder is not None:
             peer = None if best_peer is None else usable[best_peer].name
             frame_figure(folder / f"{frame.name}.png", frame, gt, results, peer)
