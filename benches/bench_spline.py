@@ -53,7 +53,8 @@ def run_one() -> list[dict[str, object]]:
     rows.append({"case": "10k-pixel segment, 10x10 knot spans", "ours": ours, "scipy": scipy_ms})
     # All segments of a 640x480 frame: 300 tiles of 32x32 pixels, 16-pixel spacing.
     labels = ((np.arange(h)[:, None] // 32) * 20 + np.arange(w)[None, :] // 32).astype(np.int32)
-    ours = timeit(lambda: SegmentFits(pts, labels, spacing=16.0), REPEATS)
+    ours = timeit(lambda: SegmentFits(pts, labels, spacing=16.0, criterion="gcv"), REPEATS)
+    seam = timeit(lambda: SegmentFits(pts, labels, spacing=16.0), REPEATS)
     one = labels == 0
     vv, uu = np.nonzero(one)
     zz = pts[one][:, 2].astype(np.float64)
@@ -63,13 +64,30 @@ def run_one() -> list[dict[str, object]]:
     rows.append(
         {"case": "300 segments of a 640x480 frame (with dof)", "ours": ours, "scipy": per * 300}
     )
+    rows.append(
+        {
+            "case": "300 segments of a 640x480 frame, seam test (default)",
+            "ours": seam,
+            "scipy": None,
+        }
+    )
+    # The merge test on every pair of 4-adjacent tiles (565 pairs), per pair.
+    tiles = SegmentFits(pts, labels, spacing=16.0)
+    adj = [(i, i + 1) for i in range(300) if i % 20 != 19] + [(i, i + 20) for i in range(280)]
+    per_pair = timeit(lambda: [tiles.should_merge(i, j) for i, j in adj], 5) / len(adj)
+    rows.append(
+        {"case": "seam should_merge, per adjacent tile pair", "ours": per_pair, "scipy": None}
+    )
     # union_error of two adjacent 5k-pixel segments.
     pair = np.full((h, w), -1, np.int32)
     pair[100:171, 100:171] = 0
     pair[100:171, 171:242] = 1
-    fits = SegmentFits(pts, pair, spacing=16.0)
+    fits = SegmentFits(pts, pair, spacing=16.0, criterion="gcv")
     ours = timeit(lambda: fits.union_error(0, 1), repeats=201)
     rows.append({"case": "union_error, two 5k-pixel segments", "ours": ours, "scipy": None})
+    fits = SegmentFits(pts, pair, spacing=16.0)
+    ours = timeit(lambda: fits.union_error(0, 1), repeats=201)
+    rows.append({"case": "union_error (seam), two 5k-pixel segments", "ours": ours, "scipy": None})
     # A 320x320 depth view with curvature maps (shape pipeline), 16 and 8-pixel spacing.
     view = cloud(320, 320)
     vv, uu = np.mgrid[0:320, 0:320]

@@ -22,8 +22,8 @@ FRAMES = None if ROOT is None else ROOT / "nyuv2" / "frames"
 def kinect(z: np.ndarray, seed: int, scale: float = KINECT_V1_NOISE_SCALE) -> np.ndarray:
     """Points of depth ``z`` with Kinect-like noise sigma = scale * z**2."""
     rng = np.random.default_rng(seed)
-    noisy = z + scale * z**2 * rng.normal(size=z.shape)
-    return CAM.depth_to_points(noisy.astype(np.float32))
+    noisy = np.asarray(z + scale * z**2 * rng.normal(size=z.shape), np.float32)
+    return CAM.depth_to_points(noisy)
 
 
 V, U = np.mgrid[0:96, 0:128].astype(np.float64)
@@ -95,12 +95,12 @@ def test_bad_parameters_are_clear_errors() -> None:
         ({"criterion": "bic"}, "criterion"),
     ):
         with pytest.raises(InvalidArgumentError, match=name):
-            SegmentFits(pts, HALVES, **kw)  # type: ignore[arg-type]
+            SegmentFits(pts, HALVES, **kw)
 
 
 def _largest(mask: np.ndarray) -> np.ndarray:
     n, cc = cv2.connectedComponents(mask.astype(np.uint8))
-    return cc == np.argmax(np.bincount(cc[mask])) if n > 1 else np.zeros_like(mask)
+    return np.asarray(cc == np.argmax(np.bincount(cc[mask]))) if n > 1 else np.zeros_like(mask)
 
 
 @pytest.mark.skipif(FRAMES is None or not FRAMES.is_dir(), reason="NYUv2 frames not found")
@@ -108,16 +108,16 @@ def _largest(mask: np.ndarray) -> np.ndarray:
 def test_nyu_wall_halves_merge_and_wall_floor_do_not(idx: str) -> None:
     """Frames where the floor meets the wall (0017, 0018, 0021) and one where it does not."""
     assert FRAMES is not None
-    depth = cv2.imread(str(FRAMES / f"{idx}_depth.png"), cv2.IMREAD_UNCHANGED) / 1000.0
-    lab = cv2.imread(str(FRAMES / f"{idx}_label13.png"), cv2.IMREAD_UNCHANGED)
-    wall, floor = _largest(lab == 12), _largest(lab == 5)
+    depth = np.asarray(cv2.imread(str(FRAMES / f"{idx}_depth.png"), cv2.IMREAD_UNCHANGED))
+    lab = np.asarray(cv2.imread(str(FRAMES / f"{idx}_label13.png"), cv2.IMREAD_UNCHANGED))
+    wall, floor = _largest(np.equal(lab, 12)), _largest(np.equal(lab, 5))
     mid = np.median(np.nonzero(wall)[1])
     col = np.arange(640)[None, :]
     labels = np.full(lab.shape, -1, np.int32)
     labels[wall & (col < mid)] = 0
     labels[wall & (col >= mid)] = 1
     labels[floor] = 2
-    s = SegmentFits(NYU.depth_to_points(depth.astype(np.float32)), labels)
+    s = SegmentFits(NYU.depth_to_points((depth / 1000.0).astype(np.float32)), labels)
     assert s.should_merge(0, 1)
     assert not s.should_merge(0, 2) and not s.should_merge(1, 2)
     if idx != "0030":

@@ -60,11 +60,11 @@ def largest(mask: np.ndarray) -> np.ndarray:
     n, cc = cv2.connectedComponents(mask.astype(np.uint8))
     if n < 2:
         return np.zeros_like(mask)
-    return cc == np.argmax(np.bincount(cc[mask]))
+    return np.asarray(cc == np.argmax(np.bincount(cc[mask])))
 
 
 def _near(mask: np.ndarray) -> np.ndarray:
-    return cv2.dilate(mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    return np.asarray(cv2.dilate(mask.astype(np.uint8), np.ones((7, 7), np.uint8)), bool)
 
 
 def cases() -> list[Frame]:
@@ -74,9 +74,9 @@ def cases() -> list[Frame]:
     out = []
     for f in sorted((root / "nyuv2" / "frames").glob("*_depth.png")):
         idx = f.name[:4]
-        depth = cv2.imread(str(f), cv2.IMREAD_UNCHANGED).astype(np.float32) / 1000.0
-        lab = cv2.imread(str(f.with_name(f"{idx}_label13.png")), cv2.IMREAD_UNCHANGED)
-        wall, floor = largest(lab == WALL), largest(lab == FLOOR)
+        depth = np.asarray(cv2.imread(str(f), cv2.IMREAD_UNCHANGED), np.float32) / 1000.0
+        lab = np.asarray(cv2.imread(str(f.with_name(f"{idx}_label13.png")), cv2.IMREAD_UNCHANGED))
+        wall, floor = largest(np.equal(lab, WALL)), largest(np.equal(lab, FLOOR))
         if wall.sum() < 10000 or floor.sum() < 5000:
             continue
         v, u = np.nonzero(wall)
@@ -93,7 +93,7 @@ def cases() -> list[Frame]:
         adjacent[wall] = 0
         near = _near(wall)
         for c in OTHER:
-            n, cc = cv2.connectedComponents((lab == c).astype(np.uint8))
+            n, cc = cv2.connectedComponents(np.equal(lab, c).astype(np.uint8))
             for k in range(1, n):
                 region = cc == k
                 if region.sum() >= 2000 and (region & near).any():

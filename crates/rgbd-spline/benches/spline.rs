@@ -64,6 +64,47 @@ fn bench_segment(c: &mut Bench) {
             .unwrap()
         })
     });
+    for (name, crit) in [("mse", Criterion::Mse), ("seam", Criterion::Seam)] {
+        c.bench_function(&format!("SegmentFits 640x480, 300 segments, {name}"), |b| {
+            b.iter(|| {
+                SegmentFits::new(
+                    black_box(&pts),
+                    w,
+                    h,
+                    3,
+                    &labels,
+                    &g16,
+                    DEFAULT_LAMBDA,
+                    crit,
+                )
+                .unwrap()
+            })
+        });
+    }
+    // The seam test on the 565 pairs of 4-adjacent tiles.
+    let tiles = SegmentFits::new(
+        &pts,
+        w,
+        h,
+        3,
+        &labels,
+        &g16,
+        DEFAULT_LAMBDA,
+        Criterion::Seam,
+    )
+    .unwrap();
+    let adj: Vec<(usize, usize)> = (0..300usize)
+        .filter(|i| i % 20 != 19)
+        .map(|i| (i, i + 1))
+        .chain((0..280).map(|i| (i, i + 20)))
+        .collect();
+    c.bench_function("should_merge seam, 565 adjacent tile pairs", |b| {
+        b.iter(|| {
+            adj.iter()
+                .filter(|&&(i, j)| tiles.should_merge(i, j).unwrap())
+                .count()
+        })
+    });
     // Two adjacent 5k-pixel segments (71x71 squares).
     let pair: Vec<i32> = (0..w * h)
         .map(|i| {
