@@ -30,6 +30,23 @@ pub trait FitModel: Sync {
     fn accepts(&self, a: usize, b: usize) -> Result<bool>;
     /// Joins `b` into `a`; returns the error of the union.
     fn merge(&mut self, a: usize, b: usize) -> Result<f64>;
+
+    /// Whether eq. 4.8 accepts the union of `a` and `b`, and its relative fit improvement
+    /// `1 - e_ab (n_a + n_b) / (e_a n_a + e_b n_b)`. Implementations whose test is eq. 4.8 on
+    /// [`Self::error`] and [`Self::union_error`] can answer with one union fit.
+    fn assess(&self, a: usize, b: usize) -> Result<(bool, f64)> {
+        let accept = self.accepts(a, b)?;
+        Ok((accept, gain(self, a, b, self.union_error(a, b)?)?))
+    }
+}
+
+/// The relative fit improvement of joining `a` and `b` given the union's error (0 when the
+/// parts fit exactly, so the ratio is undefined).
+fn gain<M: FitModel + ?Sized>(m: &M, a: usize, b: usize, union_error: f64) -> Result<f64> {
+    let (na, nb) = (m.size(a)? as f64, m.size(b)? as f64);
+    let before = m.error(a)? * na + m.error(b)? * nb;
+    let g = 1.0 - union_error * (na + nb) / before;
+    Ok(if g.is_finite() { g } else { 0.0 })
 }
 
 /// [`SegmentFits`] addressed by slots (`ids[s]` is the label of slot `s`).
@@ -60,6 +77,16 @@ impl FitModel for LabelledFits<'_> {
     fn merge(&mut self, a: usize, b: usize) -> Result<f64> {
         let (la, lb) = (self.label(a), self.label(b));
         self.fits.merge(la, lb)
+    }
+
+    /// One union fit: `SegmentFits::should_merge` is eq. 4.8 on `fit_error` and `union_error`
+    /// (checked by the test `assess_matches_should_merge`).
+    fn assess(&self, a: usize, b: usize) -> Result<(bool, f64)> {
+        let (na, nb) = (self.size(a)? as f64, self.size(b)? as f64);
+        let before = self.error(a)? * na + self.error(b)? * nb;
+        let after = self.union_error(a, b)? * (na + nb);
+        let g = 1.0 - after / before;
+        Ok((before > after, if g.is_finite() { g } else { 0.0 }))
     }
 }
 
@@ -134,7 +161,10 @@ impl Descriptors {
 #[derive(Debug, Clone)]
 pub enum Priority {
     /// Algorithm 1: couples with similarity `>= t_sim` in order of similarity; eq. 4.8 decides.
-    Similarity { descriptors: Descriptors, t_sim: f64 },
+    Similarity {
+        descriptors: Descriptors,
+        t_sim: f64,
+    },
     /// Reference [74]: couples that pass eq. 4.8 in order of relative fit improvement
     /// `1 - e_ij (n_i + n_j) / (e_i n_i + e_j n_j)` (unit-free).
     FitGain,
@@ -200,22 +230,10 @@ fn soft<T>(r: Result<T>) -> Result<Option<T>> {
 
 /// The relative fit improvement of joining `a` and `b`, if eq. 4.8 accepts it.
 fn fit_gain<M: FitModel>(m: &M, a: usize, b: usize) -> Result<Option<f64>> {
-    let Some(true) = soft(m.accepts(a, b))? else {
-        return Ok(None);
-    };
-    let parts = || -> Result<(f64, f64)> {
-        let (na, nb) = (m.size(a)? as f64, m.size(b)? as f64);
-        let before = m.error(a)? * na + m.error(b)? * nb;
-        Ok((before, m.union_error(a, b)? * (na + nb)))
-    };
-    Ok(soft(parts())?.map(|(before, after)| {
-        let g = 1.0 - after / before;
-        if g.is_finite() {
-            g
-        } else {
-            0.0
-        }
-    }))
+    Ok(match soft(m.assess(a, b))? {
+        Some((true, g)) => Some(g),
+        _ => None,
+    })
 }
 
 /// The score of a couple under `priority`, or None when it does not enter the queue.
@@ -409,7 +427,11 @@ mod tests {
             })
         }
         fn union_error(&self, a: usize, b: usize) -> Result<f64> {
-            let u: Vec<usize> = self.members[a].iter().chain(&self.members[b]).copied().collect();
+            let u: Vec<usize> = self.members[a]
+                .iter()
+                .chain(&self.members[b])
+                .copied()
+                .collect();
             Ok(if self.pure(&u) { 0.9 } else { 10.0 })
         }
         fn accepts(&self, a: usize, b: usize) -> Result<bool> {
@@ -459,6 +481,57 @@ mod tests {
         // (0,1) merges; (2,3) never enters the queue (similarity 0.32).
         assert_eq!(out.root, vec![0, 0, 2, 3]);
         assert_eq!(out.history.len(), 1);
+    }
+
+    #[test]
+    fn assess_matches_should_merge() {
+        // Three noisy planes side by side on a 48 x 16 grid: two coplanar, one tilted.
+        let (w, h) = (48usize, 16usize);
+        let mut pts = Vec::new();
+        let mut labels = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let noise = (((x * 7919 + y * 104_729) % 97) as f32 / 97.0 - 0.5) * 1e-3;
+                let z = if x < 32 {
+                    2.0
+                } else {
+                    2.0 + 0.05 * (x as f32 - 32.0)
+                } + noise;
+                pts.extend([(x as f32 - 24.0) * z / 50.0, (y as f32 - 8.0) * z / 50.0, z]);
+                labels.push((x / 16) as i32);
+            }
+        }
+        let grid = rgbd_spline::KnotGrid::new(w, h, 8.0, 3).unwrap();
+        let mut fits = SegmentFits::new(
+            &pts,
+            w,
+            h,
+            3,
+            &labels,
+            &grid,
+            rgbd_spline::DEFAULT_LAMBDA,
+            rgbd_spline::Criterion::Gcv,
+        )
+        .unwrap();
+        let ids = [0, 1, 2];
+        let expected: Vec<bool> = [(0, 1), (1, 2), (0, 2)]
+            .iter()
+            .map(|&(a, b)| fits.should_merge(a, b).unwrap())
+            .collect();
+        assert_eq!(
+            &expected[..2],
+            &[true, false],
+            "coplanar merge, the crease does not"
+        );
+        let m = LabelledFits {
+            fits: &mut fits,
+            ids: &ids,
+        };
+        for (k, &(a, b)) in [(0, 1), (1, 2), (0, 2)].iter().enumerate() {
+            let (accept, g) = m.assess(a, b).unwrap();
+            assert_eq!(accept, expected[k], "couple ({a}, {b})");
+            assert_eq!(accept, g > 0.0);
+        }
     }
 
     #[test]
