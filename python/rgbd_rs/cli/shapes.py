@@ -3,8 +3,313 @@ shape-classification pipeline's commands (thesis ch. 5)."""
 
 from __future__ import annotations
 
-from rgbd_rs.cli._args import Commands
+import argparse
+import time
+from pathlib import Path
+
+from rgbd_rs.cli._args import Commands, Parser, integer, named, real
 
 
 def register(commands: Commands) -> None:
-    """Add the shape commands (none yet)."""
+    """Add ``rgbd classify``, ``rgbd shapes cache``, ``rgbd train shapes``, ``rgbd eval shapes``."""
+    _classify(commands)
+    _cache(commands)
+    _train(commands)
+    _eval(commands)
+
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        i, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"got {text!r}, expected i/n (e.g. 0/4)") from None
+    if not 0 <= i < n:
+        raise argparse.ArgumentTypeError(f"got {text!r}, expected 0 <= i < n")
+    return i, n
+
+
+def _representations(text: str) -> tuple[str, ...]:
+    from rgbd_rs.errors import RgbdError
+    from rgbd_rs.nn.shapes import parse_representations
+
+    try:
+        return parse_representations(text)
+    except RgbdError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _classify(commands: Commands) -> None:
+    p = commands.command(
+        "classify",
+        run_classify,
+        help="classify a 3-D shape (mesh or point cloud) with the shape ConvNet",
+        description="Classify a mesh (.off, .obj, .ply) or a point cloud (.npy, .npz, .ply "
+        "without faces, .pcd) with the 15-branch ConvNet of thesis ch. 5: the weights shipped "
+        "in the package (ModelNet40 when shipped, else ModelNet10) or --checkpoint. Prints the "
+        "top classes with their probabilities.",
+    )
+    p.add_argument("file", type=Path, metavar="FILE", help="mesh or point-cloud file")
+    p.add_argument("--checkpoint", type=Path, help="a `rgbd train shapes` checkpoint")
+    p.add_argument(
+        "--dataset", choices=("modelnet10", "modelnet40"), help="which shipped weights to use"
+    )
+    p.add_argument("--top", type=integer(1), default=5, help="classes to print (5)")
+
+
+def run_classify(args: argparse.Namespace) -> int:
+    from rgbd_rs.shapes.classify import ShapeClassifier
+    from rgbd_rs.shapes.dataset import load_shape
+
+    clf = named(
+        "--checkpoint",
+        lambda: ShapeClassifier.load(args.checkpoint, dataset=args.dataset),
+    )
+    shape = load_shape(args.file)
+    best, probs = clf(shape)
+    print(f"{args.file}: {best}")
+    for name, prob in list(probs.items())[: args.top]:
+        print(f"  {prob:6.1%}  {name}")
+    return 0
+
+
+def _cache(commands: Commands) -> None:
+    top = commands.command(
+        "shapes",
+        lambda args: 2,
+        help="shape-classification data tools (rgbd shapes cache)",
+        description="Shape-classification data tools.",
+    )
+    sub = top.add_subparsers(dest="shapes", metavar="WHAT", required=True, parser_class=Parser)
+    p = sub.add_parser(
+        "cache",
+        help="precompute the ConvNet inputs of a shape dataset",
+        description="Compute every shape's depth views and voxel density profiles (and "
+        "curvature maps once available) into OUT: one memory-mappable float16 .npy per "
+        "representation. Resumable (re-run to continue; done shapes are skipped) and sharded: "
+        "--shard i/n computes every n-th shape from i, so n scheduler tasks fill one cache.",
+    )
+    p.set_defaults(run=run_cache)
+    p.add_argument(
+        "--data",
+        required=True,
+        help="modelnet10, modelnet40 (the shared point packs), a point pack .npz or a ModelNet "
+        "OFF tree folder (CLASS/{train,test}/*.off)",
+    )
+    p.add_argument("--out", type=Path, required=True, help="cache folder")
+    p.add_argument(
+        "--resolution", type=integer(8, 4096), default=64, help="view side (64; thesis 320)"
+    )
+    p.add_argument(
+        "--volume-resolution",
+        type=integer(16, 4096),
+        default=32,
+        help="density profile side (32, thesis)",
+    )
+    p.add_argument(
+        "--representations",
+        type=_representations,
+        help="comma-separated among depth,volume,curvature (default: depth,volume as available)",
+    )
+    p.add_argument(
+        "--normalisation",
+        choices=("lcn", "standardize"),
+        default="lcn",
+        help="per-map normalisation (lcn: local contrast normalisation, thesis)",
+    )
+    p.add_argument("--shard", type=_shard, default=(0, 1), help="compute shard i of n (i/n)")
+    p.add_argument("--workers", type=integer(1, 1024), help="threads (default: CPU count)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run_cache(args: argparse.Namespace) -> int:
+    from rgbd_rs.shapes.dataset import InputSpec, build_cache, open_shapes
+
+    src = named("--data", lambda: open_shapes(args.data))
+    extra = {} if args.representations is None else {"representations": args.representations}
+    spec = InputSpec(
+        view_resolution=args.resolution,
+        volume_resolution=args.volume_resolution,
+        normalisation=args.normalisation,
+        **extra,
+    )
+    t0 = time.perf_counter()
+    before = 0
+    if (args.out / "done.npy").is_file():
+        from rgbd_rs.shapes.dataset import ShapeCache
+
+        before = int((named("--out", lambda: ShapeCache(args.out)).done != 0).sum())
+    cache = build_cache(
+        src, args.out, spec=spec, shard=args.shard, workers=args.workers, quiet=args.quiet
+    )
+    seconds = time.perf_counter() - t0
+    done = cache.done
+    made = int((done != 0).sum()) - before
+    rate = f", {1000 * seconds / made:.1f} ms per shape" if made > 0 else ""
+    print(
+        f"{args.out}: {int((done == 1).sum())}/{len(cache)} shapes done, "
+        f"{int((done == 2).sum())} failed; this run computed {made} in {seconds:.1f} s{rate}"
+    )
+    return 0
+
+
+def _train(commands: Commands) -> None:
+    p = commands.group_command(
+        "train",
+        "shapes",
+        run_train,
+        help="train the 15-branch shape ConvNet",
+        description="Train the shape ConvNet of thesis §5.4 on a `rgbd shapes cache` folder "
+        "(training split; --val-fraction of it held out for validation). Checkpoints go to "
+        "OUT/last.pt (every epoch and every --checkpoint-steps steps) and OUT/best.pt; re-running "
+        "the same command resumes. Runs under torchrun for DistributedDataParallel training. "
+        "--ablation trains one network per Table 5.2 row into OUT/<row>/. --ship writes the best "
+        "checkpoint's inference-only float16 copy into the package's weights.",
+    )
+    p.add_argument("--cache", type=Path, required=True, help="`rgbd shapes cache` folder")
+    p.add_argument("--out", type=Path, default=Path("out/train_shapes"), help="output folder")
+    p.add_argument(
+        "--representations",
+        type=_representations,
+        help="comma-separated among depth,volume,curvature (default: all in the cache)",
+    )
+    p.add_argument("--width", type=integer(1, 4096), default=128, help="descriptor size (128)")
+    p.add_argument("--epochs", type=integer(1), default=30, help="epochs (30)")
+    p.add_argument("--batch-size", type=integer(1), default=32, help="shapes per step (32)")
+    p.add_argument("--lr", type=real(0, 10), default=0.01, help="SGD learning rate (0.01)")
+    p.add_argument("--momentum", type=real(0, 0.999, low_open=False), default=0.9, help="(0.9)")
+    p.add_argument("--weight-decay", type=real(0, 1, low_open=False), default=5e-4, help="(5e-4)")
+    p.add_argument("--lr-step", type=integer(0), default=10, help="halve lr every N epochs (10)")
+    p.add_argument(
+        "--val-fraction",
+        type=real(0, 0.9, low_open=False),
+        default=0.1,
+        help="fraction of the training split held out for validation (0.1; 0 = none)",
+    )
+    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed (0)")
+    p.add_argument(
+        "--checkpoint-steps", type=integer(0), default=50, help="also save every N steps (50)"
+    )
+    p.add_argument("--workers", type=integer(0, 64), default=0, help="data-loader processes (0)")
+    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N (auto)")
+    p.add_argument("--init", type=Path, help="start from this checkpoint's weights (fine-tune)")
+    p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
+    p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
+    p.add_argument(
+        "--no-resume",
+        action="store_true",
+        help="start afresh in OUT, overwriting its checkpoints (default: resume from OUT/last.pt)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def run_train(args: argparse.Namespace) -> int:
+    from rgbd_rs.nn.train import TrainConfig, is_main_process
+    from rgbd_rs.shapes.dataset import ShapeCache
+    from rgbd_rs.shapes.train import ShapeRecipe, ship, train_ablation, train_shapes
+
+    cache = named("--cache", lambda: ShapeCache(args.cache))
+    config = TrainConfig(
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        optimizer="sgd",
+        lr=args.lr,
+        momentum=args.momentum,
+        weight_decay=args.weight_decay,
+        lr_step=args.lr_step,
+        lr_gamma=0.5,
+        seed=args.seed,
+        num_workers=args.workers,
+        checkpoint_steps=args.checkpoint_steps,
+        device=args.device,
+    )
+    recipe = ShapeRecipe(
+        representations=args.representations, width=args.width, val_fraction=args.val_fraction
+    )
+    t0 = time.perf_counter()
+    if args.ablation:
+        if args.init is not None or args.ship:
+            from rgbd_rs.errors import InvalidArgumentError
+
+            raise InvalidArgumentError("--ablation: expected neither --init nor --ship with it")
+        rows = train_ablation(
+            cache, args.out, recipe=recipe, config=config, resume=not args.no_resume,
+            quiet=args.quiet,
+        )  # fmt: skip
+        if is_main_process():
+            for row, best in rows.items():
+                print(f"{row}: best checkpoint {best}")
+        return 0
+    best = train_shapes(
+        cache, args.out, recipe=recipe, config=config, init=args.init,
+        resume=not args.no_resume, quiet=args.quiet,
+    )  # fmt: skip
+    if not is_main_process():  # under torchrun, rank 0 reports and ships
+        return 0
+    print(f"best checkpoint: {best} ({time.perf_counter() - t0:.0f} s)")
+    if args.ship:
+        print(f"shipped weights: {ship(best)}")
+    return 0
+
+
+def _eval(commands: Commands) -> None:
+    p = commands.group_command(
+        "eval",
+        "shapes",
+        run_eval,
+        help="evaluate shape ConvNets (accuracy, per class, confusion; Table 5.2 ablation)",
+        description="Accuracy of shape-classifier checkpoints on a cache's test split (ModelNet's "
+        "official one): overall and per-class accuracy and the confusion matrix (markdown + PNG "
+        "heat map in OUT). --ablation DIR evaluates every DIR/<row>/best.pt written by `rgbd "
+        "train shapes --ablation` and writes Table 5.2 to OUT/ablation.md.",
+    )
+    p.add_argument("--cache", type=Path, required=True, help="`rgbd shapes cache` folder")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--checkpoint", type=Path, nargs="+", help="checkpoint file(s)")
+    group.add_argument("--ablation", type=Path, help="folder of `rgbd train shapes --ablation`")
+    p.add_argument("--split", choices=("test", "train", "all"), default="test", help="(test)")
+    p.add_argument("--label", help="dataset column name of the ablation table (from the cache)")
+    p.add_argument("--out", type=Path, default=Path("out/eval_shapes"), help="report folder")
+    p.add_argument("--batch-size", type=integer(1), default=64, help="shapes per batch (64)")
+    p.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (cpu)")
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    from rgbd_rs.errors import RgbdError
+    from rgbd_rs.shapes.dataset import ShapeCache
+    from rgbd_rs.shapes.evaluate import ShapeEvaluation, ablation_markdown, evaluate, row_name
+
+    cache = named("--cache", lambda: ShapeCache(args.cache))
+    if args.ablation is not None:
+        found = sorted(args.ablation.glob("*/best.pt")) or sorted(args.ablation.glob("*/last.pt"))
+        if not found:
+            raise RgbdError(f"--ablation: {args.ablation}: no <row>/best.pt or <row>/last.pt")
+        checkpoints = found
+    elif args.checkpoint:
+        checkpoints = list(args.checkpoint)
+    else:
+        from rgbd_rs.shapes.classify import shipped_weights
+
+        checkpoints = list(shipped_weights().values())
+        if not checkpoints:
+            raise RgbdError("--checkpoint: none given and no shipped weights in this installation")
+    results: list[ShapeEvaluation] = []
+    for ck in checkpoints:
+
+        def one(ck: Path = ck) -> ShapeEvaluation:
+            return evaluate(
+                ck, cache, split=args.split, batch_size=args.batch_size, device=args.device
+            )
+
+        res = named(str(ck), one)
+        stem = row_name(res.representations)
+        if any(row_name(r.representations) == stem for r in results):
+            stem = f"{stem}_{len(results)}"  # two checkpoints of one row keep both reports
+        res.write(args.out, stem)
+        results.append(res)
+        print(res.summary())
+    label = args.label or str(cache.meta.get("source", "dataset")).split("_")[0]
+    table = ablation_markdown({label: results})
+    (args.out / "ablation.md").write_text(table + "\n")
+    print(table)
+    print(f"reports in {args.out}")
+    return 0

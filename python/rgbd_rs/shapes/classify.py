@@ -1,0 +1,221 @@
+"""Classify one shape with a trained 15-branch ConvNet (thesis ch. 5).
+
+``classify(shape)`` runs the weights shipped in the package (``rgbd_rs/nn/weights/
+shapes_modelnet40.pt``, else ``shapes_modelnet10.pt``) or any checkpoint written by ``rgbd train
+shapes``. The checkpoint records how its inputs were computed (:class:`~rgbd_rs.shapes.dataset.
+InputSpec`) and whether it was trained on point clouds: a mesh given to a point-cloud model is
+first sampled into as many surface points as its training shapes had (1024 for the ModelNet
+packs), so both see the same kind of input.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import torch
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.meshes import Mesh
+from rgbd_rs.nn.shapes import ARCH, ShapeNet, pack
+from rgbd_rs.shapes.dataset import (
+    InputSpec,
+    Shape,
+    _shape_arg,
+    batch_inputs,
+    load_shape,
+    sample_surface,
+)
+
+__all__ = ["WEIGHT_FILES", "ShapeClassifier", "classify", "shipped_weights", "weights_path"]
+
+#: The checkpoints the package may ship, by dataset.
+WEIGHT_FILES = {"modelnet10": "shapes_modelnet10.pt", "modelnet40": "shapes_modelnet40.pt"}
+_WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "nn" / "weights"
+#: Seed of the surface sampling of meshes (deterministic classification).
+SAMPLE_SEED = 0
+
+
+def weights_path(dataset: str) -> Path:
+    """Where the package keeps ``dataset``'s shipped weights (the file may be absent)."""
+    name = _validate.choice("dataset", dataset, tuple(WEIGHT_FILES))
+    return _WEIGHTS_DIR / WEIGHT_FILES[name]
+
+
+def shipped_weights() -> dict[str, Path]:
+    """The shipped checkpoints present in this installation, by dataset."""
+    return {d: weights_path(d) for d in WEIGHT_FILES if weights_path(d).is_file()}
+
+
+class ShapeClassifier:
+    """A trained :class:`~rgbd_rs.nn.shapes.ShapeNet` with its input spec and class names.
+
+    ``ShapeClassifier.load()`` reads the shipped weights (ModelNet40 when present, else
+    ModelNet10; ``dataset=`` picks one), ``load(path)`` any ``rgbd train shapes`` checkpoint. A
+    missing file, another architecture or missing metadata raise :class:`RgbdError` naming it.
+    """
+
+    def __init__(
+        self,
+        net: ShapeNet,
+        spec: InputSpec,
+        classes: tuple[str, ...],
+        *,
+        kind: str = "points",
+        points_per_shape: int | None = None,
+        source: str = "",
+    ) -> None:
+        if not isinstance(net, ShapeNet):
+            raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ShapeNet")
+        if not isinstance(spec, InputSpec):
+            raise InvalidArgumentError(f"spec: got {type(spec).__name__}, expected an InputSpec")
+        if len(classes) != net.n_classes or not all(isinstance(c, str) for c in classes):
+            raise InvalidArgumentError(
+                f"classes: got {len(classes)} names, expected {net.n_classes} (str)"
+            )
+        if spec.representations != net.representations:
+            raise InvalidArgumentError(
+                f"spec: representations {list(spec.representations)}, expected the network's "
+                f"{list(net.representations)}"
+            )
+        self.net = net
+        self.spec = spec
+        self.classes = tuple(classes)
+        self.kind = _validate.choice("kind", kind, ("points", "mesh"))
+        self.points_per_shape = (
+            None
+            if points_per_shape is None
+            else _validate.integer("points_per_shape", points_per_shape, minimum=1)
+        )
+        self.source = source
+
+    @classmethod
+    def load(
+        cls,
+        path: str | os.PathLike[str] | None = None,
+        *,
+        dataset: str | None = None,
+        device: str = "cpu",
+    ) -> ShapeClassifier:
+        """The shipped weights (``path=None``) or the checkpoint at ``path``."""
+        from rgbd_rs.nn.checkpoint import load_checkpoint
+
+        if path is None:
+            file = _default_weights(dataset)
+        elif dataset is not None:
+            raise InvalidArgumentError("dataset: given with path, expected one of the two")
+        elif not isinstance(path, (str, os.PathLike)) or not str(path):
+            raise InvalidArgumentError(f"path: got {path!r}, expected a checkpoint file")
+        else:
+            file = Path(path)
+        ckpt = load_checkpoint(file, arch=ARCH, normalisation_keys=("spec", "classes"))
+        norm = ckpt.normalisation
+        try:
+            net = ShapeNet.from_config(ckpt.arch_config)
+            spec = InputSpec.from_dict(norm["spec"])
+            classes = tuple(str(c) for c in norm["classes"])
+            out = cls(
+                net,
+                spec,
+                classes,
+                kind=str(norm.get("kind", "points")),
+                points_per_shape=norm.get("points_per_shape"),
+                source=str(file),
+            )
+        except RgbdError as exc:
+            raise RgbdError(f"{file}: invalid shape-classifier checkpoint ({exc})") from None
+        state = {k: v.float() if v.is_floating_point() else v for k, v in ckpt.model_state.items()}
+        dataclasses.replace(ckpt, model_state=state).load_weights(net)
+        net.to(device)
+        net.eval()
+        return out
+
+    def _prepare(self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str]) -> Shape:
+        x: Any = load_shape(shape) if isinstance(shape, (str, os.PathLike)) else shape
+        x = _shape_arg("shape", x)
+        if isinstance(x, Mesh) and self.kind == "points":
+            x = sample_surface(x, self.points_per_shape or 1024, SAMPLE_SEED)
+        return x  # type: ignore[no-any-return]
+
+    def probabilities(
+        self, shapes: list[Mesh | npt.ArrayLike | str | os.PathLike[str]], *, workers: int = 1
+    ) -> npt.NDArray[np.float32]:
+        """``N x n_classes`` softmax probabilities of several shapes (meshes, point clouds or
+        file paths)."""
+        if not isinstance(shapes, (list, tuple)):
+            raise InvalidArgumentError(
+                f"shapes: got {type(shapes).__name__}, expected a list of shapes"
+            )
+        prepared = [self._prepare(s) for s in shapes]
+        if not prepared:
+            return np.zeros((0, len(self.classes)), np.float32)
+        inputs = batch_inputs(prepared, self.spec, workers=workers)
+        return self.probabilities_of_inputs(inputs)
+
+    def probabilities_of_inputs(self, inputs: dict[str, Any] | torch.Tensor) -> np.ndarray:
+        """Softmax probabilities of precomputed inputs (a dict of ``N x ...`` arrays, or packed)."""
+        x = inputs if isinstance(inputs, torch.Tensor) else pack(inputs, self.net.shapes)
+        device = next(self.net.parameters()).device
+        self.net.eval()
+        with torch.inference_mode():
+            logits = self.net(x.to(device, torch.float32))
+            return torch.softmax(logits, dim=1).cpu().numpy().astype(np.float32)
+
+    def __call__(
+        self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str]
+    ) -> tuple[str, dict[str, float]]:
+        """``(class name, {class: probability})``, the dict sorted by decreasing probability."""
+        p = self.probabilities([shape])[0]
+        order = np.argsort(-p, kind="stable")
+        probs = {self.classes[i]: float(p[i]) for i in order}
+        return self.classes[int(order[0])], probs
+
+
+def _default_weights(dataset: str | None) -> Path:
+    have = shipped_weights()
+    if dataset is not None:
+        file = weights_path(dataset)
+        if not file.is_file():
+            raise RgbdError(
+                f"{file}: no shipped {dataset} weights in this installation (it ships "
+                f"{sorted(have) or 'none'}); train with `rgbd train shapes` and pass the checkpoint"
+            )
+        return file
+    for name in ("modelnet40", "modelnet10"):
+        if name in have:
+            return have[name]
+    raise RgbdError(
+        f"{_WEIGHTS_DIR}: no shipped shape-classifier weights in this installation; train with "
+        "`rgbd train shapes` and pass the checkpoint"
+    )
+
+
+@functools.lru_cache(maxsize=4)
+def _cached(path: str | None, dataset: str | None, stamp: float) -> ShapeClassifier:
+    return ShapeClassifier.load(path, dataset=dataset)
+
+
+def classify(
+    shape: Mesh | npt.ArrayLike | str | os.PathLike[str],
+    *,
+    checkpoint: str | os.PathLike[str] | None = None,
+    dataset: str | None = None,
+) -> tuple[str, dict[str, float]]:
+    """The class of ``shape`` (a Mesh, an ``N x 3`` point cloud or a mesh / point-cloud file)
+    and every class' probability (dict sorted by decreasing probability), with the shipped
+    weights (``dataset`` ``"modelnet10"`` / ``"modelnet40"``; default the 40-class ones when
+    shipped) or ``checkpoint``. The loaded network is kept for the next calls."""
+    if checkpoint is not None and not isinstance(checkpoint, (str, os.PathLike)):
+        raise InvalidArgumentError(f"checkpoint: got {checkpoint!r}, expected a file path")
+    if dataset is not None:
+        _validate.choice("dataset", dataset, tuple(WEIGHT_FILES))
+    key = None if checkpoint is None else str(Path(checkpoint).resolve())
+    file = Path(key) if key is not None else None
+    stamp = file.stat().st_mtime if file is not None and file.is_file() else 0.0
+    return _cached(key, dataset, stamp)(shape)  # a rewritten checkpoint is read again

@@ -1,0 +1,915 @@
+"""Shape datasets and the representation cache of the shape classifier (thesis ch. 5).
+
+**Sources** (:func:`open_shapes`): the shared ModelNet point packs (``modelnet10_1024.npz``,
+``modelnet40_1024.npz``: 1024 points per shape, official splits; :class:`PointCloudSet`) and the
+Princeton OFF tree ``ROOT/<class>/{train,test}/<name>.off`` of the original meshes
+(:class:`OffTree`). Single files: :func:`load_shape` reads meshes (.off, .ply, .obj) and point
+clouds (.npy, .npz, .ply without faces, .pcd).
+
+**Inputs** (:class:`InputSpec`, :func:`shape_inputs`, :func:`batch_inputs`): the network's inputs
+of one shape are its six depth views (:func:`rgbd_rs.shapes.views.depth_views`), its three voxel
+density profiles (:func:`rgbd_rs.shapes.voxels.density_profiles`; meshes voxelized ``solid``,
+points by occupancy) and, once the package computes them, its six curvature maps; every map is
+locally contrast-normalised on its own (§5.3, :data:`NORMALISATIONS`). :func:`batch_inputs`
+computes many shapes in parallel threads (the Rust kernels release the GIL).
+
+**Cache** (:func:`build_cache`, :class:`ShapeCache`): one ``<representation>.npy`` per
+representation (``N x ...`` float16, memory-mappable with ``np.load(mmap_mode="r")``) plus
+``labels.npy``, ``splits.npy``, ``names.json``, ``meta.json`` and ``done.npy`` (per shape: 0 to do,
+1 done, 2 failed). Shapes are computed in chunks; a chunk's rows are flushed before its ``done``
+bytes, so a killed run loses at most the chunk in flight and a re-run skips what is done.
+``shard=(i, n)`` computes shapes ``i, i + n, ...`` only: n processes (a scheduler's array job) fill
+one cache together, each writing its own rows of the shared files (one machine or a filesystem
+with coherent shared writes; not NFS). :meth:`ShapeCache.dataset` serves a split to the trainer.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import contextlib
+import json
+import math
+import os
+import tempfile
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TypeAlias, Union
+
+import numpy as np
+import numpy.typing as npt
+import torch
+from torch.utils.data import Dataset
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
+from rgbd_rs.meshes import Mesh
+from rgbd_rs.nn.shapes import (
+    DEFAULT_REPRESENTATIONS,
+    MAX_RESOLUTION,
+    MIN_VIEW_RESOLUTION,
+    MIN_VOLUME_RESOLUTION,
+    REPRESENTATIONS,
+    THESIS_VOLUME_RESOLUTION,
+    input_shapes,
+    parse_representations,
+)
+
+__all__ = [
+    "CACHE_FORMAT",
+    "InputSpec",
+    "OffTree",
+    "PointCloudSet",
+    "ShapeCache",
+    "ShapeSource",
+    "available_representations",
+    "batch_inputs",
+    "build_cache",
+    "load_shape",
+    "open_shapes",
+    "sample_surface",
+    "shape_inputs",
+]
+
+#: A mesh or an ``N x 3`` point cloud.
+Shape: TypeAlias = Union[Mesh, npt.NDArray[np.float32]]  # noqa: UP007 - runtime alias on 3.10
+
+#: Format tag of a cache's meta.json.
+CACHE_FORMAT = "rgbd_rs.shape-cache/1"
+#: Split codes of ``splits.npy`` (the ModelNet packs' ``split`` array).
+TRAIN, TEST = 0, 1
+SPLITS = {"train": TRAIN, "test": TEST}
+#: ``done.npy`` codes.
+TODO, DONE, FAILED = 0, 1, 2
+#: CPU-feasible default view side; the thesis renders 320 x 320 (pass ``view_resolution=320``).
+DEFAULT_VIEW_RESOLUTION = 64
+#: Per-map normalisations: ``"lcn"`` local contrast normalisation (§5.3, thesis),
+#: ``"standardize"`` zero mean and unit variance over the map (a cheap global alternative).
+NORMALISATIONS = ("lcn", "standardize")
+#: Float16's largest finite value: normalised maps are clipped into it before caching.
+_F16_MAX = float(np.finfo(np.float16).max)
+#: Points a point-cloud-trained classifier samples on a mesh (the ModelNet packs' count).
+MODELNET_POINTS = 1024
+#: Shorthand names of the shared ModelNet packs (``open_shapes("modelnet10")``).
+PACKS = {"modelnet10": "modelnet10_1024.npz", "modelnet40": "modelnet40_1024.npz"}
+MESH_SUFFIXES = (".off", ".ply", ".obj")
+POINT_SUFFIXES = (".npy", ".npz", ".pcd", ".ply")
+
+
+# -- single files -----------------------------------------------------------------------------
+
+
+def load_shape(path: str | os.PathLike[str]) -> Shape:
+    """A :class:`~rgbd_rs.meshes.Mesh` (.off, .obj, or .ply with faces) or an ``N x 3`` float32
+    point cloud (.npy, .npz with a ``points`` array or a single array, .ply without faces,
+    .pcd ASCII or binary). A file that is not a mesh or point cloud raises :class:`RgbdError`
+    naming it."""
+    from rgbd_rs.meshes import load_mesh
+
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise InvalidArgumentError(f"path: got {path!r}, expected a mesh or point-cloud file")
+    p = Path(path)
+    if not p.is_file():
+        raise InvalidArgumentError(f"path: got {p}, expected an existing file")
+    suffix = p.suffix.lower()
+    if suffix not in MESH_SUFFIXES + POINT_SUFFIXES:
+        raise InvalidArgumentError(
+            f"path: got a {suffix!r} file ({p}), expected one of "
+            f"{sorted(set(MESH_SUFFIXES + POINT_SUFFIXES))}"
+        )
+    if suffix == ".off":
+        mesh = load_mesh(p)
+    elif suffix in (".ply", ".obj"):
+        return _trimesh_file(p, suffix)
+    elif suffix == ".pcd":
+        return _points(f"{p}", _read_pcd(p), file=True)
+    else:
+        return _points(f"{p}", _read_array(p, suffix), file=True)
+    if mesh.triangles.size == 0:
+        raise RgbdError(f"{p}: mesh has no faces")
+    return mesh
+
+
+def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.float32]:
+    try:
+        pts = _validate.array(name, value, shape=(None, 3), finite=True)
+    except (InvalidArgumentError, ShapeMismatchError) as exc:
+        if file:  # a bad file's content is an RgbdError naming the file
+            raise RgbdError(f"not a point cloud: {exc}") from None
+        raise
+    return pts
+
+
+def _read_array(p: Path, suffix: str) -> np.ndarray:
+    from rgbd_rs.io import read_npy, read_npz
+
+    if suffix == ".npy":
+        return read_npy(p)
+    arrays = read_npz(p)
+    if "points" in arrays:
+        return arrays["points"]
+    if len(arrays) == 1:
+        return next(iter(arrays.values()))
+    raise RgbdError(f"{p}: npz holds {sorted(arrays)}, expected a 'points' array (N x 3)")
+
+
+def _trimesh_file(p: Path, suffix: str) -> Shape:
+    import trimesh
+
+    loaded: Any
+    try:
+        loaded = trimesh.load(p, file_type=suffix[1:], process=False)
+    except Exception as exc:  # trimesh raises many types for corrupt files
+        raise RgbdError(f"{p}: not a readable {suffix} mesh or point cloud ({exc})") from None
+    if isinstance(loaded, trimesh.Scene):
+        geoms = list(loaded.geometry.values())
+        meshes = [g for g in geoms if isinstance(g, trimesh.Trimesh)]
+        loaded = trimesh.util.concatenate(meshes) if meshes else (geoms[0] if geoms else None)
+    v = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))))
+    f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))))
+    if len(v) == 0:
+        raise RgbdError(f"{p}: no vertices or points, expected a mesh or point cloud")
+    if not np.isfinite(v).all():
+        raise RgbdError(f"{p}: non-finite vertex coordinates")
+    if np.abs(v).max() > np.finfo(np.float32).max:
+        raise RgbdError(f"{p}: vertex coordinates beyond float32 range")
+    if len(f) == 0:
+        return v.astype(np.float32)
+    if f.ndim != 2 or f.shape[1] != 3 or f.min() < 0 or f.max() >= len(v):
+        raise RgbdError(f"{p}: faces are not triangles indexing its {len(v)} vertices")
+    return Mesh(v.astype(np.float32), f.astype(np.uint32))
+
+
+def _read_pcd(p: Path) -> np.ndarray:
+    """x, y, z of an ASCII or binary (uncompressed) PCD file."""
+    raw = p.read_bytes()
+    header: dict[str, list[str]] = {}
+    pos = 0
+    try:
+        while True:
+            end = raw.index(b"\n", pos)
+            line = raw[pos:end].decode("ascii").strip()
+            pos = end + 1
+            if not line or line.startswith("#"):
+                continue
+            key, *vals = line.split()
+            header[key.upper()] = vals
+            if key.upper() == "DATA":
+                break
+        fields = header["FIELDS"]
+        sizes = [int(s) for s in header["SIZE"]]
+        types = header["TYPE"]
+        counts = [int(c) for c in header.get("COUNT", ["1"] * len(fields))]
+        n = int(header["POINTS"][0]) if "POINTS" in header else int(header["WIDTH"][0])
+        mode = header["DATA"][0].lower()
+        cols = [fields.index(a) for a in ("x", "y", "z")]
+    except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
+        raise RgbdError(f"{p}: not a PCD point cloud (bad header: {exc})") from None
+    if mode == "ascii":
+        try:
+            table = np.loadtxt(raw[pos:].decode("ascii").splitlines(), ndmin=2)
+            offsets = np.cumsum([0, *counts[:-1]])
+            return table[:n, [offsets[c] for c in cols]]
+        except (ValueError, UnicodeDecodeError, IndexError) as exc:
+            raise RgbdError(f"{p}: not a PCD point cloud (bad ASCII data: {exc})") from None
+    if mode != "binary":
+        raise RgbdError(f"{p}: PCD DATA {mode!r} not supported, expected ascii or binary")
+    kinds = {"F": "f", "I": "i", "U": "u"}
+    try:
+        dtype = np.dtype(
+            [
+                (f"f{i}", f"<{kinds[t]}{s}", (c,) if c > 1 else ())
+                for i, (s, t, c) in enumerate(zip(sizes, types, counts, strict=True))
+            ]
+        )
+        rec = np.frombuffer(raw, dtype=dtype, count=n, offset=pos)
+    except (KeyError, ValueError, TypeError) as exc:
+        raise RgbdError(f"{p}: not a PCD point cloud (bad binary data: {exc})") from None
+    return np.stack([rec[f"f{c}"].astype(np.float64) for c in cols], axis=1)
+
+
+def sample_surface(mesh: Mesh, n: int = MODELNET_POINTS, seed: int = 0) -> npt.NDArray[np.float32]:
+    """``n`` points drawn uniformly on ``mesh``'s surface (area-weighted triangles, uniform
+    barycentric coordinates), deterministic by ``seed``; the ModelNet packs' 1024 by default."""
+    if not isinstance(mesh, Mesh):
+        raise InvalidArgumentError(f"mesh: got {type(mesh).__name__}, expected a Mesh")
+    n = _validate.integer("n", n, minimum=1, maximum=100_000_000)
+    seed = _validate.integer("seed", seed, maximum=2**32 - 1)
+    if mesh.triangles.size == 0:
+        raise InvalidArgumentError("mesh: got a mesh with no triangles, expected at least one")
+    v = mesh.vertices.astype(np.float64)[mesh.triangles.astype(np.int64)]  # M x 3 x 3
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    total = float(area.sum())
+    rng = np.random.default_rng(seed)
+    if not (total > 0 and math.isfinite(total)):  # all triangles degenerate: use the vertices
+        return mesh.vertices[rng.integers(0, len(mesh.vertices), n)].astype(np.float32)
+    tri = rng.choice(len(area), size=n, p=area / total)
+    r1, r2 = rng.random(n), rng.random(n)
+    s = np.sqrt(r1)
+    w = np.stack([1 - s, s * (1 - r2), s * r2], axis=1)
+    return np.asarray(np.einsum("nk,nkd->nd", w, v[tri]), np.float32)
+
+
+# -- sources ----------------------------------------------------------------------------------
+
+
+class ShapeSource:
+    """A labelled set of shapes: ``classes`` (sorted names), per shape ``labels`` (int64 index
+    into ``classes``), ``splits`` (0 train, 1 test) and ``names``; :meth:`load` reads one shape.
+    ``kind`` is ``"points"`` or ``"mesh"``."""
+
+    kind: str
+    path: Path
+    classes: tuple[str, ...]
+    labels: npt.NDArray[np.int64]
+    splits: npt.NDArray[np.uint8]
+    names: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def load(self, index: int) -> Shape:
+        """Shape ``index`` (a Mesh or an ``N x 3`` float32 array)."""
+        raise NotImplementedError
+
+    def _index(self, index: int) -> int:
+        return _validate.integer("index", index, maximum=max(len(self) - 1, 0))
+
+
+class PointCloudSet(ShapeSource):
+    """A ModelNet point pack (``points`` N x P x 3, ``label``, ``split``, ``classes``, ``name``;
+    see the shared data README). A missing array raises :class:`RgbdError` naming the file."""
+
+    kind = "points"
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        from rgbd_rs.io import read_npz
+
+        self.path = Path(path)
+        d = read_npz(self.path, ["points", "label", "split", "classes", "name"])
+        pts = d["points"]
+        n = len(pts)
+        if pts.ndim != 3 or pts.shape[2] != 3 or pts.shape[1] == 0:
+            raise RgbdError(f"{self.path}: points of shape {pts.shape}, expected (N, P, 3)")
+        if any(len(d[k]) != n for k in ("label", "split", "name")):
+            raise RgbdError(f"{self.path}: label/split/name lengths differ from points ({n})")
+        self.points = pts
+        self.classes = tuple(str(c) for c in d["classes"])
+        labels = d["label"].astype(np.int64)
+        if n and (labels.min() < 0 or labels.max() >= len(self.classes)):
+            raise RgbdError(f"{self.path}: labels outside 0..{len(self.classes) - 1}")
+        self.labels = labels
+        self.splits = d["split"].astype(np.uint8)
+        self.names = tuple(str(x) for x in d["name"])
+
+    def load(self, index: int) -> npt.NDArray[np.float32]:
+        return np.asarray(self.points[self._index(index)], np.float32)
+
+
+class OffTree(ShapeSource):
+    """The Princeton ModelNet directory tree ``ROOT/<class>/{train,test}/*.off`` (classes are the
+    sorted folder names; files sorted by name). A folder without that layout raises
+    :class:`RgbdError` naming it; unreadable meshes raise when loaded."""
+
+    kind = "mesh"
+
+    def __init__(self, root: str | os.PathLike[str]) -> None:
+        self.path = Path(root)
+        if not self.path.is_dir():
+            raise RgbdError(f"{self.path}: not a folder, expected a ModelNet OFF tree")
+        classes = sorted(
+            d.name
+            for d in self.path.iterdir()
+            if d.is_dir() and any((d / s).is_dir() for s in SPLITS)
+        )
+        files: list[Path] = []
+        labels: list[int] = []
+        splits: list[int] = []
+        for k, c in enumerate(classes):
+            for split_name, code in SPLITS.items():
+                folder = self.path / c / split_name
+                found = sorted(folder.glob("*.off")) + sorted(folder.glob("*.OFF"))
+                files += found
+                labels += [k] * len(found)
+                splits += [code] * len(found)
+        if not files:
+            raise RgbdError(
+                f"{self.path}: no <class>/train/*.off or <class>/test/*.off files, expected a "
+                "ModelNet OFF tree"
+            )
+        self.files = tuple(files)
+        self.classes = tuple(classes)
+        self.labels = np.asarray(labels, np.int64)
+        self.splits = np.asarray(splits, np.uint8)
+        self.names = tuple(f.stem for f in files)
+
+    def load(self, index: int) -> Mesh:
+        from rgbd_rs.meshes import load_mesh
+
+        path = self.files[self._index(index)]
+        mesh = load_mesh(path)
+        if mesh.triangles.size == 0:
+            raise RgbdError(f"{path}: mesh has no faces")
+        return mesh
+
+
+def open_shapes(data: str | os.PathLike[str]) -> ShapeSource:
+    """``"modelnet10"`` / ``"modelnet40"`` (the shared packs), a point pack ``.npz`` or an OFF
+    tree folder."""
+    if not isinstance(data, (str, os.PathLike)) or not str(data):
+        raise InvalidArgumentError(f"data: got {data!r}, expected a dataset path or name")
+    if isinstance(data, str) and data.lower() in PACKS:
+        from rgbd_rs.data.paths import data_root
+
+        root = data_root(required=True)
+        assert root is not None
+        return PointCloudSet(root / "modelnet" / PACKS[data.lower()])
+    p = Path(data)
+    if p.is_dir():
+        return OffTree(p)
+    if p.is_file() and p.suffix.lower() == ".npz":
+        return PointCloudSet(p)
+    raise InvalidArgumentError(
+        f"data: got {str(data)!r}, expected {sorted(PACKS)}, a point pack .npz or an OFF "
+        "tree folder"
+    )
+
+
+# -- inputs of one shape ----------------------------------------------------------------------
+
+
+def _depth_views() -> Callable[..., np.ndarray] | None:
+    from rgbd_rs.shapes import views
+
+    return getattr(views, "depth_views", None)
+
+
+def _curvature_maps() -> Callable[..., np.ndarray] | None:
+    import importlib
+
+    try:
+        curvature = importlib.import_module("rgbd_rs.shapes.curvature")
+    except ImportError:
+        return None
+    fn = getattr(curvature, "curvature_maps", None)
+    return fn if callable(fn) else None
+
+
+def _lcn() -> Callable[..., np.ndarray] | None:
+    from rgbd_rs.shapes import views
+
+    return getattr(views, "local_contrast_normalize", None)
+
+
+def available_representations() -> tuple[str, ...]:
+    """The representations this installation can compute (``volume`` always; ``depth`` with
+    :mod:`rgbd_rs.shapes.views`; ``curvature`` once ``rgbd_rs.shapes.curvature`` exists)."""
+    have = {"volume": True, "depth": _depth_views() is not None}
+    have["curvature"] = _curvature_maps() is not None
+    return tuple(r for r in REPRESENTATIONS if have[r])
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """How a shape's inputs are computed; stored in caches and checkpoints so inference repeats
+    it. ``representations`` defaults to what :func:`available_representations` offers among
+    depth and volume; ``view_resolution`` (thesis 320; default 64, CPU-feasible),
+    ``volume_resolution`` (thesis 32), ``normalisation`` one of :data:`NORMALISATIONS`,
+    ``volume_fill`` how meshes are voxelized (``"solid"`` counts the inside as §5.3.2's density;
+    point clouds are always occupancy)."""
+
+    representations: tuple[str, ...] = field(
+        default_factory=lambda: tuple(
+            r for r in DEFAULT_REPRESENTATIONS if r in available_representations()
+        )
+    )
+    view_resolution: int = DEFAULT_VIEW_RESOLUTION
+    volume_resolution: int = THESIS_VOLUME_RESOLUTION
+    normalisation: str = "lcn"
+    volume_fill: str = "solid"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "representations", parse_representations(self.representations))
+        _validate.integer(
+            "view_resolution",
+            self.view_resolution,
+            minimum=MIN_VIEW_RESOLUTION,
+            maximum=MAX_RESOLUTION,
+        )
+        _validate.integer(
+            "volume_resolution",
+            self.volume_resolution,
+            minimum=MIN_VOLUME_RESOLUTION,
+            maximum=MAX_RESOLUTION,
+        )
+        object.__setattr__(self, "view_resolution", int(self.view_resolution))
+        object.__setattr__(self, "volume_resolution", int(self.volume_resolution))
+        _validate.choice("normalisation", self.normalisation, NORMALISATIONS)
+        _validate.choice("volume_fill", self.volume_fill, ("surface", "solid"))
+
+    @property
+    def shapes(self) -> dict[str, tuple[int, ...]]:
+        """Per-shape array shape of each representation."""
+        return input_shapes(self.representations, self.view_resolution, self.volume_resolution)
+
+    def check_available(self) -> None:
+        """Raise :class:`RgbdError` when a representation (or LCN) cannot be computed here."""
+        have = available_representations()
+        missing = [r for r in self.representations if r not in have]
+        if missing:
+            raise RgbdError(
+                f"representations: {missing} cannot be computed by this installation (it "
+                f"computes {list(have)}); choose among those"
+            )
+        if self.normalisation == "lcn" and _lcn() is None:
+            raise RgbdError(
+                "normalisation: 'lcn' needs rgbd_rs.shapes.views.local_contrast_normalize, "
+                "which this installation lacks; use 'standardize'"
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values (what caches and checkpoints store)."""
+        return {
+            "representations": list(self.representations),
+            "view_resolution": self.view_resolution,
+            "volume_resolution": self.volume_resolution,
+            "normalisation": self.normalisation,
+            "volume_fill": self.volume_fill,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> InputSpec:
+        """Inverse of :meth:`to_dict`; unknown keys raise naming them."""
+        known = {"representations", "view_resolution", "volume_resolution"}
+        known |= {"normalisation", "volume_fill"}
+        if not isinstance(data, Mapping) or set(data) - known:
+            got = sorted(data) if isinstance(data, Mapping) else type(data).__name__
+            raise InvalidArgumentError(f"spec: got {got}, expected keys among {sorted(known)}")
+        args: dict[str, Any] = dict(data)
+        if "representations" in args:
+            args["representations"] = tuple(args["representations"])
+        return cls(**args)
+
+
+def _normalise_maps(maps: np.ndarray, how: str) -> npt.NDArray[np.float32]:
+    """Each trailing 2-D map normalised on its own (non-finite pixels count as 0)."""
+    flat = np.nan_to_num(np.asarray(maps, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+    out = np.empty_like(flat)
+    lead = flat.shape[:-2]
+    lcn = _lcn() if how == "lcn" else None
+    for idx in np.ndindex(*lead):
+        m = flat[idx]
+        if lcn is not None:
+            y = np.asarray(lcn(m), np.float32)
+        else:
+            sd = float(m.std())
+            y = (m - m.mean()) / sd if sd > 0 else np.zeros_like(m)
+        out[idx] = np.nan_to_num(y, nan=0.0, posinf=0.0, neginf=0.0)
+    return np.clip(out, -_F16_MAX, _F16_MAX)
+
+
+def _shape_arg(name: str, shape: object) -> Shape:
+    if isinstance(shape, Mesh):
+        if shape.triangles.size == 0:
+            raise InvalidArgumentError(
+                f"{name}: got a mesh with no triangles, expected at least one"
+            )
+        return shape
+    return _points(name, shape)
+
+
+def shape_inputs(shape: Mesh | npt.ArrayLike, spec: InputSpec | None = None) -> dict[str, Any]:
+    """The network inputs of one shape: ``{representation: float32 array}`` of the shapes in
+    ``spec.shapes`` (depth ``6 x R x R``, volume ``3 x Rv x Rv``, curvature ``6 x 2 x R x R``),
+    each map normalised. ``shape``: a Mesh or an ``N x 3`` point cloud."""
+    s = InputSpec() if spec is None else spec
+    if not isinstance(s, InputSpec):
+        raise InvalidArgumentError(f"spec: got {type(s).__name__}, expected an InputSpec")
+    s.check_available()
+    x = _shape_arg("shape", shape)
+    return _inputs(x, s)
+
+
+def _inputs(x: Shape, s: InputSpec) -> dict[str, Any]:
+    from rgbd_rs.shapes.voxels import density_profiles, voxelize
+
+    out: dict[str, Any] = {}
+    for name, want in s.shapes.items():
+        if name == "depth":
+            fn = _depth_views()
+            assert fn is not None
+            maps = fn(x, s.view_resolution)
+        elif name == "volume":
+            fill = s.volume_fill if isinstance(x, Mesh) else "surface"
+            maps = density_profiles(voxelize(x, s.volume_resolution, fill=fill))
+        else:
+            fn = _curvature_maps()
+            assert fn is not None
+            maps = fn(x, s.view_resolution)
+        maps = np.asarray(maps)
+        if maps.shape != want:
+            raise ShapeMismatchError(
+                f"{name} representation: got shape {maps.shape}, expected {want}"
+            )
+        out[name] = _normalise_maps(maps, s.normalisation)
+    return out
+
+
+def _workers(workers: int | None) -> int:
+    if workers is None:
+        return max(1, os.cpu_count() or 1)
+    return _validate.integer("workers", workers, minimum=1, maximum=1024)
+
+
+def batch_inputs(
+    shapes: Sequence[Mesh | npt.ArrayLike],
+    spec: InputSpec | None = None,
+    *,
+    workers: int | None = None,
+) -> dict[str, Any]:
+    """:func:`shape_inputs` of many shapes in ``workers`` threads (default: the CPU count):
+    ``{representation: N x ... float32}``. The first bad shape raises, naming its index."""
+    s = InputSpec() if spec is None else spec
+    if not isinstance(s, InputSpec):
+        raise InvalidArgumentError(f"spec: got {type(s).__name__}, expected an InputSpec")
+    if isinstance(shapes, (Mesh, np.ndarray)) or not isinstance(shapes, Sequence):
+        raise InvalidArgumentError(
+            f"shapes: got {type(shapes).__name__}, expected a list of meshes or point clouds"
+        )
+    s.check_available()
+    checked = [_shape_arg(f"shapes[{i}]", x) for i, x in enumerate(shapes)]
+    w = _workers(workers)
+    out = {name: np.empty((len(checked), *want), np.float32) for name, want in s.shapes.items()}
+    for i, item in _parallel(checked, lambda x: _inputs(x, s), w):
+        for name in out:
+            out[name][i] = item[name]
+    return out
+
+
+def _parallel(
+    items: Sequence[Any], fn: Callable[[Any], Any], workers: int
+) -> Iterator[tuple[int, Any]]:
+    """``(i, fn(items[i]))`` in order; exceptions re-raised naming the index."""
+
+    def run(i: int) -> Any:
+        try:
+            return fn(items[i])
+        except RgbdError as exc:
+            raise type(exc)(f"shapes[{i}]: {exc}") from None
+
+    if workers == 1 or len(items) <= 1:
+        for i in range(len(items)):
+            yield i, run(i)
+        return
+    with concurrent.futures.ThreadPoolExecutor(workers) as pool:
+        yield from enumerate(pool.map(run, range(len(items))))
+
+
+# -- the cache --------------------------------------------------------------------------------
+
+
+def _shard(shard: object) -> tuple[int, int]:
+    ok = (
+        isinstance(shard, tuple)
+        and len(shard) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) for v in shard)
+        and shard[1] >= 1
+        and 0 <= shard[0] < shard[1]
+    )
+    if not ok:
+        raise InvalidArgumentError(f"shard: got {shard!r}, expected (i, n) with 0 <= i < n")
+    assert isinstance(shard, tuple)
+    return int(shard[0]), int(shard[1])
+
+
+def _create_once(path: Path, write: Callable[[Path], None]) -> None:
+    """Write ``path`` through ``write(tmp)`` unless it exists; concurrent callers race safely
+    (hard link: the first one wins, nobody overwrites)."""
+    if path.exists():
+        return
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+        os.chmod(tmp, 0o644)
+        with contextlib.suppress(FileExistsError):  # another shard made it first
+            os.link(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _write_npy(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path], None]:
+    def write(tmp: Path) -> None:
+        arr = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
+        arr.flush()
+        del arr
+
+    return write
+
+
+def _write_bytes(data: bytes) -> Callable[[Path], None]:
+    def write(tmp: Path) -> None:
+        tmp.write_bytes(data)
+
+    return write
+
+
+def _npy_bytes(arr: np.ndarray) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, arr, allow_pickle=False)
+    return buf.getvalue()
+
+
+def build_cache(
+    source: ShapeSource | str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    spec: InputSpec | None = None,
+    shard: tuple[int, int] = (0, 1),
+    workers: int | None = None,
+    chunk: int = 32,
+    quiet: bool = False,
+) -> ShapeCache:
+    """Compute the inputs of every shape of ``source`` (or of shard ``i`` of ``n``) into the cache
+    folder ``out`` (layout in the module docstring), skipping shapes already done; returns the
+    opened cache. An existing cache made with another source or spec raises :class:`RgbdError`.
+    A shape whose inputs cannot be computed is marked failed (warning naming it) and skipped by
+    the datasets. Progress bar on stderr unless ``quiet``."""
+    from tqdm import tqdm
+
+    src = source if isinstance(source, ShapeSource) else open_shapes(source)
+    s = InputSpec() if spec is None else spec
+    if not isinstance(s, InputSpec):
+        raise InvalidArgumentError(f"spec: got {type(s).__name__}, expected an InputSpec")
+    i_shard, n_shard = _shard(shard)
+    w = _workers(workers)
+    chunk = _validate.integer("chunk", chunk, minimum=1, maximum=1_000_000)
+    if not isinstance(out, (str, os.PathLike)) or not str(out):
+        raise InvalidArgumentError(f"out: got {out!r}, expected a folder path")
+    s.check_available()
+    root = Path(out)
+    root.mkdir(parents=True, exist_ok=True)
+    n = len(src)
+    meta = {
+        "format": CACHE_FORMAT,
+        "kind": src.kind,
+        "source": src.path.name,
+        "classes": list(src.classes),
+        "count": n,
+        "spec": s.to_dict(),
+        "dtype": "float16",
+        "points_per_shape": int(src.points.shape[1]) if isinstance(src, PointCloudSet) else None,
+    }
+    if (root / "meta.json").is_file():
+        _check_meta(root, meta)
+    _create_once(root / "labels.npy", _write_bytes(_npy_bytes(src.labels.astype(np.int16))))
+    _create_once(root / "splits.npy", _write_bytes(_npy_bytes(src.splits)))
+    _create_once(root / "names.json", _write_bytes(json.dumps(list(src.names)).encode()))
+    for name, shape in s.shapes.items():
+        _create_once(root / f"{name}.npy", _write_npy((n, *shape), np.float16))
+    _create_once(root / "done.npy", _write_npy((n,), np.uint8))
+    _create_once(root / "meta.json", _write_bytes(json.dumps(meta, indent=1).encode()))
+    _check_meta(root, meta)
+    arrays = {
+        name: np.load(root / f"{name}.npy", mmap_mode="r+", allow_pickle=False) for name in s.shapes
+    }
+    done = np.load(root / "done.npy", mmap_mode="r+", allow_pickle=False)
+    mine = np.arange(i_shard, n, n_shard)
+    todo = mine[done[mine] == TODO]
+    desc = f"cache {src.path.name}" + (f" {i_shard}/{n_shard}" if n_shard > 1 else "")
+    bar = tqdm(
+        total=len(mine),
+        initial=len(mine) - len(todo),
+        desc=desc,
+        unit="shape",
+        disable=quiet,
+        dynamic_ncols=True,
+    )
+    with bar:
+        for start in range(0, len(todo), chunk):
+            idx = todo[start : start + chunk]
+            results = _compute_chunk(src, idx, s, w)
+            failed: list[int] = []
+            for k, res in zip(idx, results, strict=True):
+                if isinstance(res, str):
+                    failed.append(int(k))
+                    warnings.warn(
+                        f"shape {k} ({src.names[k]}): {res}; marked failed, skipped",
+                        stacklevel=2,
+                    )
+                    continue
+                for name, arr in arrays.items():
+                    arr[k] = res[name]
+            for arr in arrays.values():
+                arr.flush()
+            ok = np.asarray([k for k in idx if k not in failed], np.int64)
+            done[ok] = DONE
+            done[np.asarray(failed, np.int64)] = FAILED
+            done.flush()
+            bar.update(len(idx))
+    del arrays, done
+    return ShapeCache(root)
+
+
+def _check_meta(root: Path, meta: dict[str, Any]) -> None:
+    cache = ShapeCache(root)
+    if cache.meta != meta or len(cache) != meta["count"]:
+        raise RgbdError(
+            f"{root}: a cache of other data or settings ({cache.meta.get('source')}, "
+            f"{cache.meta.get('spec')}); choose another output folder"
+        )
+
+
+def _compute_chunk(
+    src: ShapeSource, idx: npt.NDArray[np.int64], spec: InputSpec, workers: int
+) -> list[dict[str, Any] | str]:
+    """Inputs of shapes ``idx`` (loaded and computed in threads); a failure becomes its message."""
+
+    def one(k: int) -> dict[str, Any] | str:
+        try:
+            return _inputs(_shape_arg("shape", src.load(int(k))), spec)
+        except RgbdError as exc:
+            return str(exc)
+
+    return [r for _, r in _parallel(list(idx), one, workers)]
+
+
+class ShapeCache:
+    """An opened cache folder written by :func:`build_cache` (read-only memory maps)."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        if not isinstance(path, (str, os.PathLike)) or not str(path):
+            raise InvalidArgumentError(f"path: got {path!r}, expected a shape-cache folder")
+        self.path = Path(path)
+        meta_path = self.path / "meta.json"
+        if not meta_path.is_file():
+            raise RgbdError(f"{self.path}: no meta.json, expected a folder written by build_cache")
+        try:
+            meta = json.loads(meta_path.read_text())
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise RgbdError(f"{meta_path}: not valid JSON ({exc})") from None
+        if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
+            tag = meta.get("format") if isinstance(meta, dict) else None
+            raise RgbdError(f"{meta_path}: format {tag!r}, expected {CACHE_FORMAT!r}")
+        self.meta: dict[str, Any] = meta
+        try:
+            self.spec = InputSpec.from_dict(meta["spec"])
+            self.classes = tuple(str(c) for c in meta["classes"])
+            self.kind = str(meta["kind"])
+            n = int(meta["count"])
+        except (KeyError, TypeError, ValueError, RgbdError) as exc:
+            raise RgbdError(f"{meta_path}: incomplete or invalid cache metadata ({exc})") from None
+        from rgbd_rs.io import read_npy
+
+        self.labels = read_npy(self.path / "labels.npy").astype(np.int64)
+        self.splits = read_npy(self.path / "splits.npy").astype(np.uint8)
+        names = json.loads((self.path / "names.json").read_text())
+        self.names = tuple(str(x) for x in names)
+        if not (len(self.labels) == len(self.splits) == len(self.names) == n):
+            raise RgbdError(f"{self.path}: labels, splits and names do not all hold {n} shapes")
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    @property
+    def done(self) -> npt.NDArray[np.uint8]:
+        """Per shape: 0 to do, 1 done, 2 failed (a fresh read of ``done.npy``)."""
+        from rgbd_rs.io import read_npy
+
+        return read_npy(self.path / "done.npy")
+
+    @property
+    def complete(self) -> bool:
+        """Every shape is done or failed."""
+        return bool((self.done != TODO).all())
+
+    def array(self, representation: str) -> np.ndarray:
+        """``N x ...`` float16 read-only memory map of one representation."""
+        rep = _validate.choice("representation", representation, self.spec.representations)
+        file = self.path / f"{rep}.npy"
+        try:
+            arr = np.load(file, mmap_mode="r", allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise RgbdError(f"{file}: unreadable cache array ({exc})") from None
+        want = (len(self), *self.spec.shapes[rep])
+        if arr.shape != want:
+            raise RgbdError(f"{file}: shape {arr.shape}, expected {want}")
+        return np.asarray(arr) if not isinstance(arr, np.ndarray) else arr
+
+    def indices(self, split: str = "train") -> npt.NDArray[np.int64]:
+        """Done shapes of ``split`` (``"train"``, ``"test"`` or ``"all"``), in order."""
+        sp = _validate.choice("split", split, (*SPLITS, "all"))
+        ok = self.done == DONE
+        if sp != "all":
+            ok &= self.splits == SPLITS[sp]
+        return np.flatnonzero(ok).astype(np.int64)
+
+    def dataset(
+        self,
+        split: str = "train",
+        representations: Iterable[str] | str | None = None,
+        *,
+        indices: npt.ArrayLike | None = None,
+    ) -> CachedShapes:
+        """A torch Dataset of ``split``'s done shapes (or of ``indices``) yielding
+        ``(packed float32 inputs, int64 label)`` (:func:`rgbd_rs.nn.shapes.pack` layout) for the
+        chosen ``representations`` (default: every cached one)."""
+        reps = (
+            self.spec.representations
+            if representations is None
+            else parse_representations(representations)
+        )
+        absent = [r for r in reps if r not in self.spec.representations]
+        if absent:
+            raise InvalidArgumentError(
+                f"representations: got {absent} not in the cache {self.path} (it holds "
+                f"{list(self.spec.representations)})"
+            )
+        if indices is None:
+            idx = self.indices(split)
+        else:
+            idx = _validate.array("indices", indices, shape=(None,), dtype=np.int64)
+            if idx.min() < 0 or idx.max() >= len(self):
+                raise InvalidArgumentError(
+                    f"indices: got values in [{idx.min()}, {idx.max()}], expected "
+                    f"0..{len(self) - 1}"
+                )
+        if len(idx) == 0:
+            raise RgbdError(f"{self.path}: no computed shapes in split {split!r}; build the cache")
+        return CachedShapes(self, reps, idx)
+
+
+class CachedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
+    """Items ``(inputs, label)`` of a :class:`ShapeCache` (see :meth:`ShapeCache.dataset`);
+    the memory maps open lazily in each process (picklable for worker processes)."""
+
+    def __init__(
+        self, cache: ShapeCache, representations: tuple[str, ...], indices: np.ndarray
+    ) -> None:
+        self.cache_path = cache.path
+        self.representations = representations
+        self.shapes = {r: cache.spec.shapes[r] for r in representations}
+        self.indices = np.asarray(indices, np.int64)
+        self.labels = cache.labels[self.indices]
+        self._cache = cache
+        self._arrays: dict[str, np.ndarray] | None = None
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_arrays"] = None
+        return state
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
+        if self._arrays is None:
+            self._arrays = {r: self._cache.array(r) for r in self.representations}
+        k = int(self.indices[i])
+        parts = [np.asarray(self._arrays[r][k], np.float32).ravel() for r in self.representations]
+        x = torch.from_numpy(np.concatenate(parts))
+        return x, torch.tensor(int(self.labels[i]), dtype=torch.int64)

@@ -1,0 +1,222 @@
+"""Training recipe of the shape classifier (``rgbd train shapes``), thesis §5.4-5.5.
+
+1. A representation cache (:func:`rgbd_rs.shapes.dataset.build_cache`; resumable, shardable).
+2. The cache's training split, a seeded ``val_fraction`` of it held out for validation (the
+   official test split is never seen; ``rgbd eval shapes`` measures it).
+3. :func:`rgbd_rs.nn.train.train` (checkpoints every epoch and every ``checkpoint_steps`` steps,
+   resume, DDP under torchrun): :class:`~rgbd_rs.nn.shapes.ShapeNet`, cross-entropy, SGD as in
+   the thesis. The thesis gives no learning rate, momentum, batch size or decay (METHOD_NOTES
+   §10): ours are :func:`default_config`'s, stated with every result.
+
+:func:`train_ablation` trains one network per row of Table 5.2 (each representation alone, then
+all combined) into ``OUT/<row>/``. The best checkpoint (lowest validation loss) is what
+:func:`ship` copies, inference-only and in float16, into ``rgbd_rs/nn/weights``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch.nn import functional as F
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, parse_representations
+from rgbd_rs.shapes.dataset import ShapeCache
+
+__all__ = [
+    "ShapeRecipe",
+    "ablation_rows",
+    "cross_entropy",
+    "default_config",
+    "ship",
+    "train_ablation",
+    "train_shapes",
+]
+
+#: Table 5.2's combined row.
+COMBINED = "combined"
+
+
+@dataclass(frozen=True)
+class ShapeRecipe:
+    """What ``rgbd train shapes`` varies besides :class:`~rgbd_rs.nn.train.TrainConfig`:
+    ``representations`` (None: every one in the cache), ``width`` (descriptor length per branch,
+    128 in the thesis) and ``val_fraction`` of the training split held out for validation."""
+
+    representations: tuple[str, ...] | None = None
+    width: int = THESIS_WIDTH
+    val_fraction: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.representations is not None:
+            object.__setattr__(self, "representations", parse_representations(self.representations))
+        object.__setattr__(
+            self, "width", _validate.integer("width", self.width, minimum=1, maximum=4096)
+        )
+        f = _validate.real("val_fraction", self.val_fraction, nonnegative=True)
+        if f >= 1:
+            raise InvalidArgumentError(
+                f"val_fraction: got {self.val_fraction}, expected 0 <= val_fraction < 1"
+            )
+        object.__setattr__(self, "val_fraction", f)
+
+
+def default_config(**overrides: Any) -> Any:
+    """The recipe's :class:`~rgbd_rs.nn.train.TrainConfig`: SGD (thesis) with momentum 0.9,
+    lr 0.01 halved every 10 epochs, weight decay 5e-4, batch 32, 30 epochs, a checkpoint every
+    50 steps; ``overrides`` replace fields."""
+    from rgbd_rs.nn.train import TrainConfig
+
+    base: dict[str, Any] = {
+        "epochs": 30,
+        "batch_size": 32,
+        "optimizer": "sgd",
+        "lr": 0.01,
+        "momentum": 0.9,
+        "weight_decay": 5e-4,
+        "lr_step": 10,
+        "lr_gamma": 0.5,
+        "checkpoint_steps": 50,
+    }
+    return TrainConfig(**(base | overrides))
+
+
+def cross_entropy(output: torch.Tensor, batch: tuple[Any, ...]) -> torch.Tensor:
+    """The trainer's loss: mean cross-entropy of the logits against ``batch[1]``."""
+    return F.cross_entropy(output, batch[1])
+
+
+def _cache(cache: ShapeCache | str | os.PathLike[str]) -> ShapeCache:
+    return cache if isinstance(cache, ShapeCache) else ShapeCache(cache)
+
+
+def normalisation_of(cache: ShapeCache, representations: tuple[str, ...]) -> dict[str, Any]:
+    """What inference must repeat (stored in the checkpoint): the input spec restricted to
+    ``representations``, the class names, the data kind and its points per shape."""
+    spec = cache.spec.to_dict() | {"representations": list(representations)}
+    return {
+        "spec": spec,
+        "classes": list(cache.classes),
+        "kind": cache.kind,
+        "points_per_shape": cache.meta.get("points_per_shape"),
+        "dataset": cache.meta.get("source"),
+    }
+
+
+def train_shapes(
+    cache: ShapeCache | str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    recipe: ShapeRecipe | None = None,
+    config: Any | None = None,
+    init: str | os.PathLike[str] | None = None,
+    resume: bool = True,
+    quiet: bool = False,
+) -> Path:
+    """Train on ``cache``'s training split; return the best checkpoint's path (the last one
+    without validation). ``init`` starts from a checkpoint's weights (fine-tuning). Re-running
+    resumes from ``out/last.pt`` (see :func:`rgbd_rs.nn.train.train`)."""
+    from rgbd_rs.nn.train import TrainConfig, seed_everything, split, train
+
+    c = _cache(cache)
+    r = recipe if recipe is not None else ShapeRecipe()
+    if not isinstance(r, ShapeRecipe):
+        raise InvalidArgumentError(f"recipe: got {type(r).__name__}, expected a ShapeRecipe")
+    cfg = config if config is not None else default_config()
+    if not isinstance(cfg, TrainConfig):
+        raise InvalidArgumentError(f"config: got {type(cfg).__name__}, expected a TrainConfig")
+    reps = r.representations or c.spec.representations
+    data = c.dataset("train", reps)
+    train_set: Any = data
+    val_set: Any = None
+    if r.val_fraction > 0:
+        if len(data) < 2:
+            raise RgbdError(f"{c.path}: {len(data)} training shape(s), too few to validate")
+        train_set, val_set = split(data, r.val_fraction, seed=cfg.seed)
+    seed_everything(cfg.seed)  # the initial weights come from the seed too
+    model = ShapeNet(
+        len(c.classes),
+        representations=reps,
+        view_resolution=c.spec.view_resolution,
+        volume_resolution=c.spec.volume_resolution,
+        width=r.width,
+    )
+    if init is not None:
+        from rgbd_rs.nn.checkpoint import load_checkpoint
+
+        load_checkpoint(init, arch=ARCH).load_weights(model)
+    result = train(
+        model,
+        train_set,
+        val_set,
+        cross_entropy,
+        cfg,
+        out,
+        arch=ARCH,
+        arch_config=model.arch_config(),
+        normalisation=normalisation_of(c, reps),
+        quiet=quiet,
+        resume=resume,
+    )
+    return Path(result.best_checkpoint or result.last_checkpoint)
+
+
+def ablation_rows(available: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
+    """Table 5.2's rows over the ``available`` representations: each alone, then combined (the
+    combined row only when there are two or more)."""
+    reps = parse_representations(available)
+    rows: dict[str, tuple[str, ...]] = {name: (name,) for name in reps}
+    if len(reps) > 1:
+        rows[COMBINED] = reps
+    return rows
+
+
+def train_ablation(
+    cache: ShapeCache | str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    recipe: ShapeRecipe | None = None,
+    config: Any | None = None,
+    resume: bool = True,
+    quiet: bool = False,
+) -> dict[str, Path]:
+    """One :func:`train_shapes` per row of :func:`ablation_rows` (the recipe's representations,
+    default every cached one) into ``out/<row>/``; returns each row's best checkpoint."""
+    c = _cache(cache)
+    r = recipe if recipe is not None else ShapeRecipe()
+    if not isinstance(r, ShapeRecipe):
+        raise InvalidArgumentError(f"recipe: got {type(r).__name__}, expected a ShapeRecipe")
+    out_dir = Path(out)
+    best: dict[str, Path] = {}
+    for row, reps in ablation_rows(r.representations or c.spec.representations).items():
+        row_recipe = ShapeRecipe(representations=reps, width=r.width, val_fraction=r.val_fraction)
+        best[row] = train_shapes(
+            c, out_dir / row, recipe=row_recipe, config=config, resume=resume, quiet=quiet
+        )
+    return best
+
+
+def ship(checkpoint: str | os.PathLike[str], dest: str | os.PathLike[str] | None = None) -> Path:
+    """Write the inference-only, float16 copy of ``checkpoint`` (a few MB) to ``dest``, by default
+    the package's shipped weights for its dataset (``rgbd_rs/nn/weights/shapes_<dataset>.pt``)."""
+    from rgbd_rs.nn.checkpoint import load_checkpoint, save_checkpoint
+    from rgbd_rs.shapes.classify import WEIGHT_FILES, weights_path
+
+    ckpt = load_checkpoint(checkpoint, arch=ARCH, normalisation_keys=("spec", "classes"))
+    half = {k: v.half() if v.is_floating_point() else v for k, v in ckpt.model_state.items()}
+    light = dataclasses.replace(ckpt.stripped(), model_state=half)
+    if dest is None:
+        n = len(ckpt.normalisation["classes"])
+        if f"modelnet{n}" not in WEIGHT_FILES:
+            raise InvalidArgumentError(
+                f"dest: none given for a {n}-class checkpoint, expected a path (the package "
+                f"ships {sorted(WEIGHT_FILES)} only)"
+            )
+        dest = weights_path(f"modelnet{n}")
+    return save_checkpoint(light, dest)

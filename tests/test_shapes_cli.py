@@ -1,0 +1,129 @@
+"""``rgbd shapes cache``, ``rgbd train shapes``, ``rgbd eval shapes`` and ``rgbd classify`` end
+to end on a few real ModelNet10 shapes (tiny network, a couple of epochs: seconds on a CPU), and
+their bad runs ending in one ``rgbd: error`` line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rgbd_rs.cli import main
+from rgbd_rs.shapes.dataset import PointCloudSet, ShapeCache, sample_surface
+
+CLASSES = (1, 2, 8)  # bed, chair, table
+
+
+@pytest.fixture(scope="module")
+def pack(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
+    src = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz")
+    pick = [
+        i
+        for c in CLASSES
+        for s, n in ((0, 6), (1, 2))
+        for i in np.flatnonzero((src.labels == c) & (src.splits == s))[:n]
+    ]
+    path = tmp_path_factory.mktemp("shapes_cli") / "pack.npz"
+    np.savez(
+        path,
+        points=src.points[pick],
+        label=np.searchsorted(CLASSES, src.labels[pick]).astype(np.int16),
+        split=src.splits[pick],
+        classes=np.array([src.classes[c] for c in CLASSES]),
+        name=np.array([src.names[i] for i in pick]),
+    )
+    return path
+
+
+def test_cache_train_eval_classify(
+    pack: Path, tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cache, run, report = tmp_path / "cache", tmp_path / "run", tmp_path / "report"
+    argv = ["shapes", "cache", "--data", str(pack), "--out", str(cache)]
+    argv += ["--representations", "volume", "--normalisation", "standardize", "--shard", "0/2"]
+    assert main([*argv, "--quiet"]) == 0
+    assert "12/24 shapes done" in capsys.readouterr().out
+    assert main([*argv[:-1], "1/2", "--quiet"]) == 0
+    assert "24/24 shapes done, 0 failed; this run computed 12" in capsys.readouterr().out
+    assert ShapeCache(cache).complete
+
+    train = ["train", "shapes", "--cache", str(cache), "--out", str(run), "--width", "4"]
+    train += ["--epochs", "2", "--batch-size", "6", "--quiet", "--device", "cpu"]
+    assert main(train) == 0
+    out = capsys.readouterr().out
+    assert "best checkpoint" in out and (run / "best.pt").is_file()
+
+    ev = ["eval", "shapes", "--cache", str(cache), "--checkpoint", str(run / "best.pt")]
+    assert main([*ev, "--out", str(report)]) == 0
+    out = capsys.readouterr().out
+    assert "test: accuracy" in out and "over 6 shapes" in out
+    assert "| volume |" in (report / "ablation.md").read_text()
+    md = (report / "volume.md").read_text()
+    assert "| bed |" in md and "true \\ predicted" in md
+    assert (report / "volume_confusion.png").stat().st_size > 1000
+
+    points = tmp_path / "chair.npy"
+    np.save(points, PointCloudSet(pack).load(7))
+    ck = ["--checkpoint", str(run / "best.pt")]
+    assert main(["classify", str(points), *ck, "--top", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith(f"{points}: ") and len(lines) == 3
+    assert lines[0].split(": ")[1] in ("bed", "chair", "table")
+    mesh = shared_data / "meshes" / "modelnet10_bathtub_0001.off"
+    assert main(["classify", str(mesh), *ck]) == 0  # a mesh: sampled like the training points
+    assert len(capsys.readouterr().out.splitlines()) == 4
+
+
+def test_ablation_cli(pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cache = tmp_path / "cache"
+    argv = ["shapes", "cache", "--data", str(pack), "--out", str(cache), "--quiet"]
+    assert main([*argv, "--representations", "volume", "--normalisation", "standardize"]) == 0
+    train = ["train", "shapes", "--cache", str(cache), "--out", str(tmp_path / "abl")]
+    assert main([*train, "--ablation", "--width", "4", "--epochs", "1", "--quiet"]) == 0
+    assert "volume: best checkpoint" in capsys.readouterr().out
+    ev = ["eval", "shapes", "--cache", str(cache), "--ablation", str(tmp_path / "abl")]
+    assert main([*ev, "--out", str(tmp_path / "rep"), "--label", "ModelNet10"]) == 0
+    table = (tmp_path / "rep" / "ablation.md").read_text()
+    assert "| representation | ModelNet10 | thesis ModelNet10 |" in table
+    assert "| volume |" in table and "92.2%" in table
+
+
+def test_bad_runs_end_in_one_line(
+    pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    junk = tmp_path / "junk.off"
+    junk.write_text("this is not a mesh\n")
+    ck = tmp_path / "none.pt"
+    assert main(["classify", str(junk), "--checkpoint", str(ck)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rgbd: error: --checkpoint:") and "none.pt" in err
+    assert err.count("\n") == 1
+    ok = tmp_path / "ok"
+    argv = ["shapes", "cache", "--data", str(pack), "--out", str(ok), "--quiet"]
+    assert main([*argv, "--representations", "volume", "--normalisation", "standardize"]) == 0
+    train = ["train", "shapes", "--cache", str(ok), "--out", str(tmp_path / "r")]
+    assert main([*train, "--width", "2", "--epochs", "1", "--quiet", "--val-fraction", "0"]) == 0
+    capsys.readouterr()
+    assert main(["classify", str(junk), "--checkpoint", str(tmp_path / "r" / "last.pt")]) == 2
+    err = capsys.readouterr().err
+    assert "junk.off" in err and "not a valid OFF mesh" in err and err.count("\n") == 1
+    for bad in (["--shard", "2/2"], ["--representations", "depth,colour"], ["--resolution", "4"]):
+        with pytest.raises(SystemExit) as info:
+            main(["shapes", "cache", "--data", str(pack), "--out", str(ok), *bad])
+        assert info.value.code == 2
+        assert capsys.readouterr().err.startswith("rgbd: error:")
+    assert main(["shapes", "cache", "--data", str(tmp_path / "nothing"), "--out", str(ok)]) == 2
+    assert "--data" in capsys.readouterr().err
+    assert main(["eval", "shapes", "--cache", str(tmp_path / "nope")]) == 2
+    assert "--cache" in capsys.readouterr().err
+    np.save(tmp_path / "flat.npy", sample_surface_flat())
+    r = tmp_path / "r" / "last.pt"
+    assert main(["classify", str(tmp_path / "flat.npy"), "--checkpoint", str(r)]) == 0
+
+
+def sample_surface_flat() -> np.ndarray:
+    """A flat square of points (a zero-extent axis): classified, never a division by zero."""
+    from rgbd_rs.meshes import quad
+
+    return sample_surface(quad([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]), 500)
