@@ -4,6 +4,7 @@ the scikit-image peers (one- or two-point grids, so it stays fast)."""
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -56,6 +57,7 @@ def test_tiny_evaluation_with_the_peers(tmp_path: Path) -> None:
     slic = report.scores[0]
     assert slic.params == SLIC.grid[int(np.argmin(vois))]
     assert slic.tuning_voi == pytest.approx(min(vois))
+    assert np.isnan(report.scores[1].tuning_voi)  # one grid point: not tuned
 
     # The means are the per-frame metrics averaged.
     run = E.slic_rgb(n_segments=int(slic.params["n_segments"]))
@@ -105,6 +107,40 @@ def test_count_match_line() -> None:
     assert 200 < c.segments_ours < 400  # COUNT_MATCH_SEGMENTS requested
     assert c.boundary_recall_ours == pytest.approx(c.boundary_recall_slic, abs=0.05)
     assert "boundary recall ours" in report.count_line()
+
+
+def test_our_stages_plug_in(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ours through stand-in stages with the announced APIs: features -> object with .vectors,
+    oversegment(vectors, n_segments=, seed=), segment(...) -> .labels / .over. The same-count
+    line reuses the pipeline's over-segmentation instead of computing it again."""
+    calls = {"oversegment": 0, "segment": 0}
+
+    def features(rgb: np.ndarray, depth: np.ndarray, camera: object) -> SimpleNamespace:
+        return SimpleNamespace(vectors=rgb)
+
+    def oversegment(vectors: np.ndarray, n_segments: int, *, seed: int) -> np.ndarray:
+        calls["oversegment"] += 1
+        return E.slic_rgb(n_segments=n_segments)(vectors, np.empty(0, np.float32), NYUV2_CAMERA)
+
+    def segment(
+        rgb: np.ndarray, depth: np.ndarray, camera: object, *, n_segments: int = 9, seed: int = 1
+    ) -> SimpleNamespace:
+        calls["segment"] += 1
+        over = E.slic_rgb(n_segments=n_segments)(rgb, depth, camera)  # type: ignore[arg-type]
+        return SimpleNamespace(over=over, labels=over // 8)
+
+    stages = {"features": features, "oversegment": oversegment, "segment": segment}
+    monkeypatch.setattr(E, "_stage", lambda module, name: stages[name])
+    ours = [m for m in E.default_methods() if m.kind == "ours"]
+    report = E.evaluate([46], tuning_frames=[1], methods=ours, quiet=True)
+    assert [s.name for s in report.scores] == [E.OURS_OVER, E.OURS_MERGED]
+    # Tuning: the over-segmentation grid on frame 1; evaluation: once more, and no third run
+    # for the same-count line (the pipeline's own over-segmentation at 300 is reused).
+    assert calls == {"oversegment": len(E.OVERSEGMENT_GRID) + 1, "segment": 1}
+    c = report.count_match
+    assert c is not None and 200 < c.segments_ours < 400
+    merged = report.scores[1]
+    assert merged.segments < c.segments_ours / 4
 
 
 def test_slic_at_matches_the_count() -> None:

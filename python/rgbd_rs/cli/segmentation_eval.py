@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import math
 import time
 from pathlib import Path
 
@@ -64,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     chosen = [
         f"- {s.name}: "
         + (", ".join(f"{k}={v:g}" for k, v in s.params.items()) or "defaults")
-        + f" (tuning VoI {s.tuning_voi:.2f})"
+        + (f" (tuning VoI {s.tuning_voi:.2f})" if not math.isnan(s.tuning_voi) else " (not tuned)")
         for s in report.scores
     ]
     text = "\n".join(

@@ -5,6 +5,8 @@ segment), built by a :class:`Method` from one point of its parameter grid. The p
 
 1. *Tuning*: each method runs at every point of its (small) grid on the tuning frames (default:
    the train split, NNNN <= 43); the point with the lowest mean Variation of Information wins.
+   (A method with a single grid point, such as the fit-only merging at the thesis' thresholds,
+   is not tuned.)
 2. *Evaluation*: each method runs once per evaluation frame (default: the test split,
    NNNN >= 46) at its chosen point; the table holds the means of VoI, Rand index, boundary
    recall, under-segmentation error (:mod:`rgbd_rs.metrics`), the number of segments and the
@@ -201,6 +203,28 @@ def _stage(module: str, name: str) -> Any:
     return found
 
 
+class _LastOver:
+    """The over-segmentation the fit-only pipeline started from on the latest frame, so the
+    same-count line reuses it instead of computing it a second time (keyed by the identity of
+    the frame's arrays, which it keeps alive so the ids cannot be reused)."""
+
+    def __init__(self) -> None:
+        self.key: tuple[np.ndarray, np.ndarray, int] | None = None
+        self.over: Labels | None = None
+
+    def store(self, rgb: U8, depth: F32, n_segments: int, over: Labels) -> None:
+        self.key, self.over = (rgb, depth, n_segments), over
+
+    def get(self, rgb: U8, depth: F32, n_segments: int) -> Labels | None:
+        k = self.key
+        if k is not None and k[0] is rgb and k[1] is depth and k[2] == n_segments:
+            return self.over
+        return None
+
+
+_LAST_OVER = _LastOver()
+
+
 def ours_oversegment(*, n_segments: int) -> Segmenter:
     """Our normalized-cuts over-segmentation of the 9-D features (features + oversegment)."""
     features = _stage("features", "features")
@@ -218,13 +242,19 @@ def ours_oversegment(*, n_segments: int) -> Segmenter:
 
 def ours_fit_merge() -> Segmenter:
     """The pipeline's fit-only merging (surface fits alone, the thesis' reference [74]): the
-    pipeline without class PDFs, at its default over-segmentation."""
+    pipeline without class PDFs, on :data:`COUNT_MATCH_SEGMENTS` over-segmentation clusters."""
     segment = _stage("pipeline", "segment")
+    takes = inspect.signature(segment).parameters
     # Fit-only is the pipeline without PDFs; pass mode="fit" where the pipeline names it.
-    extra = {"mode": "fit"} if "mode" in inspect.signature(segment).parameters else {}
+    extra: dict[str, object] = {"mode": "fit"} if "mode" in takes else {}
+    if "n_segments" in takes and "seed" in takes:
+        extra.update(n_segments=COUNT_MATCH_SEGMENTS, seed=SEED)
 
     def run(rgb: U8, depth: F32, camera: PinholeCamera) -> Labels:
-        return np.asarray(segment(rgb, depth, camera, **extra).labels)
+        result = segment(rgb, depth, camera, **extra)
+        if "n_segments" in extra and hasattr(result, "over"):
+            _LAST_OVER.store(rgb, depth, COUNT_MATCH_SEGMENTS, np.asarray(result.over))
+        return np.asarray(result.labels)
 
     return run
 
@@ -290,7 +320,7 @@ class MethodScore:
     undersegmentation_error: float
     segments: float
     seconds: float
-    #: Mean VoI on the tuning frames at the chosen parameters.
+    #: Mean VoI on the tuning frames at the chosen parameters (NaN: one grid point, not tuned).
     tuning_voi: float
 
 
@@ -457,19 +487,21 @@ def _slic_at(rgb: U8, target: int) -> Labels:
 def _tune(
     methods: Sequence[Method], frames: Sequence[NyuFrame], quiet: bool
 ) -> list[tuple[Params, float]]:
-    """Per method, the grid point with the lowest mean VoI on ``frames`` and that VoI."""
+    """Per method, the grid point with the lowest mean VoI on ``frames`` and that VoI (NaN for
+    a method with one grid point: nothing to tune, so it does not run)."""
     sums = [np.zeros(len(m.grid)) for m in methods]
-    makers = [[m.segmenter(p) for p in m.grid] for m in methods]
-    for frame in tqdm(frames, desc="tuning", unit="frame", disable=True if quiet else None):
-        gt = region_ground_truth(frame.label40)
-        for i, runs in enumerate(makers):
-            for j, run in enumerate(runs):
-                labels = run(frame.rgb, frame.depth, NYUV2_CAMERA)
-                sums[i][j] += metrics.variation_of_information(labels, gt)
+    makers = [[m.segmenter(p) for p in m.grid] if len(m.grid) > 1 else [] for m in methods]
+    if any(makers):
+        for frame in tqdm(frames, desc="tuning", unit="frame", disable=True if quiet else None):
+            gt = region_ground_truth(frame.label40)
+            for i, runs in enumerate(makers):
+                for j, run in enumerate(runs):
+                    labels = run(frame.rgb, frame.depth, NYUV2_CAMERA)
+                    sums[i][j] += metrics.variation_of_information(labels, gt)
     out = []
-    for m, s in zip(methods, sums, strict=True):
+    for m, s, runs in zip(methods, sums, makers, strict=True):
         best = int(np.argmin(s))
-        out.append((m.grid[best], float(s[best] / len(frames))))
+        out.append((m.grid[best], float(s[best] / len(frames)) if runs else float("nan")))
     return out
 
 
@@ -546,7 +578,9 @@ def evaluate(
             results[m.name] = labels
             per[i] += (*_scores(labels, gt), _count(labels), seconds)
         if count_run is not None:
-            ours = count_run(frame.rgb, frame.depth, NYUV2_CAMERA)
+            ours = _LAST_OVER.get(frame.rgb, frame.depth, COUNT_MATCH_SEGMENTS)
+            if ours is None:
+                ours = count_run(frame.rgb, frame.depth, NYUV2_CAMERA)
             theirs = _slic_at(frame.rgb, _count(ours))
             match += (
                 _count(ours),
