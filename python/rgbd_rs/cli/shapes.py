@@ -49,11 +49,13 @@ def _classify(commands: Commands) -> None:
         "top classes with their probabilities.",
     )
     p.add_argument("file", type=Path, metavar="FILE", help="mesh or point-cloud file")
-    p.add_argument("--checkpoint", type=Path, help="a `rgbd train shapes` checkpoint")
+    p.add_argument(
+        "--checkpoint", type=Path, metavar="FILE", help="a `rgbd train shapes` checkpoint"
+    )
     p.add_argument(
         "--dataset", choices=("modelnet10", "modelnet40"), help="which shipped weights to use"
     )
-    p.add_argument("--top", type=integer(1), default=5, help="classes to print (5)")
+    p.add_argument("--top", type=integer(1), default=5, metavar="N", help="classes to print (5)")
 
 
 def run_classify(args: argparse.Namespace) -> int:
@@ -84,7 +86,7 @@ def _cache(commands: Commands) -> None:
         "cache",
         help="precompute the ConvNet inputs of a shape dataset",
         description="Compute every shape's depth views and voxel density profiles (and "
-        "curvature maps once available) into OUT: one memory-mappable float16 .npy per "
+        "curvature maps once available) into DIR: one memory-mappable float16 .npy per "
         "representation. Resumable (re-run to continue; done shapes are skipped) and sharded: "
         "--shard i/n computes every n-th shape from i, so n scheduler tasks fill one cache.",
     )
@@ -92,22 +94,29 @@ def _cache(commands: Commands) -> None:
     p.add_argument(
         "--data",
         required=True,
+        metavar="SRC",
         help="modelnet10, modelnet40 (the shared point packs), a point pack .npz or a ModelNet "
         "OFF tree folder (CLASS/{train,test}/*.off)",
     )
-    p.add_argument("--out", type=Path, required=True, help="cache folder")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="cache folder")
     p.add_argument(
-        "--resolution", type=integer(8, 4096), default=64, help="view side (64; thesis 320)"
+        "--resolution",
+        type=integer(8, 4096),
+        default=64,
+        metavar="R",
+        help="view side (64; thesis 320)",
     )
     p.add_argument(
         "--volume-resolution",
         type=integer(16, 4096),
+        metavar="R",
         default=32,
         help="density profile side (32, thesis)",
     )
     p.add_argument(
         "--representations",
         type=_representations,
+        metavar="LIST",
         help="comma-separated among depth,volume,curvature (default: depth,volume as available)",
     )
     p.add_argument(
@@ -116,8 +125,12 @@ def _cache(commands: Commands) -> None:
         default="lcn",
         help="per-map normalisation (lcn: local contrast normalisation, thesis)",
     )
-    p.add_argument("--shard", type=_shard, default=(0, 1), help="compute shard i of n (i/n)")
-    p.add_argument("--workers", type=integer(1, 1024), help="threads (default: CPU count)")
+    p.add_argument(
+        "--shard", type=_shard, default=(0, 1), metavar="i/n", help="compute shard i of n (i/n)"
+    )
+    p.add_argument(
+        "--workers", type=integer(1, 1024), metavar="N", help="threads (default: CPU count)"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -160,44 +173,73 @@ def _train(commands: Commands) -> None:
         help="train the 15-branch shape ConvNet",
         description="Train the shape ConvNet of thesis §5.4 on a `rgbd shapes cache` folder "
         "(training split; --val-fraction of it held out for validation). Checkpoints go to "
-        "OUT/last.pt (every epoch and every --checkpoint-steps steps) and OUT/best.pt; re-running "
+        "last.pt (every epoch and every --checkpoint-steps steps) and best.pt in the --out folder; "
+        "re-running "
         "the same command resumes. Runs under torchrun for DistributedDataParallel training. "
-        "--ablation trains one network per Table 5.2 row into OUT/<row>/. --ship writes the best "
+        "--ablation trains one network per Table 5.2 row into <out>/<row>/. --ship writes the best "
         "checkpoint's inference-only float16 copy into the package's weights.",
     )
-    p.add_argument("--cache", type=Path, required=True, help="`rgbd shapes cache` folder")
-    p.add_argument("--out", type=Path, default=Path("out/train_shapes"), help="output folder")
+    p.add_argument(
+        "--cache", type=Path, required=True, metavar="DIR", help="`rgbd shapes cache` folder"
+    )
+    p.add_argument(
+        "--out", type=Path, default=Path("out/train_shapes"), metavar="DIR", help="output folder"
+    )
     p.add_argument(
         "--representations",
         type=_representations,
+        metavar="LIST",
         help="comma-separated among depth,volume,curvature (default: all in the cache)",
     )
-    p.add_argument("--width", type=integer(1, 4096), default=128, help="descriptor size (128)")
-    p.add_argument("--epochs", type=integer(1), default=30, help="epochs (30)")
-    p.add_argument("--batch-size", type=integer(1), default=32, help="shapes per step (32)")
-    p.add_argument("--lr", type=real(0, 10), default=0.01, help="SGD learning rate (0.01)")
-    p.add_argument("--momentum", type=real(0, 0.999, low_open=False), default=0.9, help="(0.9)")
-    p.add_argument("--weight-decay", type=real(0, 1, low_open=False), default=5e-4, help="(5e-4)")
-    p.add_argument("--lr-step", type=integer(0), default=10, help="halve lr every N epochs (10)")
+    p.add_argument(
+        "--width", type=integer(1, 4096), default=128, metavar="N", help="descriptor size (128)"
+    )
+    p.add_argument("--epochs", type=integer(1), default=30, metavar="N", help="epochs (30)")
+    p.add_argument(
+        "--batch-size", type=integer(1), default=32, metavar="N", help="shapes per step (32)"
+    )
+    p.add_argument(
+        "--lr", type=real(0, 10), default=0.01, metavar="X", help="SGD learning rate (0.01)"
+    )
+    p.add_argument(
+        "--momentum", type=real(0, 0.999, low_open=False), default=0.9, metavar="X", help="(0.9)"
+    )
+    p.add_argument(
+        "--weight-decay", type=real(0, 1, low_open=False), default=5e-4, metavar="X", help="(5e-4)"
+    )
+    p.add_argument(
+        "--lr-step", type=integer(0), default=10, metavar="N", help="halve lr every N epochs (10)"
+    )
     p.add_argument(
         "--val-fraction",
         type=real(0, 0.9, low_open=False),
         default=0.1,
+        metavar="X",
         help="fraction of the training split held out for validation (0.1; 0 = none)",
     )
-    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed (0)")
+    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="N", help="seed (0)")
     p.add_argument(
-        "--checkpoint-steps", type=integer(0), default=50, help="also save every N steps (50)"
+        "--checkpoint-steps",
+        type=integer(0),
+        default=50,
+        metavar="N",
+        help="also save every N steps (50)",
     )
-    p.add_argument("--workers", type=integer(0, 64), default=0, help="data-loader processes (0)")
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N (auto)")
-    p.add_argument("--init", type=Path, help="start from this checkpoint's weights (fine-tune)")
+    p.add_argument(
+        "--workers", type=integer(0, 64), default=0, metavar="N", help="data-loader processes (0)"
+    )
+    p.add_argument(
+        "--device", default="auto", metavar="DEV", help="auto, cpu, cuda or cuda:N (auto)"
+    )
+    p.add_argument(
+        "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
+    )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
     p.add_argument(
         "--no-resume",
         action="store_true",
-        help="start afresh in OUT, overwriting its checkpoints (default: resume from OUT/last.pt)",
+        help="start afresh, overwriting --out's checkpoints (default: resume from its last.pt)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
@@ -259,18 +301,30 @@ def _eval(commands: Commands) -> None:
         help="evaluate shape ConvNets (accuracy, per class, confusion; Table 5.2 ablation)",
         description="Accuracy of shape-classifier checkpoints on a cache's test split (ModelNet's "
         "official one): overall and per-class accuracy and the confusion matrix (markdown + PNG "
-        "heat map in OUT). --ablation DIR evaluates every DIR/<row>/best.pt written by `rgbd "
-        "train shapes --ablation` and writes Table 5.2 to OUT/ablation.md.",
+        "heat map in the --out folder). --ablation DIR evaluates every DIR/<row>/best.pt written "
+        "by `rgbd train shapes --ablation`; Table 5.2 goes to ablation.md in the --out folder.",
     )
-    p.add_argument("--cache", type=Path, required=True, help="`rgbd shapes cache` folder")
+    p.add_argument(
+        "--cache", type=Path, required=True, metavar="DIR", help="`rgbd shapes cache` folder"
+    )
     group = p.add_mutually_exclusive_group()
-    group.add_argument("--checkpoint", type=Path, nargs="+", help="checkpoint file(s)")
-    group.add_argument("--ablation", type=Path, help="folder of `rgbd train shapes --ablation`")
+    group.add_argument(
+        "--checkpoint", type=Path, nargs="+", metavar="FILE", help="checkpoint file(s)"
+    )
+    group.add_argument(
+        "--ablation", type=Path, metavar="DIR", help="folder of `rgbd train shapes --ablation`"
+    )
     p.add_argument("--split", choices=("test", "train", "all"), default="test", help="(test)")
-    p.add_argument("--label", help="dataset column name of the ablation table (from the cache)")
-    p.add_argument("--out", type=Path, default=Path("out/eval_shapes"), help="report folder")
-    p.add_argument("--batch-size", type=integer(1), default=64, help="shapes per batch (64)")
-    p.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (cpu)")
+    p.add_argument(
+        "--label", metavar="NAME", help="dataset column name of the ablation table (from the cache)"
+    )
+    p.add_argument(
+        "--out", type=Path, default=Path("out/eval_shapes"), metavar="DIR", help="report folder"
+    )
+    p.add_argument(
+        "--batch-size", type=integer(1), default=64, metavar="N", help="shapes per batch (64)"
+    )
+    p.add_argument("--device", default="cpu", metavar="DEV", help="cpu, cuda or cuda:N (cpu)")
 
 
 def run_eval(args: argparse.Namespace) -> int:
