@@ -85,6 +85,23 @@ def test_depth_in_millimetres_with_the_noise_in_millimetres_decides_the_same() -
             assert mm.should_merge(i, j) == m.should_merge(i, j)
 
 
+def test_seam_test_alone_decides_as_the_full_fits() -> None:
+    z = 2.5 + 0.02 * np.abs(U - 64) + 0.1 * np.sin(V / 20)
+    labels = ((U // 32) + 4 * (V // 48)).astype(np.int32)
+    pts = kinect(z, 1)
+    full, alone = SegmentFits(pts, labels), SegmentFits(pts, labels, surfaces=False)
+    for i in range(8):
+        assert alone.size(i) == full.size(i) and alone.fit_error(i) == full.fit_error(i)
+        for j in range(i + 1, 8):
+            assert alone.should_merge(i, j) == full.should_merge(i, j)
+    assert alone.merge(1, 2) == full.merge(1, 2)
+    assert (alone.labels() == full.labels()).all()
+    with pytest.raises(InvalidArgumentError, match="test_only"):
+        alone.maps(pts)
+    with pytest.raises(InvalidArgumentError, match="test_only"):
+        alone.mse(1)
+
+
 def test_bad_parameters_are_clear_errors() -> None:
     pts = kinect(np.full((96, 128), 2.0), 0)
     for kw, name in (
@@ -93,6 +110,8 @@ def test_bad_parameters_are_clear_errors() -> None:
         ({"noise_power": float("nan")}, "noise_power"),
         ({"tolerance": -1.0}, "tolerance"),
         ({"criterion": "bic"}, "criterion"),
+        ({"surfaces": 1}, "surfaces"),
+        ({"surfaces": False, "criterion": "gcv"}, "surfaces"),
     ):
         with pytest.raises(InvalidArgumentError, match=name):
             SegmentFits(pts, HALVES, **kw)

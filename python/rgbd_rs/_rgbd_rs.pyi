@@ -25,6 +25,7 @@ __all__ = [
     "SegmentFits",
     "ShapeMismatchError",
     "UpsampleConfig",
+    "check_metric_depth",
     "depth_disparity",
     "depth_to_points",
     "distort_pixels",
@@ -35,6 +36,7 @@ __all__ = [
     "merge_regions",
     "normals_from_points",
     "num_threads",
+    "pixel_features",
     "project_points",
     "remap",
     "render_points",
@@ -138,6 +140,7 @@ class SegmentFits:
         noise_scale: float,
         noise_power: float,
         tolerance: float,
+        surfaces: bool,
     ) -> SegmentFits: ...
     @staticmethod
     def seam_defaults() -> tuple[float, float, float, float]: ...
@@ -287,7 +290,11 @@ HHA_MAX_MEDIAN_DEPTH_M: float
 
 def hha_encode(
     depth: _F32, raw_depth: _F32 | None, camera: tuple[float, float, float, float]
-) -> tuple[_U8, npt.NDArray[np.float64], float]: ...
+) -> tuple[_U8, npt.NDArray[np.float64], float, _F32]: ...
+def check_metric_depth(depth: _F32) -> None: ...
+def pixel_features(
+    lab: _F32, depth: _F32, normals: _F32, camera: tuple[float, float, float, float]
+) -> tuple[_F32, _F32, npt.NDArray[np.bool_], tuple[float, float, float]]: ...
 def square_normals(
     depth: _F32,
     raw_depth: _F32 | None,

@@ -198,6 +198,9 @@ class SegmentFits:
       ``noise_scale`` (``sigma_z = noise_scale · z**noise_power``; default Kinect v1, metres).
       Scaling a scene's depth by ``k`` and ``noise_scale`` by ``k**(1 - noise_power)`` gives the
       same decisions.
+      ``surfaces=False`` builds the seam test alone, without the surface fits of the points
+      (about a third of the cost): :meth:`mse` and :meth:`maps` then raise, and :meth:`size`
+      counts the pixels with a valid depth.
     * ``"gcv"``: generalised cross-validation ``n·SSE/(n - dof)²``, the MSE corrected for
       the degrees of freedom the fit used. Eq. 4.8 then merges two noisy patches of one surface
       and refuses a union across a depth step.
@@ -226,6 +229,7 @@ class SegmentFits:
         noise_scale: float = KINECT_V1_NOISE_SCALE,
         noise_power: float = KINECT_V1_NOISE_POWER,
         tolerance: float = DEFAULT_TOLERANCE,
+        surfaces: bool = True,
     ) -> None:
         p = _validate.array("points", points, shape=(None, None, 3))
         raw = np.asarray(labels)
@@ -245,7 +249,13 @@ class SegmentFits:
         npow = _validate.real("noise_power", noise_power)
         tol = _validate.real("tolerance", tolerance, nonnegative=True)
         lab32 = np.ascontiguousarray(np.maximum(lab, -1), dtype=np.int32)
-        self._native = _rgbd_rs.SegmentFits(p, lab32, s, d, lam_, crit, ts, ns, npow, tol)
+        if not isinstance(surfaces, bool):
+            raise InvalidArgumentError(f"surfaces: got {surfaces!r}, expected True or False")
+        if not surfaces and crit != "seam":
+            raise InvalidArgumentError(
+                f"surfaces: got False with criterion {crit!r}, expected criterion 'seam'"
+            )
+        self._native = _rgbd_rs.SegmentFits(p, lab32, s, d, lam_, crit, ts, ns, npow, tol, surfaces)
         self.shape: tuple[int, int] = (p.shape[0], p.shape[1])
 
     @property

@@ -98,6 +98,14 @@ pub fn fit_surface<'py>(
     Ok((maps_out(py, h, w, maps)?, fit.n, fit.sse, fit.dof, linear))
 }
 
+fn criterion_name(c: Criterion) -> &'static str {
+    match c {
+        Criterion::Seam => "seam",
+        Criterion::Gcv => "gcv",
+        Criterion::Mse => "mse",
+    }
+}
+
 /// Per-segment spline fits of a labelled point cloud with cheap unions and merges.
 ///
 /// Safe to share between threads: queries take a read lock, `merge` the write lock, each taken
@@ -133,7 +141,7 @@ impl PySegmentFits {
     #[new]
     #[pyo3(signature = (
         points, labels, spacing, degree, lam, criterion,
-        test_spacing, noise_scale, noise_power, tolerance,
+        test_spacing, noise_scale, noise_power, tolerance, surfaces,
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -148,6 +156,7 @@ impl PySegmentFits {
         noise_scale: f64,
         noise_power: f64,
         tolerance: f64,
+        surfaces: bool,
     ) -> PyResult<Self> {
         let (h, w) = points_shape(&points)?;
         same_size("labels", labels.shape(), h, w)?;
@@ -169,11 +178,21 @@ impl PySegmentFits {
             },
             tolerance,
         };
+        if !surfaces && criterion != Criterion::Seam {
+            return Err(InvalidArgumentError::new_err(format!(
+                "surfaces: got False with criterion {:?}, expected criterion 'seam'",
+                criterion_name(criterion)
+            )));
+        }
         let p = borrow("points", &points)?;
         let l = borrow("labels", &labels)?;
         let inner = run(py, || {
             let grid = KnotGrid::new(w, h, spacing, degree)?;
-            SegmentFits::with_test(p, w, h, 3, l, &grid, lam, criterion, &test)
+            if surfaces {
+                SegmentFits::with_test(p, w, h, 3, l, &grid, lam, criterion, &test)
+            } else {
+                SegmentFits::test_only(p, w, h, 3, l, lam, &test)
+            }
         })?;
         Ok(Self {
             ids: inner.label_ids().to_vec(),
@@ -205,11 +224,7 @@ impl PySegmentFits {
     /// 'seam', 'gcv' or 'mse'.
     #[getter]
     fn criterion(&self) -> &'static str {
-        match self.criterion {
-            Criterion::Seam => "seam",
-            Criterion::Gcv => "gcv",
-            Criterion::Mse => "mse",
-        }
+        criterion_name(self.criterion)
     }
 
     fn size(&self, py: Python<'_>, i: i64) -> PyResult<usize> {

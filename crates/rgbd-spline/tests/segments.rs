@@ -408,7 +408,7 @@ fn seam_test_is_scale_invariant_with_a_scaled_noise_model() {
                 for j in i + 1..8 {
                     let (u, uk) = (s.union_error(i, j).unwrap(), sk.union_error(i, j).unwrap());
                     assert!(
-                        (u - uk).abs() <= 1e-6 * u.abs().max(1e-3),
+                        u == uk || (u - uk).abs() <= 1e-6 * u.abs().max(1e-3),
                         "{k} {p} {i}-{j}"
                     );
                     assert_eq!(s.should_merge(i, j), sk.should_merge(i, j));
@@ -460,4 +460,33 @@ fn seam_test_rejects_bad_parameters() {
     let s = seam_fits(&behind, &top_bottom, &SeamTest::default());
     assert!(s.fit_error(0).is_err());
     assert!(s.fit_error(1).is_ok());
+}
+
+#[test]
+fn test_only_decides_as_the_full_fits() {
+    let pts = kinect_cloud(
+        |u, v| 2.5 + 0.02 * (u - 48.0).abs() + 0.1 * (v / 20.0).sin(),
+        KINECT_V1_NOISE,
+        2,
+    );
+    let labels: Vec<i32> = (0..W * H)
+        .map(|i| ((i % W) / 24 + 4 * ((i / W) / 32)) as i32)
+        .collect();
+    let t = small_test();
+    let mut full = seam_fits(&pts, &labels, &t);
+    let mut only = SegmentFits::test_only(&pts, W, H, 3, &labels, DEFAULT_LAMBDA, &t).unwrap();
+    assert_eq!(only.grid, KnotGrid::new(W, H, t.spacing, 3).unwrap());
+    for i in 0..8usize {
+        assert_eq!(only.size(i), full.size(i));
+        assert_eq!(only.fit_error(i), full.fit_error(i));
+        for j in i + 1..8 {
+            assert_eq!(only.union_error(i, j), full.union_error(i, j));
+            assert_eq!(only.should_merge(i, j), full.should_merge(i, j));
+        }
+    }
+    assert_eq!(only.merge(1, 2), full.merge(1, 2));
+    assert_eq!(only.current_labels(), full.current_labels());
+    assert_eq!(only.fit_error(1), full.fit_error(1));
+    assert!(only.fit(1).is_err() && full.fit(1).is_ok());
+    assert!(only.maps(&pts).is_err());
 }
