@@ -191,6 +191,20 @@ ALL_CASES: list[Case] = [
     ),
     Case("InputSpec", lambda: InputSpec(volume_fill="hollow"), ARG, r"^volume_fill", "fill"),
     Case(
+        "InputSpec",
+        lambda: InputSpec(normalisation="lcn", view_lcn_window=4),
+        ARG,
+        r"^view_lcn_window: got 4, expected an odd",
+        "even-window",
+    ),
+    Case(
+        "InputSpec",
+        lambda: InputSpec(normalisation="standardize", volume_lcn_window=5),
+        ARG,
+        r"^volume_lcn_window: got 5 with normalisation 'standardize'",
+        "window-without-lcn",
+    ),
+    Case(
         "InputSpec.from_dict",
         lambda: InputSpec.from_dict({"colour": 1}),
         ARG,

@@ -147,9 +147,13 @@ def test_inputs_of_a_shape_and_of_a_batch_agree() -> None:
     # meshes are voxelized solid (the inside counts), point clouds by occupancy
     solid = density_profiles(voxelize(shapes[0], 32, fill="solid"))
     assert solid[0, 16, 16] > 25
-    assert np.array_equal(one[0]["volume"], D._normalise_maps(solid, NORM))
+    assert np.array_equal(
+        one[0]["volume"], D._normalise_maps(solid, NORM, VOLUME.volume_lcn_window)
+    )
     occupancy = density_profiles(voxelize(shapes[2], 32))
-    assert np.array_equal(one[2]["volume"], D._normalise_maps(occupancy, NORM))
+    assert np.array_equal(
+        one[2]["volume"], D._normalise_maps(occupancy, NORM, VOLUME.volume_lcn_window)
+    )
     assert "volume" in available_representations()
 
 

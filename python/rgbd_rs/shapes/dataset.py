@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import dataclasses
+import functools
 import json
 import math
 import os
@@ -379,13 +381,25 @@ def open_shapes(data: str | os.PathLike[str]) -> ShapeSource:
 # -- inputs of one shape ----------------------------------------------------------------------
 
 
+@functools.cache
 def _depth_views() -> Callable[..., np.ndarray] | None:
+    """:func:`rgbd_rs.shapes.views.depth_views` when this installation can run it (its Python
+    module and native kernels both present), else None."""
     from rgbd_rs.shapes import views
 
-    return getattr(views, "depth_views", None)
+    fn = getattr(views, "depth_views", None)
+    if fn is None:
+        return None
+    try:
+        fn(np.zeros((1, 3), np.float32), MIN_VIEW_RESOLUTION, lcn=False)
+    except (AttributeError, TypeError):  # the native module predates the views kernels
+        return None
+    return fn  # type: ignore[no-any-return]
 
 
 def _curvature_maps() -> Callable[..., np.ndarray] | None:
+    """``rgbd_rs.shapes.curvature.curvature_maps(shape, resolution) -> (6, 2, R, R)`` (k1, k2 of
+    each depth view) once the package has it, else None."""
     import importlib
 
     try:
@@ -397,9 +411,22 @@ def _curvature_maps() -> Callable[..., np.ndarray] | None:
 
 
 def _lcn() -> Callable[..., np.ndarray] | None:
+    """:func:`rgbd_rs.shapes.views.local_contrast_normalize` (``(image, window)``, per map of a
+    stack) when present."""
     from rgbd_rs.shapes import views
 
     return getattr(views, "local_contrast_normalize", None)
+
+
+def _lcn_window(resolution: int) -> int:
+    from rgbd_rs.shapes import views
+
+    rule = getattr(views, "lcn_window", None)
+    if rule is None:
+        raise RgbdError(
+            "normalisation: 'lcn' needs rgbd_rs.shapes.views.lcn_window; use 'standardize'"
+        )
+    return int(rule(resolution))
 
 
 def available_representations() -> tuple[str, ...]:
@@ -417,7 +444,10 @@ class InputSpec:
     depth and volume; ``view_resolution`` (thesis 320; default 64, CPU-feasible),
     ``volume_resolution`` (thesis 32), ``normalisation`` one of :data:`NORMALISATIONS`,
     ``volume_fill`` how meshes are voxelized (``"solid"`` counts the inside as §5.3.2's density;
-    point clouds are always occupancy)."""
+    point clouds are always occupancy). With LCN, ``view_lcn_window`` / ``volume_lcn_window``
+    (pixels, odd) default to :func:`rgbd_rs.shapes.views.lcn_window` of the resolution (the
+    thesis gives no window) and are recorded, so a checkpoint keeps its windows if the rule
+    changes."""
 
     representations: tuple[str, ...] = field(
         default_factory=lambda: tuple(
@@ -428,25 +458,34 @@ class InputSpec:
     volume_resolution: int = THESIS_VOLUME_RESOLUTION
     normalisation: str = "lcn"
     volume_fill: str = "solid"
+    view_lcn_window: int | None = None
+    volume_lcn_window: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "representations", parse_representations(self.representations))
-        _validate.integer(
-            "view_resolution",
-            self.view_resolution,
-            minimum=MIN_VIEW_RESOLUTION,
-            maximum=MAX_RESOLUTION,
-        )
-        _validate.integer(
-            "volume_resolution",
-            self.volume_resolution,
-            minimum=MIN_VOLUME_RESOLUTION,
-            maximum=MAX_RESOLUTION,
-        )
-        object.__setattr__(self, "view_resolution", int(self.view_resolution))
-        object.__setattr__(self, "volume_resolution", int(self.volume_resolution))
+        for name, lo in (
+            ("view_resolution", MIN_VIEW_RESOLUTION),
+            ("volume_resolution", MIN_VOLUME_RESOLUTION),
+        ):
+            v = _validate.integer(name, getattr(self, name), minimum=lo, maximum=MAX_RESOLUTION)
+            object.__setattr__(self, name, v)
         _validate.choice("normalisation", self.normalisation, NORMALISATIONS)
         _validate.choice("volume_fill", self.volume_fill, ("surface", "solid"))
+        for name, res in (
+            ("view_lcn_window", self.view_resolution),
+            ("volume_lcn_window", self.volume_resolution),
+        ):
+            w = getattr(self, name)
+            if self.normalisation != "lcn":
+                if w is not None:
+                    raise InvalidArgumentError(
+                        f"{name}: got {w} with normalisation {self.normalisation!r}, expected None"
+                    )
+                continue
+            w = _lcn_window(res) if w is None else _validate.integer(name, w, minimum=1)
+            if w % 2 == 0:
+                raise InvalidArgumentError(f"{name}: got {w}, expected an odd number of pixels")
+            object.__setattr__(self, name, w)
 
     @property
     def shapes(self) -> dict[str, tuple[int, ...]]:
@@ -476,13 +515,14 @@ class InputSpec:
             "volume_resolution": self.volume_resolution,
             "normalisation": self.normalisation,
             "volume_fill": self.volume_fill,
+            "view_lcn_window": self.view_lcn_window,
+            "volume_lcn_window": self.volume_lcn_window,
         }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> InputSpec:
         """Inverse of :meth:`to_dict`; unknown keys raise naming them."""
-        known = {"representations", "view_resolution", "volume_resolution"}
-        known |= {"normalisation", "volume_fill"}
+        known = {f.name for f in dataclasses.fields(cls)}
         if not isinstance(data, Mapping) or set(data) - known:
             got = sorted(data) if isinstance(data, Mapping) else type(data).__name__
             raise InvalidArgumentError(f"spec: got {got}, expected keys among {sorted(known)}")
@@ -492,21 +532,20 @@ class InputSpec:
         return cls(**args)
 
 
-def _normalise_maps(maps: np.ndarray, how: str) -> npt.NDArray[np.float32]:
-    """Each trailing 2-D map normalised on its own (non-finite pixels count as 0)."""
-    flat = np.nan_to_num(np.asarray(maps, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-    out = np.empty_like(flat)
-    lead = flat.shape[:-2]
-    lcn = _lcn() if how == "lcn" else None
-    for idx in np.ndindex(*lead):
-        m = flat[idx]
-        if lcn is not None:
-            y = np.asarray(lcn(m), np.float32)
-        else:
-            sd = float(m.std())
-            y = (m - m.mean()) / sd if sd > 0 else np.zeros_like(m)
-        out[idx] = np.nan_to_num(y, nan=0.0, posinf=0.0, neginf=0.0)
-    return np.clip(out, -_F16_MAX, _F16_MAX)
+def _normalise_maps(maps: np.ndarray, how: str, window: int | None) -> npt.NDArray[np.float32]:
+    """Each trailing 2-D map normalised on its own: LCN with ``window`` or standardised (zero
+    mean, unit variance; a constant map gives zeros). Non-finite input pixels count as 0."""
+    x = np.nan_to_num(np.asarray(maps, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+    if how == "lcn":
+        lcn = _lcn()
+        assert lcn is not None and window is not None  # InputSpec.check_available
+        y = np.asarray(lcn(x, window), np.float32)
+    else:
+        mean = x.mean(axis=(-2, -1), keepdims=True)
+        sd = x.std(axis=(-2, -1), keepdims=True)
+        y = np.where(sd > 0, (x - mean) / np.where(sd > 0, sd, 1), 0).astype(np.float32)
+    y = np.nan_to_num(y, nan=0.0, posinf=0.0, neginf=0.0)
+    return np.clip(y, -_F16_MAX, _F16_MAX)
 
 
 def _shape_arg(name: str, shape: object) -> Shape:
@@ -536,13 +575,15 @@ def _inputs(x: Shape, s: InputSpec) -> dict[str, Any]:
 
     out: dict[str, Any] = {}
     for name, want in s.shapes.items():
-        if name == "depth":
+        window = s.view_lcn_window
+        if name == "depth":  # empty pixels read the far face (1), as a cleared z-buffer
             fn = _depth_views()
             assert fn is not None
-            maps = fn(x, s.view_resolution)
+            maps = fn(x, s.view_resolution, lcn=False)
         elif name == "volume":
             fill = s.volume_fill if isinstance(x, Mesh) else "surface"
             maps = density_profiles(voxelize(x, s.volume_resolution, fill=fill))
+            window = s.volume_lcn_window
         else:
             fn = _curvature_maps()
             assert fn is not None
@@ -552,7 +593,7 @@ def _inputs(x: Shape, s: InputSpec) -> dict[str, Any]:
             raise ShapeMismatchError(
                 f"{name} representation: got shape {maps.shape}, expected {want}"
             )
-        out[name] = _normalise_maps(maps, s.normalisation)
+        out[name] = _normalise_maps(maps, s.normalisation, window)
     return out
 
 
