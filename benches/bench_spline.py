@@ -55,6 +55,7 @@ def run_one() -> list[dict[str, object]]:
     labels = ((np.arange(h)[:, None] // 32) * 20 + np.arange(w)[None, :] // 32).astype(np.int32)
     ours = timeit(lambda: SegmentFits(pts, labels, spacing=16.0, criterion="gcv"), REPEATS)
     seam = timeit(lambda: SegmentFits(pts, labels, spacing=16.0), REPEATS)
+    alone = timeit(lambda: SegmentFits(pts, labels, surfaces=False), REPEATS)
     one = labels == 0
     vv, uu = np.nonzero(one)
     zz = pts[one][:, 2].astype(np.float64)
@@ -70,6 +71,9 @@ def run_one() -> list[dict[str, object]]:
             "ours": seam,
             "scipy": None,
         }
+    )
+    rows.append(
+        {"case": "300 segments of a 640x480 frame, seam test alone", "ours": alone, "scipy": None}
     )
     # The merge test on every pair of 4-adjacent tiles (565 pairs), per pair.
     tiles = SegmentFits(pts, labels, spacing=16.0)

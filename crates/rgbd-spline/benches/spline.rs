@@ -81,6 +81,20 @@ fn bench_segment(c: &mut Bench) {
             })
         });
     }
+    c.bench_function("SegmentFits::test_only 640x480, 300 segments", |b| {
+        b.iter(|| {
+            SegmentFits::test_only(
+                black_box(&pts),
+                w,
+                h,
+                3,
+                &labels,
+                DEFAULT_LAMBDA,
+                &Default::default(),
+            )
+            .unwrap()
+        })
+    });
     // The seam test on the 565 pairs of 4-adjacent tiles.
     let tiles = SegmentFits::new(
         &pts,

@@ -481,19 +481,29 @@ impl TestFits {
     ) -> Result<Self, RgbdError> {
         let grid = KnotGrid::new(width, height, spec.spacing, 3)?;
         let noise = spec.noise;
-        let g: Vec<f64> = values
-            .par_chunks_exact(channels)
-            .zip(labels.par_iter())
-            .map(|(px, &l)| {
-                if l < 0 || !px.iter().all(|&x| x.into().is_finite()) {
-                    f64::NAN
-                } else {
-                    noise.stabilize(px[channels - 1].into())
+        // One pass per row: the stabilised depth and its sum (for the offset).
+        let mut g = vec![f64::NAN; width * height];
+        let (sum, n) = g
+            .par_chunks_mut(width)
+            .zip(values.par_chunks(width * channels))
+            .zip(labels.par_chunks(width))
+            .map(|((out, row), lab)| {
+                let (mut sum, mut n) = (0.0, 0usize);
+                for ((o, px), &l) in out.iter_mut().zip(row.chunks_exact(channels)).zip(lab) {
+                    if l >= 0 && px.iter().all(|&x| x.into().is_finite()) {
+                        let x = noise.stabilize(px[channels - 1].into());
+                        if x.is_finite() {
+                            *o = x;
+                            sum += x;
+                            n += 1;
+                        }
+                    }
                 }
+                (sum, n)
             })
-            .collect();
+            .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
         let full = Region::full(width, height);
-        let offset = valid_mean(&g, width, 1, full, |_| true);
+        let offset = vec![if n > 0 { sum / n as f64 } else { 0.0 }];
         let normals = accumulate(
             &g,
             width,
