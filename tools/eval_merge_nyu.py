@@ -138,9 +138,7 @@ def main() -> None:
     ok = sum(SegmentFits(fr.points, fr.rows).should_merge(0, 1) for fr in frames)
     print(f"| wall halves split at the median row merged | {n} | {ok}/{n} |")
     touch = [fr for fr in frames if fr.touching]
-    print(
-        f"| wall halves and floor share a seam (the test can see they meet) | {n} | {len(touch)} |"
-    )
+    print(f"| frames where the floor meets a wall half (shares a seam) | {n} | {len(touch)}/{n} |")
     ok = sum(
         not (s.should_merge(0, 2) or s.should_merge(1, 2))
         for s in (SegmentFits(fr.points, fr.labels) for fr in touch)
