@@ -230,7 +230,8 @@ def merge_regions(
 
     ``fits`` lets callers choose the fit options (:class:`~rgbd_rs.surface.SegmentFits` built on
     the same ``points`` and ``labels``); it is merged in place and afterwards describes the final
-    segments (e.g. for curvature maps). By default it is built with its default options.
+    segments (e.g. for curvature maps, which need ``surfaces=True``). By default it is built with
+    its default options and ``surfaces=False``.
     """
     lab32 = _labels(labels)
     shape = (lab32.shape[0], lab32.shape[1])
@@ -240,7 +241,8 @@ def merge_regions(
     if t > 1.0:
         raise InvalidArgumentError(f"t_sim: got {t_sim!r}, expected a similarity in [0, 1]")
     if fits is None:
-        fits = SegmentFits(pts, lab32)
+        # The merging needs the seam test only, not the surface fits (a third of the cost).
+        fits = SegmentFits(pts, lab32, surfaces=False)
     elif not isinstance(fits, SegmentFits):
         raise InvalidArgumentError(
             f"fits: got {type(fits).__name__}, expected a rgbd_rs.surface.SegmentFits"
