@@ -240,20 +240,20 @@ def ours_oversegment(*, n_segments: int) -> Segmenter:
     return run
 
 
-def ours_fit_merge() -> Segmenter:
+def ours_fit_merge(*, n_segments: int = COUNT_MATCH_SEGMENTS) -> Segmenter:
     """The pipeline's fit-only merging (surface fits alone, the thesis' reference [74]): the
-    pipeline without class PDFs, on :data:`COUNT_MATCH_SEGMENTS` over-segmentation clusters."""
+    pipeline without class PDFs, on ``n_segments`` over-segmentation clusters."""
     segment = _stage("pipeline", "segment")
+    n = _validate.integer("n_segments", n_segments, minimum=2)
     takes = inspect.signature(segment).parameters
     # Fit-only is the pipeline without PDFs; pass mode="fit" where the pipeline names it.
     extra: dict[str, object] = {"mode": "fit"} if "mode" in takes else {}
-    if "n_segments" in takes and "seed" in takes:
-        extra.update(n_segments=COUNT_MATCH_SEGMENTS, seed=SEED)
+    extra.update(n_segments=n, seed=SEED)
 
     def run(rgb: U8, depth: F32, camera: PinholeCamera) -> Labels:
         result = segment(rgb, depth, camera, **extra)
-        if "n_segments" in extra and hasattr(result, "over"):
-            _LAST_OVER.store(rgb, depth, COUNT_MATCH_SEGMENTS, np.asarray(result.over))
+        if hasattr(result, "over"):
+            _LAST_OVER.store(rgb, depth, n, np.asarray(result.over))
         return np.asarray(result.labels)
 
     return run
@@ -292,7 +292,7 @@ def default_methods() -> list[Method]:
         Method("slic (RGB)", slic_rgb, SLIC_GRID),
         Method("slic (RGB-D)", slic_rgbd, SLIC_RGBD_GRID),
         Method(OURS_OVER, ours_oversegment, OVERSEGMENT_GRID, "ours"),
-        Method(OURS_MERGED, ours_fit_merge, ({},), "ours"),
+        Method(OURS_MERGED, ours_fit_merge, ({"n_segments": COUNT_MATCH_SEGMENTS},), "ours"),
     ]
 
 
