@@ -17,6 +17,12 @@ __all__ = [
     "T_D",
     "T_SIM",
     "T_THETA_DEG",
+    "VIEWS_MAX_RESOLUTION",
+    "VIEWS_MAX_SPLAT_PX",
+    "VIEWS_MIN_SPLAT_PX",
+    "VIEWS_SPLAT_KNN_FACTOR",
+    "VIEWS_SPLAT_MEDIAN_CAP",
+    "VIEWS_SPLAT_NEIGHBOURS",
     "VOXEL_MAX_RESOLUTION",
     "InvalidArgumentError",
     "LcConfig",
@@ -26,6 +32,7 @@ __all__ = [
     "ShapeMismatchError",
     "UpsampleConfig",
     "check_metric_depth",
+    "density_profiles",
     "depth_disparity",
     "depth_to_points",
     "distort_pixels",
@@ -34,9 +41,14 @@ __all__ = [
     "label_regions",
     "lc_fuse",
     "merge_regions",
+    "mesh_depth_views",
+    "mesh_depth_views_raycast",
     "normals_from_points",
     "num_threads",
     "pixel_features",
+    "point_depth_views",
+    "point_depth_views_batch",
+    "point_splat_radii",
     "project_points",
     "remap",
     "render_points",
@@ -47,7 +59,6 @@ __all__ = [
     "undistort_map",
     "undistort_pixels",
     "upsample_depth",
-    "density_profiles",
     "voxelize_mesh",
     "voxelize_points",
 ]
@@ -314,3 +325,24 @@ def voxelize_mesh(
     vertices: _F32, faces: npt.NDArray[np.uint32], resolution: int, solid: bool
 ) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.float64], float]: ...
 def density_profiles(filled: npt.NDArray[np.uint8]) -> _F32: ...
+
+# -- depth views (crates/rgbd-py/src/views.rs) ----------------------------------------------------
+
+VIEWS_MAX_RESOLUTION: int
+VIEWS_MAX_SPLAT_PX: float
+VIEWS_MIN_SPLAT_PX: float
+VIEWS_SPLAT_KNN_FACTOR: float
+VIEWS_SPLAT_NEIGHBOURS: int
+VIEWS_SPLAT_MEDIAN_CAP: float
+
+def mesh_depth_views(vertices: _F32, faces: npt.NDArray[np.uint32], resolution: int) -> _F32: ...
+def mesh_depth_views_raycast(
+    vertices: _F32, faces: npt.NDArray[np.uint32], resolution: int
+) -> _F32: ...
+def point_depth_views(
+    points: _F32, resolution: int, splat_radius: float | None = None
+) -> tuple[_F32, float]: ...
+def point_depth_views_batch(
+    clouds: list[_F32], resolution: int, splat_radius: float | None = None
+) -> tuple[_F32, _F32]: ...
+def point_splat_radii(points: _F32, resolution: int) -> _F32: ...

@@ -18,6 +18,7 @@ pub mod shade;
 pub mod splat;
 pub mod tof;
 pub mod view;
+pub mod views;
 
 pub use bvh::{Bvh, Hit};
 pub use gbuffer::{render_depth, render_gbuffer, GBuffer};
@@ -27,3 +28,4 @@ pub use shade::render_color;
 pub use splat::render_points;
 pub use tof::{simulate_tof, TofFrame, TofOptions, SPEED_OF_LIGHT};
 pub use view::{Projection, View};
+pub use views::{mesh_views, point_views, point_views_batch, Cube};
