@@ -372,10 +372,11 @@ class EvaluationReport:
                 "no comparison"
             )
         return (
-            f"over-segmentation at ~{COUNT_MATCH_SEGMENTS} segments (tolerance "
-            f"{BOUNDARY_TOLERANCE} px): boundary recall ours {c.boundary_recall_ours:.3f} "
-            f"({c.segments_ours:.0f} segments) vs SLIC {c.boundary_recall_slic:.3f} "
-            f"({c.segments_slic:.0f} segments)"
+            f"over-segmentation at ~{COUNT_MATCH_SEGMENTS} segments (ours: "
+            f"{COUNT_MATCH_SEGMENTS} clusters, {c.segments_ours:.0f} segments after splitting; "
+            f"SLIC (RGB) run to the same count per frame: {c.segments_slic:.0f}): boundary "
+            f"recall (tolerance {BOUNDARY_TOLERANCE} px) ours {c.boundary_recall_ours:.3f} vs "
+            f"SLIC {c.boundary_recall_slic:.3f}"
         )
 
 
