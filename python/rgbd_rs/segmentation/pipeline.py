@@ -1,1 +1,99 @@
-"""The segmentation pipeline: features -> over-segmentation -> fits -> merging."""
+"""The segmentation pipeline of thesis ch. 4: 9-D features (eq. 4.1) -> normalized-cuts
+over-segmentation (§4.4) -> spline fits of every segment (§4.5) -> region merging (§4.7).
+
+Each stage is a plain function of :mod:`rgbd_rs.segmentation` and can be called alone;
+:func:`segment` runs them in order and times each. Without class PDFs (the semantic ConvNet of
+§4.6 is a later stage) the merging is the fit-only baseline; with them it is Algorithm 1.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _validate
+from rgbd_rs.camera import PinholeCamera
+from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.segmentation.features import Features, features
+from rgbd_rs.segmentation.merge import MergeResult, merge_regions
+from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
+from rgbd_rs.surface import SegmentFits
+
+__all__ = ["Segmentation", "segment"]
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """What :func:`segment` returns."""
+
+    #: ``H x W`` int32 over-segmentation (§4.4), -1 where the depth is missing.
+    over: np.ndarray
+    #: ``H x W`` int32 final segments after merging, -1 where the depth is missing.
+    labels: np.ndarray
+    #: The merging's history and, with PDFs, the class of each final segment.
+    merge: MergeResult
+    #: The per-pixel features the stages used (Lab, points, normals, 9-D vectors).
+    features: Features
+    #: The seam-test fits of the final segments (built with ``surfaces=False``: for fitting error
+    #: and curvature maps build ``SegmentFits(features.points, labels)``).
+    fits: SegmentFits
+    #: Seconds spent in each stage, in order.
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def semantic(self) -> np.ndarray | None:
+        """``H x W`` int32 class per pixel of each final segment (with PDFs), else None."""
+        return self.merge.semantic
+
+
+def segment(
+    rgb: npt.ArrayLike,
+    depth: npt.ArrayLike,
+    camera: PinholeCamera,
+    *,
+    pdfs: npt.ArrayLike | None = None,
+    n_segments: int = DEFAULT_N_SEGMENTS,
+    touching: bool = False,
+    seed: int = 0,
+    quiet: bool = True,
+) -> Segmentation:
+    """Segments an RGB-D frame: ``rgb`` ``H x W x 3`` uint8, ``depth`` ``H x W`` float32 metres
+    (NaN or 0 = missing), ``camera`` the intrinsics of both (registered depth).
+
+    ``pdfs`` (``H x W x C`` per-pixel class probabilities) switch the merging from the fit-only
+    baseline to Algorithm 1 and label every final segment; ``n_segments`` is the number of
+    normalized-cuts clusters of the over-segmentation (disconnected clusters are split, so the
+    over-segmentation has somewhat more segments); ``touching=True`` treats every pair of
+    touching segments as adjacent (the thesis' faster option) instead of the boundary tests of
+    eq. 4.3-4.5. Deterministic given ``seed``.
+    """
+    if not isinstance(camera, PinholeCamera):
+        raise InvalidArgumentError(
+            f"camera: got {type(camera).__name__}, expected a rgbd_rs.PinholeCamera"
+        )
+    n = _validate.integer("n_segments", n_segments, minimum=2)
+    seconds: dict[str, float] = {}
+    t = time.perf_counter()
+
+    def lap(stage: str) -> None:
+        nonlocal t
+        now = time.perf_counter()
+        seconds[stage] = now - t
+        t = now
+
+    f = features(rgb, depth, camera)
+    lap("features")
+    over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
+    lap("oversegment")
+    fits = SegmentFits(f.points, over, surfaces=False)
+    lap("fits")
+    merged = merge_regions(
+        over, f.points, pdfs=pdfs, lab=f.lab, normals=f.normals, touching=touching, fits=fits
+    )
+    lap("merge")
+    return Segmentation(
+        over=over, labels=merged.labels, merge=merged, features=f, fits=fits, seconds=seconds
+    )
