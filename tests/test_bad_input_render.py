@@ -247,6 +247,21 @@ CASES: list[Case] = [
     Case("SegmentFits.union_error", lambda: FITS.union_error(0, 99), ARG, r"^j: got 99"),
     Case("SegmentFits.should_merge", lambda: FITS.should_merge(99, 0), ARG, r"^i: got 99"),
     Case("SegmentFits.merge", lambda: FITS.merge(0, 99), ARG, r"^j: got 99"),
+    Case("SegmentFits.seam", lambda: FITS.seam(0, 99), ARG, r"^j: got 99"),
+    Case(
+        "SegmentFits",
+        lambda: SegmentFits(POINTS, LABELS, surfaces=False, criterion="gcv"),
+        ARG,
+        r"^surfaces: got False",
+        "surfaces",
+    ),
+    Case(
+        "SegmentFits",
+        lambda: SegmentFits(POINTS, LABELS, test_spacing=0.5),
+        ARG,
+        r"^test_spacing: got 0.5",
+        "test-spacing",
+    ),
     Case("SegmentFits.find", lambda: FITS.find(99), ARG, r"^label: got 99"),
     Case("SegmentFits.maps", lambda: FITS.maps(POINTS[:4]), SHAPE, r"^points: got shape \(4, 16"),
     # -- meshes ---------------------------------------------------------------------------------
