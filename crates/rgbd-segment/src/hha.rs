@@ -718,54 +718,37 @@ pub fn features(
     check_len("lab", lab, 3 * n, &what)?;
     check_len("normals", normals, 3 * n, &what)?;
     let rays = Rays::new(width, height, cam);
+    const D: usize = FEATURE_DIM;
+    // Pass 1: unnormalised vectors [lab, point, normal], points, validity.
+    let mut vectors = vec![f32::NAN; D * n];
     let mut points = vec![f32::NAN; 3 * n];
     let mut valid = vec![false; n];
-    points
-        .par_chunks_mut(3 * width)
+    vectors
+        .par_chunks_mut(D * width)
+        .zip(points.par_chunks_mut(3 * width))
         .zip(valid.par_chunks_mut(width))
         .enumerate()
-        .for_each(|(y, (prow, vrow))| {
+        .for_each(|(y, ((vrow, prow), ok))| {
+            let b = rays.b[y];
             for x in 0..width {
                 let i = y * width + x;
                 let z = depth[i];
-                if is_valid(z) {
-                    let zf = z as f64;
-                    prow[3 * x] = (rays.a[x] * zf) as f32;
-                    prow[3 * x + 1] = (rays.b[y] * zf) as f32;
-                    prow[3 * x + 2] = z;
-                    vrow[x] = normals[3 * i..3 * i + 3].iter().all(|v| v.is_finite());
+                if !is_valid(z) {
+                    continue;
+                }
+                let zf = z as f64;
+                let p = [(rays.a[x] * zf) as f32, (b * zf) as f32, z];
+                prow[3 * x..3 * x + 3].copy_from_slice(&p);
+                let nrm = &normals[3 * i..3 * i + 3];
+                if nrm.iter().all(|v| v.is_finite()) {
+                    ok[x] = true;
+                    let v = &mut vrow[D * x..D * x + D];
+                    v[0..3].copy_from_slice(&lab[3 * i..3 * i + 3]);
+                    v[3..6].copy_from_slice(&p);
+                    v[6..9].copy_from_slice(nrm);
                 }
             }
         });
-    let value = |i: usize, k: usize| match k {
-        0..3 => lab[3 * i + k],
-        3..6 => points[3 * i + k - 3],
-        _ => normals[3 * i + k - 6],
-    };
-    // Per-row sums over the valid pixels, added in row order.
-    let row_sums = |f: &(dyn Fn(usize, usize) -> f64 + Sync)| -> [f64; FEATURE_DIM] {
-        let rows: Vec<[f64; FEATURE_DIM]> = (0..height)
-            .into_par_iter()
-            .map(|y| {
-                let mut s = [0.0f64; FEATURE_DIM];
-                let start = y * width;
-                let row = &valid[start..start + width];
-                for i in (start..start + width).filter(|&i| row[i - start]) {
-                    for (k, v) in s.iter_mut().enumerate() {
-                        *v += f(i, k);
-                    }
-                }
-                s
-            })
-            .collect();
-        let mut s = [0.0f64; FEATURE_DIM];
-        for r in &rows {
-            for k in 0..FEATURE_DIM {
-                s[k] += r[k];
-            }
-        }
-        s
-    };
     let count = valid.iter().filter(|&&v| v).count();
     if count == 0 {
         return Err(invalid(
@@ -774,29 +757,50 @@ pub fn features(
             "at least one (a normal needs 3 non-collinear valid pixels in its window)",
         ));
     }
-    let sums = row_sums(&|i, k| value(i, k) as f64);
+    // Per-row sums of f(v) over the valid pixels, added in row order.
+    let row_sums = |f: &(dyn Fn(&[f32], &mut [f64; D]) + Sync)| -> [f64; D] {
+        let rows: Vec<[f64; D]> = vectors
+            .par_chunks(D * width)
+            .zip(valid.par_chunks(width))
+            .map(|(vrow, ok)| {
+                let mut s = [0.0f64; D];
+                for (v, _) in vrow.chunks_exact(D).zip(ok).filter(|(_, &ok)| ok) {
+                    f(v, &mut s);
+                }
+                s
+            })
+            .collect();
+        let mut s = [0.0f64; D];
+        for r in &rows {
+            for k in 0..D {
+                s[k] += r[k];
+            }
+        }
+        s
+    };
+    // Two passes (means, then centred squares) for the population standard deviations.
+    let sums = row_sums(&|v, s| {
+        for k in 0..D {
+            s[k] += f64::from(v[k]);
+        }
+    });
     let mean = sums.map(|s| s / count as f64);
-    let sq = row_sums(&|i, k| {
-        let d = value(i, k) as f64 - mean[k];
-        d * d
+    let sq = row_sums(&|v, s| {
+        for k in 0..D {
+            let d = f64::from(v[k]) - mean[k];
+            s[k] += d * d;
+        }
     });
     let std = sq.map(|s| (s / count as f64).sqrt());
     let sigmas = [0, 1, 2].map(|g| (std[3 * g] + std[3 * g + 1] + std[3 * g + 2]) / 3.0);
     let scale = sigmas.map(|s| if s > 0.0 { (1.0 / s) as f32 } else { 1.0 });
-    let mut vectors = vec![f32::NAN; FEATURE_DIM * n];
-    vectors
-        .par_chunks_mut(FEATURE_DIM * width)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for x in 0..width {
-                let i = y * width + x;
-                if valid[i] {
-                    for k in 0..FEATURE_DIM {
-                        row[FEATURE_DIM * x + k] = value(i, k) * scale[k / 3];
-                    }
-                }
+    vectors.par_chunks_mut(D * width).for_each(|row| {
+        for v in row.chunks_exact_mut(D) {
+            for k in 0..D {
+                v[k] *= scale[k / 3];
             }
-        });
+        }
+    });
     Ok(Features {
         vectors,
         points,
