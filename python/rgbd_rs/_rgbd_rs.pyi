@@ -11,6 +11,13 @@ __all__ = [
     "MAX_PIXELS",
     "MAX_RADIUS",
     "MAX_SIDE",
+    "OVERSEG_DEFAULT_FEATURE_WEIGHT",
+    "OVERSEG_DEFAULT_FIT_POINTS",
+    "OVERSEG_DEFAULT_SAMPLES",
+    "OVERSEG_DEFAULT_SEGMENTS",
+    "OVERSEG_DEFAULT_SIGMA",
+    "OVERSEG_DEFAULT_SPATIAL_WEIGHT",
+    "OVERSEG_DEFAULT_VECTORS",
     "SPLINE_DEFAULT_LAMBDA",
     "SPLINE_MAX_DEGREE",
     "T_C",
@@ -40,11 +47,13 @@ __all__ = [
     "hha_encode",
     "label_regions",
     "lc_fuse",
+    "local_contrast_normalize",
     "merge_regions",
     "mesh_depth_views",
     "mesh_depth_views_raycast",
     "normals_from_points",
     "num_threads",
+    "oversegment",
     "pixel_features",
     "point_depth_views",
     "point_depth_views_batch",
@@ -152,9 +161,10 @@ class SegmentFits:
         noise_power: float,
         tolerance: float,
         surfaces: bool,
+        test_window: int | None = ...,
     ) -> SegmentFits: ...
     @staticmethod
-    def seam_defaults() -> tuple[float, float, float, float]: ...
+    def seam_defaults() -> tuple[float, float, float, float, int | None]: ...
     @property
     def n_labels(self) -> int: ...
     @property
@@ -314,6 +324,29 @@ def square_normals(
     toward_camera: bool,
 ) -> _F32: ...
 
+# -- Nyström normalized-cuts over-segmentation (crates/rgbd-py/src/oversegment.rs) --------------
+
+OVERSEG_DEFAULT_SIGMA: float
+OVERSEG_DEFAULT_SAMPLES: int
+OVERSEG_DEFAULT_VECTORS: int
+OVERSEG_DEFAULT_SEGMENTS: int
+OVERSEG_DEFAULT_SPATIAL_WEIGHT: float
+OVERSEG_DEFAULT_FEATURE_WEIGHT: float
+OVERSEG_DEFAULT_FIT_POINTS: int
+
+def oversegment(
+    features: _F32,
+    n_segments: int,
+    sigma: float,
+    n_samples: int,
+    n_vectors: int,
+    seed: int,
+    min_size: int,
+    spatial_weight: float,
+    feature_weight: float,
+    fit_points: int,
+) -> tuple[_I32, int]: ...
+
 # -- voxelization (crates/rgbd-py/src/voxel.rs) ---------------------------------------------------
 
 VOXEL_MAX_RESOLUTION: int
@@ -346,3 +379,4 @@ def point_depth_views_batch(
     clouds: list[_F32], resolution: int, splat_radius: float | None = None
 ) -> tuple[_F32, _F32]: ...
 def point_splat_radii(points: _F32, resolution: int) -> _F32: ...
+def local_contrast_normalize(maps: _F32, window: int, eps: float) -> None: ...
