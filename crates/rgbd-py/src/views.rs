@@ -103,6 +103,26 @@ pub fn point_depth_views_batch<'py>(
     ))
 }
 
+/// Local contrast normalisation of each `H x W` map of a `(B, H, W)` float32 stack, in place.
+#[pyfunction]
+pub fn local_contrast_normalize(
+    py: Python<'_>,
+    maps: &Bound<'_, PyArray3<f32>>,
+    window: usize,
+    eps: f64,
+) -> PyResult<()> {
+    let (h, w) = (maps.shape()[1], maps.shape()[2]);
+    let mut rw = maps.try_readwrite()?;
+    let data = rw.as_slice_mut().map_err(|_| {
+        crate::errors::InvalidArgumentError::new_err(
+            "maps: got a non-contiguous array, expected a C-contiguous one",
+        )
+    })?;
+    run(py, || {
+        views::local_contrast_normalize(data, h, w, window, eps)
+    })
+}
+
 /// Adds this module's functions to the native module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mesh_depth_views, m)?)?;
@@ -110,6 +130,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(point_depth_views, m)?)?;
     m.add_function(wrap_pyfunction!(point_depth_views_batch, m)?)?;
     m.add_function(wrap_pyfunction!(point_splat_radii, m)?)?;
+    m.add_function(wrap_pyfunction!(local_contrast_normalize, m)?)?;
     m.add("VIEWS_MAX_RESOLUTION", views::MAX_RESOLUTION)?;
     m.add("VIEWS_MAX_SPLAT_PX", views::MAX_SPLAT_PX)?;
     m.add("VIEWS_MIN_SPLAT_PX", views::MIN_SPLAT_PX)?;

@@ -46,6 +46,8 @@ pub const MAX_EXTENT: f64 = 1e30;
 pub const SPLAT_KNN_FACTOR: f64 = 0.8;
 /// The neighbour whose distance sets a point's splat radius.
 pub const SPLAT_NEIGHBOURS: usize = 8;
+/// Largest `k` of [`knn_distances`].
+pub const MAX_NEIGHBOURS: usize = 32;
 /// Automatic radii are capped at this many times their median (an isolated outlier point stays a
 /// small blob).
 pub const SPLAT_MEDIAN_CAP: f64 = 3.0;
@@ -302,18 +304,19 @@ fn points_in_cube(points: &[f32]) -> Result<Vec<V3>> {
     Ok(points.chunks_exact(3).map(|p| cube.normalize(p)).collect())
 }
 
-/// Distance from each point to its `k`-th nearest other point (cube units), via a uniform grid
-/// of about `sqrt(n)` cells per side; fewer than `k` other points: the farthest one (0 for a
+/// Distance from each point to its `k`-th nearest other point (cube units, `k <= 32`), via a uniform grid
+/// of about `sqrt(n) / 2.5` cells per side; fewer than `k` other points: the farthest one (0 for a
 /// single point).
 pub fn knn_distances(pts: &[V3], k: usize) -> Vec<f32> {
     let n = pts.len();
-    let k = k.clamp(1, n.saturating_sub(1).max(1));
+    let k = k.clamp(1, n.saturating_sub(1).clamp(1, MAX_NEIGHBOURS));
     if n < 2 {
         return vec![0.0; n];
     }
-    // Surface samples: spacing ~ 1/sqrt(n) in a unit cube, so ~sqrt(n) cells per side keep a
-    // few points per occupied cell; capped so the cell table stays small (128^3 u32 = 8 MB).
-    let g = ((n as f64).sqrt().round() as usize).clamp(1, 128);
+    // Surface samples in a unit cube: spacing ~ 1/sqrt(n) and the 8th neighbour ~2.5 spacings
+    // away, so cells of ~2.5 / sqrt(n) usually find it within the 27 cells around a point;
+    // capped so the cell table stays small (128^3 u32 = 8 MB).
+    let g = (((n as f64).sqrt() / 2.5).round() as usize).clamp(1, 128);
     let gi = g as isize;
     let cell = 1.0 / g as f32;
     let idx = |v: f32| (((v + 0.5) * g as f32) as isize).clamp(0, gi - 1);
@@ -340,7 +343,8 @@ pub fn knn_distances(pts: &[V3], k: usize) -> Vec<f32> {
         .map(|i| {
             let (p, c) = (pts[i], cells[i]);
             // The k smallest squared distances so far, ascending.
-            let mut best = vec![f32::INFINITY; k];
+            let mut buf = [f32::INFINITY; MAX_NEIGHBOURS];
+            let best = &mut buf[..k];
             for shell in 0..=gi {
                 // Cells at Chebyshev distance exactly `shell` from c.
                 for dz in -shell..=shell {
@@ -364,8 +368,8 @@ pub fn knn_distances(pts: &[V3], k: usize) -> Vec<f32> {
                                     + (p[2] - d[2]).powi(2);
                                 if e < best[k - 1] {
                                     let at = best.partition_point(|&b| b <= e);
-                                    best.pop();
-                                    best.insert(at, e);
+                                    best.copy_within(at..k - 1, at + 1);
+                                    best[at] = e;
                                 }
                             }
                         }
@@ -432,22 +436,20 @@ fn splat_view(pts: &[V3], k: usize, res: usize, radii: &[f32], out: &mut [f32]) 
     for (&p, &radius) in pts.iter().zip(radii) {
         let r2 = radius * radius;
         let (u, v, z) = project(p, k, res);
-        let (c0, c1) = ((u - radius).ceil().max(0.0), (u + radius).floor().min(last));
         let (r0, r1) = ((v - radius).ceil().max(0.0), (v + radius).floor().min(last));
-        if c0 > c1 || r0 > r1 {
+        if !(r0 <= r1) {
             continue;
         }
         for row in r0 as usize..=r1 as usize {
+            // The disk's span on this row.
             let dv = row as f32 - v;
-            let line = &mut out[row * res..(row + 1) * res];
-            for (col, d) in line
-                .iter_mut()
-                .enumerate()
-                .take(c1 as usize + 1)
-                .skip(c0 as usize)
-            {
-                let du = col as f32 - u;
-                if du * du + dv * dv <= r2 && z < *d {
+            let half = (r2 - dv * dv).max(0.0).sqrt();
+            let (c0, c1) = ((u - half).ceil().max(0.0), (u + half).floor().min(last));
+            if !(c0 <= c1) {
+                continue;
+            }
+            for d in &mut out[row * res + c0 as usize..=row * res + c1 as usize] {
+                if z < *d {
                     *d = z;
                 }
             }
@@ -512,6 +514,81 @@ pub fn point_views_batch(
         })
         .collect::<Result<Vec<f32>>>()?;
     Ok((out, radii))
+}
+
+/// Local contrast normalisation of each `height x width` map of `maps` (row-major, one map after
+/// the other), in place, maps in parallel: with `B` the sum over the `window x window` box
+/// centred on a pixel (zeros outside the map) and `N = B(1)` the pixels it holds,
+/// `v = x - B(x) / N`, `sigma = sqrt(B(v^2) / N)`, `y = v / max(sigma, mean(sigma), eps)`
+/// (Jarrett et al. 2009 with Torch's border correction). Integral images make the cost
+/// independent of the window.
+pub fn local_contrast_normalize(
+    maps: &mut [f32],
+    height: usize,
+    width: usize,
+    window: usize,
+    eps: f64,
+) -> Result<()> {
+    rgbd_error::image_len("maps", width, height)?;
+    let per = height * width;
+    if maps.is_empty() || !maps.len().is_multiple_of(per) {
+        return Err(invalid(
+            "maps",
+            format!("{} values", maps.len()),
+            format!("a non-empty multiple of {height} x {width}"),
+        ));
+    }
+    if window.is_multiple_of(2) {
+        return Err(invalid("window", window, "an odd number of pixels"));
+    }
+    if !(eps > 0.0 && eps.is_finite()) {
+        return Err(invalid("eps", eps, "a finite number > 0"));
+    }
+    if maps.iter().any(|v| !v.is_finite()) {
+        return Err(invalid("maps", "non-finite values", "finite values"));
+    }
+    let h = window / 2;
+    maps.par_chunks_mut(per).try_for_each(|m| -> Result<()> {
+        check_interrupt()?;
+        let (w1, mut integral) = (width + 1, vec![0.0f64; (height + 1) * (width + 1)]);
+        let fill = |m: &[f64], s: &mut [f64]| {
+            for i in 0..height {
+                let mut row = 0.0;
+                for j in 0..width {
+                    row += m[i * width + j];
+                    s[(i + 1) * w1 + j + 1] = s[i * w1 + j + 1] + row;
+                }
+            }
+        };
+        // Box sum and pixel count around (i, j).
+        let boxed = |s: &[f64], i: usize, j: usize| {
+            let (r0, r1) = (i.saturating_sub(h), (i + h + 1).min(height));
+            let (c0, c1) = (j.saturating_sub(h), (j + h + 1).min(width));
+            let sum = s[r1 * w1 + c1] - s[r0 * w1 + c1] - s[r1 * w1 + c0] + s[r0 * w1 + c0];
+            (sum, ((r1 - r0) * (c1 - c0)) as f64)
+        };
+        let x: Vec<f64> = m.iter().map(|&v| f64::from(v)).collect();
+        fill(&x, &mut integral);
+        let v: Vec<f64> = (0..per)
+            .map(|k| {
+                let (sum, n) = boxed(&integral, k / width, k % width);
+                x[k] - sum / n
+            })
+            .collect();
+        let v2: Vec<f64> = v.iter().map(|a| a * a).collect();
+        fill(&v2, &mut integral);
+        let sigma: Vec<f64> = (0..per)
+            .map(|k| {
+                let (sum, n) = boxed(&integral, k / width, k % width);
+                (sum / n).max(0.0).sqrt()
+            })
+            .collect();
+        let floor = (sigma.iter().sum::<f64>() / per as f64).max(eps);
+        for (o, (a, s)) in m.iter_mut().zip(v.iter().zip(&sigma)) {
+            *o = (a / s.max(floor)) as f32;
+        }
+        Ok(())
+    })
 }
 
 #[cfg(test)]
@@ -624,6 +701,20 @@ mod tests {
         // Only pixel centres within rounding of a silhouette edge may differ.
         assert!(differ * 1000 < a.len(), "{differ} of {}", a.len());
         assert!(a.iter().filter(|x| !x.is_nan()).count() * 3 > a.len());
+    }
+
+    #[test]
+    fn lcn_of_a_constant_is_zero_and_of_a_step_is_signed() {
+        let mut m = vec![2.0f32; 2 * 20];
+        local_contrast_normalize(&mut m, 4, 10, 3, 1e-4).unwrap();
+        assert!(m.iter().all(|v| v.abs() < 1e-6));
+        let mut step: Vec<f32> = (0..100)
+            .map(|k| if k % 10 < 5 { 0.0 } else { 1.0 })
+            .collect();
+        local_contrast_normalize(&mut step, 10, 10, 3, 1e-4).unwrap();
+        assert!(step[4] < -0.5 && step[5] > 0.5 && step[0].abs() < 1e-6);
+        assert!(local_contrast_normalize(&mut step, 10, 10, 4, 1e-4).is_err());
+        assert!(local_contrast_normalize(&mut step, 10, 9, 3, 1e-4).is_err());
     }
 
     #[test]
