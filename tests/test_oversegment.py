@@ -200,3 +200,17 @@ def test_independent_of_thread_count(tmp_path: object) -> None:
     assert digests[0] == digests[1]
     here = hashlib.sha256(oversegment(f, 60, n_samples=80).tobytes()).hexdigest()
     assert here == digests[0]
+
+
+def test_accepts_the_features_result() -> None:
+    from rgbd_rs.segmentation.features import features
+
+    cam = PinholeCamera(50.0, 50.0, 15.5, 11.5, 32, 24)
+    rgb = np.zeros((24, 32, 3), np.uint8)
+    rgb[:, 16:] = (200, 40, 40)
+    depth = np.linspace(1.0, 3.0, 32 * 24, dtype=np.float32).reshape(24, 32)
+    feats = features(rgb, depth, cam)
+    a = oversegment(feats, 4, n_samples=40, n_vectors=4)
+    b = oversegment(feats.vectors, 4, n_samples=40, n_vectors=4)
+    np.testing.assert_array_equal(a, b)
+    _no_segment_crosses(a, 16)

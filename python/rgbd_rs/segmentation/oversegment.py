@@ -37,6 +37,7 @@ from tqdm import tqdm
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
+from rgbd_rs.segmentation.features import Features
 
 __all__ = [
     "DEFAULT_FEATURE_WEIGHT",
@@ -86,7 +87,7 @@ def default_channel_weights(n_channels: int) -> F32:
 
 
 def oversegment(
-    features: npt.ArrayLike,
+    features: npt.ArrayLike | Features,
     n_segments: int = DEFAULT_N_SEGMENTS,
     *,
     sigma: float = DEFAULT_SIGMA,
@@ -103,8 +104,10 @@ def oversegment(
     """Over-segment an ``H x W x D`` float32 feature image by Nyström normalized cuts.
 
     Args:
-        features: ``H x W x D`` (D = 9 for eq. 4.1); a pixel with NaN on any channel is excluded.
-            Infinite values are refused.
+        features: ``H x W x D`` (D = 9 for eq. 4.1), or the
+            :class:`~rgbd_rs.segmentation.features.Features` of
+            :func:`~rgbd_rs.segmentation.features.features` (its ``vectors``); a pixel with NaN
+            on any channel is excluded. Infinite values are refused.
         n_segments: k-means clusters (>= 1, at most the valid pixels). The output has about
             this many segments: splitting disconnected clusters adds some, absorbing fragments
             removes some.
@@ -128,6 +131,8 @@ def oversegment(
         ``H x W`` int32 labels ``0..K-1`` (contiguous, in raster order of first pixel), -1
         exactly on the excluded pixels.
     """
+    if isinstance(features, Features):
+        features = features.vectors
     f = _validate.asarray("features", features)
     if f.ndim != 3:
         raise ShapeMismatchError(f"features: got shape {tuple(f.shape)}, expected (H, W, D)")
