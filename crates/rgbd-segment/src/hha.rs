@@ -468,17 +468,110 @@ fn smallest_direction(a: [[f64; 3]; 3], prev: [f64; 3]) -> [f64; 3] {
     [sign * e[0], sign * e[1], sign * e[2]]
 }
 
+/// Normals summed side by side in f32 lanes before each f64 accumulation of the gravity sums.
+const LANES: usize = 4;
+/// Normals per f32 partial sum (then added to the f64 totals).
+const BLOCK: usize = 64 * LANES;
+
+/// `Σ w n nᵀ` (upper triangle: xx, xy, xz, yy, yz, zz) over the normals `(xs, ys, zs)` (a
+/// multiple of [`LANES`] long), with `w = +1` for wall-like (`|n.y| < sin θ`), `-1` for
+/// floor-like (`|n.y| > cos θ`) normals and 0 otherwise. Partial sums of [`BLOCK`] normals are
+/// f32, 4 lanes wide; their totals f64.
+#[cfg(target_arch = "x86_64")]
+fn gravity_sums(
+    xs: &[f32],
+    ys: &[f32],
+    zs: &[f32],
+    y: [f32; 3],
+    cos_t: f32,
+    sin_t: f32,
+) -> [f64; 6] {
+    use std::arch::x86_64::*;
+    assert!(xs.len() == ys.len() && xs.len() == zs.len() && xs.len().is_multiple_of(LANES));
+    let mut total = [0.0f64; 6];
+    // SAFETY: SSE2 is part of the x86_64 baseline; every load reads 4 floats at an index
+    // `i < len` with `len` a multiple of 4 (asserted above), so it stays in bounds.
+    unsafe {
+        let (y0, y1, y2) = (_mm_set1_ps(y[0]), _mm_set1_ps(y[1]), _mm_set1_ps(y[2]));
+        let (cos_v, sin_v, one) = (_mm_set1_ps(cos_t), _mm_set1_ps(sin_t), _mm_set1_ps(1.0));
+        let abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fff_ffff));
+        let mut start = 0;
+        while start < xs.len() {
+            let end = (start + BLOCK).min(xs.len());
+            let mut acc = [_mm_setzero_ps(); 6];
+            let mut i = start;
+            while i < end {
+                let x = _mm_loadu_ps(xs.as_ptr().add(i));
+                let yy = _mm_loadu_ps(ys.as_ptr().add(i));
+                let z = _mm_loadu_ps(zs.as_ptr().add(i));
+                let dot = _mm_add_ps(
+                    _mm_add_ps(_mm_mul_ps(x, y0), _mm_mul_ps(yy, y1)),
+                    _mm_mul_ps(z, y2),
+                );
+                let c = _mm_and_ps(dot, abs_mask);
+                let wall = _mm_and_ps(_mm_cmplt_ps(c, sin_v), one);
+                let floor = _mm_and_ps(_mm_cmpgt_ps(c, cos_v), one);
+                let w = _mm_sub_ps(wall, floor);
+                let (wx, wy, wz) = (_mm_mul_ps(w, x), _mm_mul_ps(w, yy), _mm_mul_ps(w, z));
+                acc[0] = _mm_add_ps(acc[0], _mm_mul_ps(wx, x));
+                acc[1] = _mm_add_ps(acc[1], _mm_mul_ps(wx, yy));
+                acc[2] = _mm_add_ps(acc[2], _mm_mul_ps(wx, z));
+                acc[3] = _mm_add_ps(acc[3], _mm_mul_ps(wy, yy));
+                acc[4] = _mm_add_ps(acc[4], _mm_mul_ps(wy, z));
+                acc[5] = _mm_add_ps(acc[5], _mm_mul_ps(wz, z));
+                i += LANES;
+            }
+            for (t, a) in total.iter_mut().zip(acc) {
+                let mut lanes = [0.0f32; LANES];
+                _mm_storeu_ps(lanes.as_mut_ptr(), a);
+                *t += lanes.iter().map(|&v| f64::from(v)).sum::<f64>();
+            }
+            start = end;
+        }
+    }
+    total
+}
+
+/// Portable version of the x86_64 [`gravity_sums`] (same lanes and blocks, same result).
+#[cfg(not(target_arch = "x86_64"))]
+fn gravity_sums(
+    xs: &[f32],
+    ys: &[f32],
+    zs: &[f32],
+    y: [f32; 3],
+    cos_t: f32,
+    sin_t: f32,
+) -> [f64; 6] {
+    let mut total = [0.0f64; 6];
+    for ((bx, by), bz) in xs.chunks(BLOCK).zip(ys.chunks(BLOCK)).zip(zs.chunks(BLOCK)) {
+        let mut acc = [[0.0f32; LANES]; 6];
+        for i in 0..bx.len() {
+            let (x, yy, z, l) = (bx[i], by[i], bz[i], i % LANES);
+            let c = (x * y[0] + yy * y[1] + z * y[2]).abs();
+            let w = f32::from(u8::from(c < sin_t)) - f32::from(u8::from(c > cos_t));
+            let (wx, wy, wz) = (w * x, w * yy, w * z);
+            acc[0][l] += wx * x;
+            acc[1][l] += wx * yy;
+            acc[2][l] += wx * z;
+            acc[3][l] += wy * yy;
+            acc[4][l] += wy * z;
+            acc[5][l] += wz * z;
+        }
+        for (t, a) in total.iter_mut().zip(acc) {
+            *t += a.iter().map(|&v| f64::from(v)).sum::<f64>();
+        }
+    }
+    total
+}
+
 /// Gravity from a normal field (the reference's `getYDir`): starting from `(0, 1, 0)`, for each
 /// (threshold, iterations) of [`GRAVITY_SCHEDULE`] take the smallest eigenvector of
 /// `Σ_wall n nᵀ − Σ_floor n nᵀ`, where floor normals have `|n.y| > cos θ` and wall normals
 /// `|n.y| < sin θ`.
 fn gravity(normals: &[[f32; 3]]) -> Result<[f64; 3]> {
-    /// Normals per partial sum (a multiple of [`LANES`]); the partial sums are added in order,
+    /// Normals per partial sum (a multiple of [`BLOCK`]); the partial sums are added in order,
     /// so the estimate does not depend on the thread count.
-    const CHUNK: usize = 1 << 12;
-    /// Normals summed side by side in f32 lanes (vectorisable) before each f64 accumulation.
-    const LANES: usize = 8;
-    const BLOCK: usize = 32 * LANES;
+    const CHUNK: usize = 16 * BLOCK;
     // Structure of arrays, padded with zero normals (weight 0, they add nothing).
     let n = normals.len().div_ceil(LANES) * LANES;
     let (mut xs, mut ys, mut zs) = (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
@@ -495,47 +588,7 @@ fn gravity(normals: &[[f32; 3]]) -> Result<[f64; 3]> {
                 .par_chunks(CHUNK)
                 .zip(ys.par_chunks(CHUNK))
                 .zip(zs.par_chunks(CHUNK))
-                .map(|((cx, cy), cz)| {
-                    let mut total = [0.0f64; 6];
-                    for ((bx, by), bz) in
-                        cx.chunks(BLOCK).zip(cy.chunks(BLOCK)).zip(cz.chunks(BLOCK))
-                    {
-                        let mut acc = [[0.0f32; LANES]; 6];
-                        for ((lx, ly), lz) in bx
-                            .chunks_exact(LANES)
-                            .zip(by.chunks_exact(LANES))
-                            .zip(bz.chunks_exact(LANES))
-                        {
-                            let lane = |v: &[f32]| -> [f32; LANES] {
-                                let mut a = [0.0f32; LANES];
-                                a.copy_from_slice(v);
-                                a
-                            };
-                            let (x, yy, z) = (lane(lx), lane(ly), lane(lz));
-                            let mut w = [0.0f32; LANES];
-                            for l in 0..LANES {
-                                let c = (x[l] * yf[0] + yy[l] * yf[1] + z[l] * yf[2]).abs();
-                                // Floor-like -1, wall-like +1, others 0 (branch-free).
-                                let wall = if c < sin_t { 1.0 } else { 0.0 };
-                                let floor = if c > cos_t { 1.0 } else { 0.0 };
-                                w[l] = wall - floor;
-                            }
-                            for l in 0..LANES {
-                                let (wx, wy, wz) = (w[l] * x[l], w[l] * yy[l], w[l] * z[l]);
-                                acc[0][l] += wx * x[l];
-                                acc[1][l] += wx * yy[l];
-                                acc[2][l] += wx * z[l];
-                                acc[3][l] += wy * yy[l];
-                                acc[4][l] += wy * z[l];
-                                acc[5][l] += wz * z[l];
-                            }
-                        }
-                        for k in 0..6 {
-                            total[k] += acc[k].iter().map(|&v| f64::from(v)).sum::<f64>();
-                        }
-                    }
-                    total
-                })
+                .map(|((cx, cy), cz)| gravity_sums(cx, cy, cz, yf, cos_t, sin_t))
                 .collect();
             let mut s = [0.0f64; 6];
             for part in &parts {
