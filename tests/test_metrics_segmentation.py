@@ -127,13 +127,18 @@ def test_boundary_recall_by_hand() -> None:
     assert M.boundary_recall(seg, truth, tolerance=0) == 0.5
     assert M.boundary_recall(seg, truth, tolerance=1) == 1.0
     assert M.boundary_recall(np.zeros_like(seg), truth, tolerance=2) == 0.0
-    # A column of unlabelled truth between the regions: boundaries against it do not count.
+    # A column of unlabelled truth between the regions (as NYUv2's annotators leave them): each
+    # region's outline against it counts, on the labelled side (columns 1 and 3), the
+    # unlabelled column itself does not.
     gap = truth.copy()
+    gap[:, :2] = 1
     gap[:, 2] = 0
     gap[:, 3:] = 2
-    gap[:, :2] = 1
+    assert M.boundary_recall(seg, gap, ignore=0, tolerance=0) == 0.5  # column 3 found
+    assert M.boundary_recall(seg, gap, ignore=0, tolerance=1) == 0.5  # column 1 is 2 px away
+    assert M.boundary_recall(seg, gap, ignore=0, tolerance=2) == 1.0
     with pytest.raises(M.InvalidArgumentError, match="no boundary"):
-        M.boundary_recall(seg, gap, ignore=0)
+        M.boundary_recall(seg, np.ones_like(gap))
     # A pixel without a segment is not compared, even on a GT boundary.
     none = seg.copy()
     none[:, 2] = -1  # column 2 held the GT boundary the segmentation missed at tolerance 0

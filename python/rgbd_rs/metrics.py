@@ -328,16 +328,21 @@ def undersegmentation_error(
     return float(np.minimum(tab.counts, outside).sum() / tab.n)
 
 
-def _boundaries(labels: npt.NDArray[np.int64], valid: npt.NDArray[np.bool_]) -> np.ndarray:
-    """Pixels of ``valid`` with a 4-neighbour in ``valid`` of another label (both sides)."""
+def _boundaries(
+    labels: npt.NDArray[np.int64], valid: npt.NDArray[np.bool_], *, both: bool = True
+) -> np.ndarray:
+    """Pixels of ``valid`` with a 4-neighbour of another label: a neighbour in ``valid`` when
+    ``both``, any neighbour in the image otherwise (the outline of each valid region)."""
     b = np.zeros(labels.shape, bool)
     for a, c, va, vc, ba, bc in (
         (labels[:, :-1], labels[:, 1:], valid[:, :-1], valid[:, 1:], b[:, :-1], b[:, 1:]),
         (labels[:-1, :], labels[1:, :], valid[:-1, :], valid[1:, :], b[:-1, :], b[1:, :]),
     ):
-        edge = (a != c) & va & vc
-        ba |= edge
-        bc |= edge
+        differ = a != c
+        if both:
+            differ &= va & vc
+        ba |= differ & va
+        bc |= differ & vc
     return b
 
 
@@ -353,23 +358,26 @@ def boundary_recall(
     better (1 = every ground-truth boundary found).
 
     A ground-truth boundary pixel is a compared pixel (segmentation >= 0, truth >= 0 and
-    truth != ``ignore``) with a 4-neighbour whose truth is labelled (>= 0, != ``ignore``) and
-    different: boundaries against unlabelled pixels do not count. A segment boundary pixel is a
-    pixel with a 4-neighbour of another segment label (both >= 0), on both sides of the
-    boundary. No ground-truth boundary among the compared pixels raises
+    truth != ``ignore``) with a 4-neighbour of another truth value, labelled or not: the outline
+    of every labelled region, on its labelled side (unlabelled pixels are never boundary pixels
+    themselves, but a region ends where they start: NYUv2's annotators leave unlabelled gaps
+    between objects, so boundaries between two labelled regions alone would miss most object
+    outlines). Likewise a segment boundary pixel is a pixel of a segment (>= 0) with a
+    4-neighbour of another value (another segment, or no segment), on both sides between two
+    segments. No ground-truth boundary among the compared pixels raises
     :class:`~rgbd_rs.InvalidArgumentError`.
     """
     tol = _validate.integer("tolerance", tolerance, maximum=1000)
     s, t, valid = _pair(segmentation, truth, ignore)
     ign = _ignore(ignore)
     labelled = t >= 0 if ign is None else (t >= 0) & (t != ign)
-    gt_edges = _boundaries(t, labelled) & valid
+    gt_edges = _boundaries(t, labelled, both=False) & valid
     if not gt_edges.any():
         raise InvalidArgumentError(
-            "truth: got no boundary between two labelled regions among the compared pixels, "
+            "truth: got no boundary of a labelled region among the compared pixels, "
             "expected at least one"
         )
-    seg_edges = _boundaries(s, s >= 0)
+    seg_edges = _boundaries(s, s >= 0, both=False)
     if tol > 0:
         kernel = np.ones((2 * tol + 1, 2 * tol + 1), np.uint8)
         seg_edges = cv2.dilate(seg_edges.astype(np.uint8), kernel) > 0

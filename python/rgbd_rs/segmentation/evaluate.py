@@ -463,11 +463,20 @@ def _count(labels: Labels) -> int:
     return int(np.unique(labels[labels >= 0]).size)
 
 
+def _recall(labels: Labels, gt: npt.NDArray[np.int32]) -> float:
+    """Boundary recall, NaN on a frame without any ground-truth boundary to find (left out of
+    the mean)."""
+    try:
+        return metrics.boundary_recall(labels, gt, tolerance=BOUNDARY_TOLERANCE)
+    except InvalidArgumentError:
+        return float("nan")
+
+
 def _scores(labels: Labels, gt: npt.NDArray[np.int32]) -> tuple[float, float, float, float]:
     return (
         metrics.variation_of_information(labels, gt),
         metrics.rand_index(labels, gt),
-        metrics.boundary_recall(labels, gt, tolerance=BOUNDARY_TOLERANCE),
+        _recall(labels, gt),
         metrics.undersegmentation_error(labels, gt),
     )
 
@@ -566,9 +575,11 @@ def evaluate(
         default=None,
     )
 
-    per = np.zeros((len(usable), 6))
-    match = np.zeros(4)
-    for index in tqdm(eval_ids, desc="evaluating", unit="frame", disable=True if quiet else None):
+    per = np.zeros((len(eval_ids), len(usable), 6))
+    match = np.zeros((len(eval_ids), 4))
+    for k, index in enumerate(
+        tqdm(eval_ids, desc="evaluating", unit="frame", disable=True if quiet else None)
+    ):
         frame = load_nyuv2_frame(index)
         gt = region_ground_truth(frame.label40)
         results: dict[str, Labels] = {}
@@ -577,17 +588,17 @@ def evaluate(
             labels = run(frame.rgb, frame.depth, NYUV2_CAMERA)
             seconds = time.perf_counter() - t0
             results[m.name] = labels
-            per[i] += (*_scores(labels, gt), _count(labels), seconds)
+            per[k, i] = (*_scores(labels, gt), _count(labels), seconds)
         if count_run is not None:
             ours = _LAST_OVER.get(frame.rgb, frame.depth, COUNT_MATCH_SEGMENTS)
             if ours is None:
                 ours = count_run(frame.rgb, frame.depth, NYUV2_CAMERA)
             theirs = _slic_at(frame.rgb, _count(ours))
-            match += (
+            match[k] = (
                 _count(ours),
                 _count(theirs),
-                metrics.boundary_recall(ours, gt, tolerance=BOUNDARY_TOLERANCE),
-                metrics.boundary_recall(theirs, gt, tolerance=BOUNDARY_TOLERANCE),
+                _recall(ours, gt),
+                _recall(theirs, gt),
             )
             # The figure shows the over-segmentation the merging starts from (~300 segments).
             results[OURS_OVER] = ours
@@ -595,7 +606,10 @@ def evaluate(
             peer = None if best_peer is None else usable[best_peer].name
             frame_figure(folder / f"{frame.name}.png", frame, gt, results, peer)
 
-    means = per / len(eval_ids)
+    with warnings.catch_warnings():  # a column all NaN stays NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        means = np.nanmean(per, axis=0)
+        match_means = np.nanmean(match, axis=0)
     scores = tuple(
         MethodScore(
             name=m.name,
@@ -610,7 +624,5 @@ def evaluate(
         )
         for i, (m, (p, v)) in enumerate(zip(usable, tuned, strict=True))
     )
-    count_match = (
-        None if count_run is None else CountMatch(*(float(v) for v in match / len(eval_ids)))
-    )
+    count_match = None if count_run is None else CountMatch(*(float(v) for v in match_means))
     return EvaluationReport(tuple(eval_ids), tuple(tune_ids), scores, count_match, missing)
