@@ -190,7 +190,7 @@ mod tests {
     #[test]
     fn small_islands_are_absorbed_by_the_longest_boundary() {
         // 6x4: left half 0, right half 1, a 1-pixel island of 2 inside the right half and a
-        // 2-pixel island of 3 straddling the middle (3 pixel pairs with 0's side... see below).
+        // 1-pixel island of 3 inside the left half.
         #[rustfmt::skip]
         let labels = [
             0, 0, 0, 1, 1, 1,

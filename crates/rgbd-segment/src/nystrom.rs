@@ -28,10 +28,13 @@
 //! `f32` blocks of [`BLOCK_ROWS`] rows with rayon; reductions are summed per fixed block in `f64`
 //! and the block sums added in block order, so the result does not depend on the thread count.
 //!
-//! **Over-segmentation** ([`oversegment`]): k-means (seeded k-means++,
-//! [`crate::kmeans`]) on the embedding plus the pixel position, then every cluster is split into
-//! its 4-connected components and components smaller than `min_size` pixels are absorbed by the
-//! neighbour they share the longest boundary with.
+//! **Over-segmentation** ([`oversegment`]): k-means (seeded k-means++, [`crate::kmeans`]) on
+//! `[embedding, feature_weight · features, spatial_weight · position / grid step]`, then every
+//! cluster is split into its 4-connected components and components smaller than `min_size`
+//! pixels are absorbed by the neighbour they share the longest boundary with. The embedding
+//! alone is too smooth for an over-segmentation (on NYUv2 its k-means boundaries find ~0.5 of
+//! the ground-truth boundaries against SLIC's ~0.72 at the same count); the features put the
+//! sharp edges back, the embedding adds the grouping normalized cuts sees.
 
 #[path = "fragments.rs"]
 mod fragments;
@@ -518,9 +521,9 @@ impl OversegParams {
 
 /// Over-segments an `h x w x dim` feature image (row-major; a pixel with any non-finite channel
 /// is excluded and labelled -1): Nyström normalized-cuts embedding, seeded k-means on the
-/// embedding (scaled to unit mean variance) plus the pixel position (in grid steps
-/// `sqrt(n_valid / n_segments)`, times `spatial_weight`), 4-connected split and absorption of
-/// components below `min_size`. Returns the `h x w` labels (`0..count`, contiguous, in raster
+/// embedding (scaled to unit mean variance), the features times `feature_weight` and the pixel
+/// position (in grid steps `sqrt(n_valid / n_segments)`, times `spatial_weight`), 4-connected
+/// split and absorption of components below `min_size`. Returns the `h x w` labels (`0..count`, contiguous, in raster
 /// order of first appearance) and `count`.
 pub fn oversegment(
     features: &[f32],
