@@ -169,17 +169,40 @@ fn inverse_depth(depth: &[f32], raw: Option<&[f32]>) -> Vec<f64> {
     }
 }
 
-/// Adds `sign` times the moments of row `y` to `acc` (`W` entries); `iz` is [`inverse_depth`].
+/// Adds the moments of row `enter` and subtracts those of row `leave` (either may be absent)
+/// in one pass over `acc` (`W` entries); `iz` is [`inverse_depth`].
 #[inline]
-fn add_row_moments(acc: &mut [[f64; M]], sign: f64, y: usize, iz: &[f64], rays: &Rays) {
+fn slide_row_moments(
+    acc: &mut [[f64; M]],
+    enter: Option<usize>,
+    leave: Option<usize>,
+    iz: &[f64],
+    rays: &Rays,
+    zeros: &[f64],
+) {
     let width = acc.len();
-    let b = rays.b[y];
-    let (bb, row) = (b * b, &iz[y * width..][..width]);
-    for ((v, &q), &a) in acc.iter_mut().zip(row).zip(&rays.a) {
+    let row = |y: Option<usize>| match y {
+        Some(y) => (rays.b[y], &iz[y * width..][..width]),
+        None => (0.0, zeros),
+    };
+    let ((b_in, q_in), (b_out, q_out)) = (row(enter), row(leave));
+    for (((v, &qi), &qo), &a) in acc.iter_mut().zip(q_in).zip(q_out).zip(&rays.a) {
         // Branch-free: a pixel that does not take part adds zeros.
-        let w = if q > 0.0 { sign } else { 0.0 };
-        let (wa, sq) = (w * a, sign * q);
-        let m = [wa * a, wa * b, wa, w * bb, w * b, w, sq * a, sq * b, sq];
+        let wi = if qi > 0.0 { 1.0 } else { 0.0 };
+        let wo = if qo > 0.0 { 1.0 } else { 0.0 };
+        let (dw, wb) = (wi - wo, wi * b_in - wo * b_out);
+        let (dq, qb) = (qi - qo, qi * b_in - qo * b_out);
+        let m = [
+            dw * a * a,
+            wb * a,
+            dw * a,
+            wi * b_in * b_in - wo * b_out * b_out,
+            wb,
+            dw,
+            dq * a,
+            qb,
+            dq,
+        ];
         for k in 0..M {
             v[k] += m[k];
         }
@@ -273,18 +296,16 @@ impl<'a> Support<'a> {
         let (width, height, rays) = (self.width, self.height, &self.rays);
         let y_start = band * BAND;
         let mut col = vec![[0.0f64; M]; width];
+        let zeros = vec![0.0f64; width];
         for yy in y_start.saturating_sub(r)..(y_start + r).min(height) {
-            add_row_moments(&mut col, 1.0, yy, &self.iz, rays);
+            slide_row_moments(&mut col, Some(yy), None, &self.iz, rays, &zeros);
         }
         for y in y_start..(y_start + BAND).min(height) {
             check_interrupt()?;
             // Enter row y + r, leave row y - r - 1.
-            if y + r < height {
-                add_row_moments(&mut col, 1.0, y + r, &self.iz, rays);
-            }
-            if y > y_start && y > r {
-                add_row_moments(&mut col, -1.0, y - r - 1, &self.iz, rays);
-            }
+            let enter = (y + r < height).then_some(y + r);
+            let leave = (y > y_start && y > r).then(|| y - r - 1);
+            slide_row_moments(&mut col, enter, leave, &self.iz, rays, &zeros);
             let mut s = [0.0f64; M];
             for c in &col[..r.min(width)] {
                 for k in 0..M {
@@ -685,11 +706,16 @@ pub fn hha(
         .par_chunks(width)
         .enumerate()
         .map(|(y, row)| {
-            row.iter()
-                .enumerate()
-                .filter(|&(_, &z)| is_valid(z))
-                .map(|(x, &z)| height_of(x, y, z))
-                .fold(f64::INFINITY, f64::min)
+            let mut m = f64::INFINITY;
+            for (x, &z) in row.iter().enumerate() {
+                if is_valid(z) {
+                    let h = height_of(x, y, z);
+                    if h < m {
+                        m = h;
+                    }
+                }
+            }
+            m
         })
         .reduce(|| f64::INFINITY, f64::min);
     let floor_cm = if lowest > FLOOR_TRIGGER_CM {
@@ -908,7 +934,7 @@ mod tests {
         let mut s = [0.0f64; M];
         for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
             let mut row = vec![[0.0f64; M]; w];
-            add_row_moments(&mut row, 1.0, yy, &iz, &rays);
+            slide_row_moments(&mut row, Some(yy), None, &iz, &rays, &vec![0.0; w]);
             for c in &row[x.saturating_sub(r)..(x + r + 1).min(w)] {
                 for k in 0..M {
                     s[k] += c[k];
