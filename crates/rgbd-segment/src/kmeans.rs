@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use rgbd_error::{check_interrupt, check_len, invalid, Result};
 
 /// Default number of rows the centres are fitted on (the rest are only assigned).
-pub const DEFAULT_FIT_POINTS: usize = 20_000;
+pub const DEFAULT_FIT_POINTS: usize = 50_000;
 /// Default cap on Lloyd iterations over the fitting rows.
 pub const DEFAULT_MAX_ITER: usize = 20;
 

@@ -50,9 +50,9 @@ pub use fragments::split_and_absorb;
 /// Affinity width σ of `exp(-‖p_i − p_j‖²/σ²)`: the thesis' normalized-cuts parameter (§4.4).
 pub const DEFAULT_SIGMA: f32 = 3.0;
 /// Default number of Nyström samples `m` (METHOD_NOTES §6: not given by the thesis).
-pub const DEFAULT_SAMPLES: usize = 200;
+pub const DEFAULT_SAMPLES: usize = 100;
 /// Default number of eigenvectors in the embedding (after the trivial first one).
-pub const DEFAULT_VECTORS: usize = 16;
+pub const DEFAULT_VECTORS: usize = 8;
 /// Default number of k-means clusters. The issue compares over-segmentations at ~300 segments;
 /// splitting disconnected clusters adds about a third on NYUv2 frames (net of the absorbed
 /// fragments), so 230 clusters give ~300 segments there.
