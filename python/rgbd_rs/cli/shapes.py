@@ -309,7 +309,11 @@ def _eval(commands: Commands) -> None:
     )
     group = p.add_mutually_exclusive_group()
     group.add_argument(
-        "--checkpoint", type=Path, nargs="+", metavar="FILE", help="checkpoint file(s)"
+        "--checkpoint",
+        type=Path,
+        nargs="+",
+        metavar="FILE",
+        help="checkpoint file(s) (default: the shipped weights of the cache's dataset)",
     )
     group.add_argument(
         "--ablation", type=Path, metavar="DIR", help="folder of `rgbd train shapes --ablation`"
@@ -343,9 +347,12 @@ def run_eval(args: argparse.Namespace) -> int:
     else:
         from rgbd_rs.shapes.classify import shipped_weights
 
-        checkpoints = list(shipped_weights().values())
-        if not checkpoints:
-            raise RgbdError("--checkpoint: none given and no shipped weights in this installation")
+        dataset = f"modelnet{len(cache.classes)}"
+        if dataset not in shipped_weights():
+            raise RgbdError(
+                f"--checkpoint: none given and no shipped {dataset} weights in this installation"
+            )
+        checkpoints = [shipped_weights()[dataset]]
     results: list[ShapeEvaluation] = []
     for ck in checkpoints:
 
