@@ -117,7 +117,7 @@ def oversegment(
         seed: seeds the sample draw and k-means (>= 0).
         min_size: components smaller than this (pixels) are absorbed by their longest-boundary
             neighbour; default ``max(1, round(MIN_SIZE_FRACTION * n_valid / n_segments))``
-            (~100 px for 300 segments on a full 640x480 frame). 1 disables the absorption.
+            (134 px with the defaults on a full 640x480 frame). 1 disables the absorption.
         spatial_weight: weight of the pixel position in k-means (>= 0).
         feature_weight: weight of the input features themselves in k-means (>= 0; 0 = the
             spectral embedding alone).
