@@ -34,7 +34,7 @@ def cloud(w: int, h: int) -> np.ndarray:
 def run_one() -> list[dict[str, object]]:
     from scipy.interpolate import LSQBivariateSpline
 
-    from rgbd_rs.surface import SegmentFits, fit_grid, fit_mask
+    from rgbd_rs.surface import DEFAULT_TEST_WINDOW, SegmentFits, fit_grid, fit_mask
 
     rows: list[dict[str, object]] = []
     w, h = 640, 480
@@ -92,6 +92,19 @@ def run_one() -> list[dict[str, object]]:
     fits = SegmentFits(pts, pair, spacing=16.0)
     ours = timeit(lambda: fits.union_error(0, 1), repeats=201)
     rows.append({"case": "union_error (seam), two 5k-pixel segments", "ours": ours, "scipy": None})
+    # The seam test's union with a large segment: exact union fit vs the local one (default).
+    big = np.full((h, w), -1, np.int32)
+    big[40:440, 100:500] = 0  # 160k pixels
+    big[200:240, 500:540] = 1  # 1.6k pixels beside it
+    halves = np.full((h, w), -1, np.int32)
+    halves[40:440, 100:300] = 0  # 80k pixels
+    halves[40:440, 300:500] = 1  # 80k pixels, a 400-pixel seam
+    for name, lab in (("160k + 1.6k-pixel segments", big), ("two 80k-pixel halves", halves)):
+        for win, how in ((None, "exact"), (DEFAULT_TEST_WINDOW, "local")):
+            fits = SegmentFits(pts, lab, surfaces=False, test_window=win)
+            ours = timeit(lambda fits=fits: fits.union_error(0, 1), repeats=51)
+            case = f"seam union_error, {name}, {how}"
+            rows.append({"case": case, "ours": ours, "scipy": None})
     # A 320x320 depth view with curvature maps (shape pipeline), 16 and 8-pixel spacing.
     view = cloud(320, 320)
     vv, uu = np.mgrid[0:320, 0:320]

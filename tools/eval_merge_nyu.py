@@ -12,13 +12,18 @@ tolerance; the default marked). Then harder checks for the default seam test:
   that do not meet, which the seam test never merges);
 * wall vs every adjacent region of a geometrically different class (floor, ceiling, bed, chair,
   sofa, table, furniture; touching the wall, >= 2000 pixels): should not merge;
-* the default with the noise scale off by a factor (another sensor with the Kinect model).
+* the default with the noise scale off by a factor (another sensor with the Kinect model);
+* the seam test's local union fit (``test_window``, the default) against the exact one
+  (``test_window=None``): decisions on all the pairs above and the union test's cost.
 
-    python tools/eval_merge_nyu.py
+    python tools/eval_merge_nyu.py            # everything
+    python tools/eval_merge_nyu.py --window   # the local-vs-exact table only
 """
 
 from __future__ import annotations
 
+import sys
+import time
 from dataclasses import dataclass
 
 import cv2
@@ -28,6 +33,7 @@ from rgbd_rs import PinholeCamera
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.surface import (
     DEFAULT_TEST_SPACING,
+    DEFAULT_TEST_WINDOW,
     DEFAULT_TOLERANCE,
     KINECT_V1_NOISE_SCALE,
     SegmentFits,
@@ -118,6 +124,13 @@ def main() -> None:
     frames = cases()
     n = len(frames)
     print(f"{n} NYUv2 frames with a wall and a floor region\n")
+    if "--window" not in sys.argv[1:]:
+        tables(frames)
+    window_table(frames)
+
+
+def tables(frames: list[Frame]) -> None:
+    n = len(frames)
     print("| criterion | spacing | test spacing | tolerance | wall halves merged ", end="")
     print("| wall/floor kept apart |")
     print("|---|---|---|---|---|---|")
@@ -161,6 +174,67 @@ def main() -> None:
     for factor in (0.25, 0.5, 1.0, 2.0, 4.0):
         same, apart = decide(frames, noise_scale=KINECT_V1_NOISE_SCALE * factor)
         print(f"| {factor:g} x Kinect v1 | {same}/{n} | {apart}/{n} |")
+
+
+def window_table(frames: list[Frame]) -> None:
+    n = len(frames)
+    print("\nLocal union fit (test_window = control points freed around the contested ones) vs")
+    print("the exact union fit (None), default seam test otherwise:\n")
+    windows: list[int | None] = [None, 0, 1, 2, 3]
+    print(
+        "| test window | wall halves merged | wall/floor kept apart | halves (rows) merged ", end=""
+    )
+    print("| wall vs other kept apart | decisions unlike exact ", end="")
+    print("| max relative change of the union's χ² ", end="")
+    print("| ms per union test |")
+    print("|---|---|---|---|---|---|---|---|")
+    ref: list[tuple[bool, float]] = []
+    for w in windows:
+        same, apart, rows, kept, pairs, elapsed = 0, 0, 0, 0, 0, 0.0
+        out: list[tuple[bool, float]] = []
+        for fr in frames:
+            tests = [(fr.labels, 0, 1), (fr.labels, 0, 2), (fr.labels, 1, 2), (fr.rows, 0, 1)]
+            tests += [(fr.adjacent, 0, k) for k in range(1, int(fr.adjacent.max()) + 1)]
+            made: dict[int, SegmentFits] = {}
+            for lab, i, j in tests:
+                if id(lab) not in made:
+                    made[id(lab)] = SegmentFits(fr.points, lab, test_window=w)
+                s = made[id(lab)]
+                t0 = time.perf_counter()
+                e = s.union_error(i, j)
+                elapsed += time.perf_counter() - t0
+                m = s.should_merge(i, j)
+                seam = s.seam(i, j)
+                # The union's χ² (noise variances), relative changes below.
+                chi = e * (s.size(i) + s.size(j)) + DEFAULT_TOLERANCE * seam
+                out.append((m, chi))
+                if lab is fr.adjacent:
+                    if seam > 0:
+                        pairs += 1
+                        kept += not m
+                elif lab is fr.rows:
+                    rows += m
+                elif j == 1:
+                    same += m
+            apart += not (out[-len(tests) + 1][0] or out[-len(tests) + 2][0])
+        if w is None:
+            ref = out
+        differ = sum(a[0] != b[0] for a, b in zip(out, ref, strict=True))
+        worst = max(
+            (
+                abs(a[1] - b[1]) / max(abs(b[1]), 1.0)
+                for a, b in zip(out, ref, strict=True)
+                if np.isfinite(b[1])
+            ),
+            default=0.0,
+        )
+        name = "None (exact)" if w is None else str(w)
+        if w == DEFAULT_TEST_WINDOW:
+            name = f"**{w} (default)**"
+        print(
+            f"| {name} | {same}/{n} | {apart}/{n} | {rows}/{n} | {kept}/{pairs} | {differ}/", end=""
+        )
+        print(f"{len(out)} | {worst:.2g} | {elapsed * 1e3 / len(out):.3f} |")
 
 
 if __name__ == "__main__":

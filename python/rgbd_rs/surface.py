@@ -54,6 +54,9 @@ KINECT_V1_NOISE_SCALE: float = _SEAM[1]
 KINECT_V1_NOISE_POWER: float = _SEAM[2]
 #: Allowed extra squared misfit per seam pixel, in noise variances.
 DEFAULT_TOLERANCE: float = _SEAM[3]
+#: Window of the seam test's local union fit (control points around the ones both parts hold
+#: that move; the others stay at the parts' fits). ``None`` would solve the whole union.
+DEFAULT_TEST_WINDOW: int | None = _SEAM[4]
 
 
 def _label(name: str, value: object) -> int:
@@ -198,6 +201,12 @@ class SegmentFits:
       ``noise_scale`` (``sigma_z = noise_scale · z**noise_power``; default Kinect v1, metres).
       Scaling a scene's depth by ``k`` and ``noise_scale`` by ``k**(1 - noise_power)`` gives the
       same decisions.
+      ``test_window`` (default :data:`DEFAULT_TEST_WINDOW`) makes the union fit local: only the
+      control points within ``test_window`` points of those both parts' supports hold move, the
+      others stay at the parts' fits, so a union test costs the same whatever the segments'
+      sizes (the union's χ² is then an upper bound of the exact one: slightly conservative);
+      ``test_window=None`` solves the whole union (exact, cost grows with the larger segment).
+      :meth:`merge` always stores the exact fit of the merged segment.
       ``surfaces=False`` builds the seam test alone, without the surface fits of the points
       (about a third of the cost): :meth:`mse` and :meth:`maps` then raise, and :meth:`size`
       counts the pixels with a valid depth.
@@ -230,6 +239,7 @@ class SegmentFits:
         noise_power: float = KINECT_V1_NOISE_POWER,
         tolerance: float = DEFAULT_TOLERANCE,
         surfaces: bool = True,
+        test_window: int | None = DEFAULT_TEST_WINDOW,
     ) -> None:
         p = _validate.array("points", points, shape=(None, None, 3))
         raw = np.asarray(labels)
@@ -255,7 +265,14 @@ class SegmentFits:
             raise InvalidArgumentError(
                 f"surfaces: got False with criterion {crit!r}, expected criterion 'seam'"
             )
-        self._native = _rgbd_rs.SegmentFits(p, lab32, s, d, lam_, crit, ts, ns, npow, tol, surfaces)
+        win = (
+            None
+            if test_window is None
+            else _validate.integer("test_window", test_window, maximum=2**31 - 1)
+        )
+        self._native = _rgbd_rs.SegmentFits(
+            p, lab32, s, d, lam_, crit, ts, ns, npow, tol, surfaces, win
+        )
         self.shape: tuple[int, int] = (p.shape[0], p.shape[1])
 
     @property

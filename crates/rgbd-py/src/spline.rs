@@ -142,6 +142,7 @@ impl PySegmentFits {
     #[pyo3(signature = (
         points, labels, spacing, degree, lam, criterion,
         test_spacing, noise_scale, noise_power, tolerance, surfaces,
+        test_window = Some(rgbd_spline::seam::DEFAULT_WINDOW),
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -157,6 +158,7 @@ impl PySegmentFits {
         noise_power: f64,
         tolerance: f64,
         surfaces: bool,
+        test_window: Option<usize>,
     ) -> PyResult<Self> {
         let (h, w) = points_shape(&points)?;
         same_size("labels", labels.shape(), h, w)?;
@@ -177,6 +179,7 @@ impl PySegmentFits {
                 power: noise_power,
             },
             tolerance,
+            window: test_window,
         };
         if !surfaces && criterion != Criterion::Seam {
             return Err(InvalidArgumentError::new_err(format!(
@@ -202,11 +205,17 @@ impl PySegmentFits {
     }
 
     /// Defaults of the seam test, defined once in rgbd-spline:
-    /// `(test_spacing, noise_scale, noise_power, tolerance)`.
+    /// `(test_spacing, noise_scale, noise_power, tolerance, test_window)`.
     #[staticmethod]
-    fn seam_defaults() -> (f64, f64, f64, f64) {
+    fn seam_defaults() -> (f64, f64, f64, f64, Option<usize>) {
         let t = SeamTest::default();
-        (t.spacing, t.noise.scale, t.noise.power, t.tolerance)
+        (
+            t.spacing,
+            t.noise.scale,
+            t.noise.power,
+            t.tolerance,
+            t.window,
+        )
     }
 
     /// Number of labels (merged ones included).

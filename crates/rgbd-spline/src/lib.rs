@@ -9,6 +9,7 @@ pub mod basis;
 pub mod curvature;
 pub mod fit;
 pub mod grid;
+pub mod local;
 pub mod maps;
 pub mod normal;
 pub mod seam;

@@ -93,6 +93,10 @@ impl Default for NoiseModel {
     }
 }
 
+/// Default window of the local union fit ([`SeamTest::window`]): the union's control points
+/// within this many points of the contested ones move, the others stay at the parts' fits.
+pub const DEFAULT_WINDOW: usize = 2;
+
 /// Parameters of the seam test ([`crate::Criterion::Seam`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SeamTest {
@@ -102,6 +106,12 @@ pub struct SeamTest {
     pub noise: NoiseModel,
     /// Allowed extra squared misfit per seam pixel, in noise variances.
     pub tolerance: f64,
+    /// Union fit of the test: `Some(r)` frees only the control points within `r` (Chebyshev,
+    /// in control points) of those both parts' supports hold and keeps the others at the parts'
+    /// fits ([`crate::local`]: cost independent of the segments' sizes, `χ²` of the union an
+    /// upper bound of the exact one); `None` solves the whole union (exact, cost grows with the
+    /// larger segment's cell box).
+    pub window: Option<usize>,
 }
 
 impl Default for SeamTest {
@@ -110,6 +120,7 @@ impl Default for SeamTest {
             spacing: DEFAULT_TEST_SPACING,
             noise: NoiseModel::KINECT_V1,
             tolerance: DEFAULT_TOLERANCE,
+            window: Some(DEFAULT_WINDOW),
         }
     }
 }

@@ -5,6 +5,7 @@ use rayon::prelude::*;
 
 use crate::fit::{solve, Fit};
 use crate::grid::{check_grid, check_pixels, check_values, valid_mean, KnotGrid};
+use crate::local::{box_union, cell_box, local_union_delta, CellBox};
 use crate::maps::{surface_maps, SurfaceMaps};
 use crate::normal::{accumulate, Normal, Region};
 use crate::seam::{seam_pixels, SeamTest};
@@ -41,6 +42,8 @@ struct TestFits {
     offset: Vec<f64>,
     normals: Vec<Normal>,
     fits: Vec<Result<Fit, RgbdError>>,
+    /// Cell box of each slot's test cells (`None`: no cell).
+    boxes: Vec<Option<CellBox>>,
 }
 
 /// Fits of every segment of a label image, with cheap unions and merges.
@@ -335,7 +338,50 @@ impl SegmentFits {
     /// Pixels of the union of live segments `i` and `j` whose test fit the union couples (the
     /// seam of [`Criterion::Seam`]; 0 under the other criteria).
     pub fn seam(&self, i: usize, j: usize) -> Result<usize, RgbdError> {
-        Ok(self.test_union(i, j)?.map_or(0, |(_, _, s)| s))
+        let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
+        if i == j {
+            return Err(invalid("j", j, "a segment other than i"));
+        }
+        Ok(self
+            .test
+            .as_ref()
+            .map_or(0, |t| seam_pixels(&t.normals[si], &t.normals[sj], &t.grid)))
+    }
+
+    /// The seam test's `(χ²(S_i ∪ S_j), |seam|)` for live segments `i`, `j`, with the union fit
+    /// chosen by [`SeamTest::window`] (local: the parts' χ² plus the local `Δχ²`; `None` when
+    /// the local fit does not apply, e.g. a part without a fit). `None` without a seam test.
+    fn test_chi2(&self, i: usize, j: usize) -> Result<Option<(f64, usize)>, RgbdError> {
+        let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
+        if i == j {
+            return Err(invalid("j", j, "a segment other than i"));
+        }
+        let Some(t) = &self.test else { return Ok(None) };
+        let (a, b) = (&t.normals[si], &t.normals[sj]);
+        let (Some(ba), Some(bb)) = (t.boxes[si], t.boxes[sj]) else {
+            return Ok(Some((f64::NAN, 0)));
+        };
+        if let (Some(r), Ok(fa), Ok(fb)) = (t.spec.window, &t.fits[si], &t.fits[sj]) {
+            let local = local_union_delta(
+                [(a, fa), (b, fb)],
+                [ba, bb],
+                &t.grid,
+                self.lambda,
+                t.offset[0],
+                r,
+            )?;
+            return Ok(Some(match local {
+                Some((delta, seam)) => (fa.sse + fb.sse + delta, seam),
+                None => (f64::NAN, 0),
+            }));
+        }
+        let seam = seam_pixels(a, b, &t.grid);
+        if seam == 0 {
+            return Ok(Some((f64::NAN, 0)));
+        }
+        let u = a.union(b);
+        let fit = solve(&u, &t.grid, self.lambda, &t.offset, false)?;
+        Ok(Some((fit.sse, seam)))
     }
 
     /// The normal equations of the union of live segments `i` and `j`, and their fit.
@@ -362,13 +408,13 @@ impl SegmentFits {
     /// [`Criterion::Seam`]: `(χ²_ij - tolerance·|seam|) / (|S_i| + |S_j|)`, so eq. 4.8 is the
     /// seam test; infinite (never merged) when the segments have no seam.
     pub fn union_error(&self, i: usize, j: usize) -> Result<f64, RgbdError> {
-        match (self.test_union(i, j)?, &self.test) {
+        match (self.test_chi2(i, j)?, &self.test) {
             // No seam: the parts do not meet, nothing says they are one surface (and the χ² of
             // the union equals the parts' up to rounding, which must not decide).
-            (Some((_, _, 0)), Some(_)) => Ok(f64::INFINITY),
-            (Some((_, fit, seam)), Some(t)) => {
+            (Some((_, 0)), Some(_)) => Ok(f64::INFINITY),
+            (Some((chi2, seam)), Some(t)) => {
                 let n = (self.size(i)? + self.size(j)?) as f64;
-                Ok((fit.sse - t.spec.tolerance * seam as f64) / n)
+                Ok((chi2 - t.spec.tolerance * seam as f64) / n)
             }
             _ => Ok(self.error_of(&self.union_fit(i, j)?.1)),
         }
@@ -400,6 +446,11 @@ impl SegmentFits {
             t.normals[sj] = Normal::empty(k, 1);
             t.fits[si] = Ok(tfit);
             t.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
+            t.boxes[si] = match (t.boxes[si], t.boxes[sj]) {
+                (Some(x), Some(y)) => Some(box_union(x, y)),
+                (x, y) => x.or(y),
+            };
+            t.boxes[sj] = None;
         }
         if let Some((union, fit)) = surface {
             if self.test.is_none() {
@@ -519,12 +570,17 @@ impl TestFits {
             .par_iter()
             .map(|n| solve(n, &grid, lambda, &offset, false))
             .collect();
+        let boxes = normals
+            .iter()
+            .map(|n| (!n.cells.is_empty()).then(|| cell_box(n, &grid)))
+            .collect();
         Ok(Self {
             spec: *spec,
             grid,
             offset,
             normals,
             fits,
+            boxes,
         })
     }
 }

@@ -326,9 +326,14 @@ fn seam_numbers_are_eq_4_8() {
     let labels: Vec<i32> = (0..W * H)
         .map(|i| ((i % W) / 20 + (i / W) / 25) as i32 % 3)
         .collect();
-    let mut s = seam_fits(&pts, &labels, &small_test());
+    // The exact union fit: its χ² is the merged segment's (the local one is checked below).
+    let exact = SeamTest {
+        window: None,
+        ..small_test()
+    };
+    let mut s = seam_fits(&pts, &labels, &exact);
     assert_eq!(s.criterion, Criterion::Seam);
-    assert_eq!(s.seam_test(), Some(&small_test()));
+    assert_eq!(s.seam_test(), Some(&exact));
     let (n0, n2) = (s.size(0).unwrap() as f64, s.size(2).unwrap() as f64);
     let (e0, e2) = (s.fit_error(0).unwrap(), s.fit_error(2).unwrap());
     let eu = s.union_error(0, 2).unwrap();
@@ -489,4 +494,106 @@ fn test_only_decides_as_the_full_fits() {
     assert_eq!(only.fit_error(1), full.fit_error(1));
     assert!(only.fit(1).is_err() && full.fit(1).is_ok());
     assert!(only.maps(&pts).is_err());
+}
+
+/// Labels of blocks `bw x bh` pixels (row-major block ids).
+fn blocks(bw: usize, bh: usize) -> Vec<i32> {
+    (0..W * H)
+        .map(|i| ((i % W) / bw + (W / bw) * ((i / W) / bh)) as i32)
+        .collect()
+}
+
+#[test]
+fn local_union_fit_with_a_covering_window_is_the_exact_one() {
+    let pts = kinect_cloud(
+        |u, v| 2.5 + 0.02 * (u - 48.0).abs() + 0.1 * (v / 20.0).sin(),
+        KINECT_V1_NOISE,
+        5,
+    );
+    let labels = blocks(24, 32);
+    let exact = SeamTest {
+        window: None,
+        ..small_test()
+    };
+    let whole = SeamTest {
+        window: Some(1000),
+        ..small_test()
+    };
+    let (mut e, mut l) = (
+        seam_fits(&pts, &labels, &exact),
+        seam_fits(&pts, &labels, &whole),
+    );
+    let check = |e: &SegmentFits, l: &SegmentFits, live: &[usize]| {
+        for &i in live {
+            for &j in live {
+                if i == j {
+                    continue;
+                }
+                let n = (e.size(i).unwrap() + e.size(j).unwrap()) as f64;
+                let (ue, ul) = (e.union_error(i, j).unwrap(), l.union_error(i, j).unwrap());
+                let chi = e.fit_error(i).unwrap() * n;
+                assert!(
+                    ue == ul || (ue - ul).abs() * n <= 1e-7 * chi.max(1.0),
+                    "{i}-{j}: exact {ue}, local {ul}"
+                );
+                assert_eq!(e.seam(i, j), l.seam(i, j));
+                assert_eq!(e.should_merge(i, j), l.should_merge(i, j));
+            }
+        }
+    };
+    check(&e, &l, &(0..8).collect::<Vec<_>>());
+    // A merge stores the exact fit whatever the window: identical afterwards.
+    assert_eq!(e.merge(1, 2), l.merge(1, 2));
+    assert_eq!(e.merge(5, 1), l.merge(5, 1));
+    assert_eq!(e.fit_error(5), l.fit_error(5));
+    check(&e, &l, &[0, 3, 4, 5, 6, 7]);
+}
+
+#[test]
+fn local_union_fit_is_conservative_and_decides_as_the_exact_one() {
+    // A smooth surface with a crease: unions across the crease and along the smooth part.
+    let pts = kinect_cloud(
+        |u, v| 2.5 + 0.02 * (u - 48.0).abs() + 0.1 * (v / 20.0).sin(),
+        KINECT_V1_NOISE,
+        6,
+    );
+    let labels = blocks(16, 16);
+    let exact = SeamTest {
+        window: None,
+        ..small_test()
+    };
+    let e = seam_fits(&pts, &labels, &exact);
+    let n_seg = (W / 16) * (H / 16);
+    for r in [2usize, 3] {
+        let l = seam_fits(
+            &pts,
+            &labels,
+            &SeamTest {
+                window: Some(r),
+                ..small_test()
+            },
+        );
+        let (mut tested, mut same) = (0, 0);
+        for i in 0..n_seg {
+            for j in i + 1..n_seg {
+                let (ue, ul) = (e.union_error(i, j).unwrap(), l.union_error(i, j).unwrap());
+                assert_eq!(ue.is_finite(), ul.is_finite(), "{i}-{j}");
+                assert_eq!(e.seam(i, j), l.seam(i, j));
+                if !ue.is_finite() {
+                    continue;
+                }
+                // Fewer free control points: the union's χ² is not below the exact one (up to
+                // the smoothness penalty, which the local fit trades differently).
+                let n = (e.size(i).unwrap() + e.size(j).unwrap()) as f64;
+                assert!(
+                    (ul - ue) * n >= -1e-3 * ue.abs() * n - 1.0,
+                    "{r} {i}-{j}: {ue} {ul}"
+                );
+                tested += 1;
+                same += usize::from(e.should_merge(i, j) == l.should_merge(i, j));
+            }
+        }
+        assert!(tested >= 30, "{tested}");
+        assert_eq!(same, tested, "window {r}");
+    }
 }
