@@ -39,7 +39,11 @@ impl FitModel for Hashed {
         Ok(self.err(&self.members[s]))
     }
     fn union_error(&self, a: usize, b: usize) -> Result<f64> {
-        let u: Vec<usize> = self.members[a].iter().chain(&self.members[b]).copied().collect();
+        let u: Vec<usize> = self.members[a]
+            .iter()
+            .chain(&self.members[b])
+            .copied()
+            .collect();
         Ok(self.err(&u))
     }
     fn accepts(&self, a: usize, b: usize) -> Result<bool> {
@@ -88,8 +92,8 @@ fn naive(
         None => gain(m, a, b),
     };
     let mut list: Vec<(f64, usize, usize)> = Vec::new();
-    for a in 0..n {
-        for &b in &nb[a] {
+    for (a, near) in nb.iter().enumerate() {
+        for &b in near {
             if b > a {
                 if let Some(s) = score(&desc, m, a, b) {
                     list.push((s, a, b));
@@ -157,7 +161,10 @@ fn naive(
     (history, root)
 }
 
-fn case() -> impl Strategy<Value = (usize, Vec<(usize, usize)>, Vec<usize>, Vec<f32>, u64, bool)> {
+/// Segments, couples, base sizes, PDF values, error salt, with PDFs or fit-only.
+type Case = (usize, Vec<(usize, usize)>, Vec<usize>, Vec<f32>, u64, bool);
+
+fn case() -> impl Strategy<Value = Case> {
     (2usize..24).prop_flat_map(|n| {
         (
             Just(n),
