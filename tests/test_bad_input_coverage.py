@@ -19,6 +19,7 @@ import rgbd_rs.meshes
 import rgbd_rs.metrics
 import rgbd_rs.nn
 import rgbd_rs.render
+import rgbd_rs.segmentation
 import rgbd_rs.shapes
 import rgbd_rs.surface
 import rgbd_rs.viz
@@ -39,6 +40,7 @@ PUBLIC_MODULES = (
     rgbd_rs.viz,
     rgbd_rs.metrics,
     rgbd_rs.nn,
+    rgbd_rs.segmentation,
     rgbd_rs.shapes,
 )
 
@@ -63,6 +65,11 @@ EXEMPT: dict[str, str] = {
     "Mesh.bounds": "no arguments",
     "SynthSample": "result container built by SynthDataset",
     "VoxelGrid": "result container built by voxelize",
+    "Features": "result container built by features",
+    "HhaResult": "result container built by hha_details",
+    "MergeStep": "result container built by merge_regions",
+    "MergeResult": "result container built by merge_regions",
+    "Segmentation": "result container built by segment",
     "Synth3Sample": "result container built by Synth3Dataset",
     "MiddleburyPair": "result container built by load_middlebury",
     "NyuFrame": "result container built by load_nyuv2_frame",

@@ -3,13 +3,17 @@ tests/test_bad_input.py for the contract)."""
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
-import rgbd_rs.segmentation.features as F
-import rgbd_rs.segmentation.hha as H
 from bad_input import Case, check, params
 from rgbd_rs import Distortion, InvalidArgumentError, PinholeCamera, ShapeMismatchError
+
+F = importlib.import_module("rgbd_rs.segmentation.features")  # the module, not the function
+H = importlib.import_module("rgbd_rs.segmentation.hha")  # the module, not the function
+
 
 SHAPE = ShapeMismatchError
 ARG = InvalidArgumentError

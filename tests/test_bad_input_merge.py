@@ -8,7 +8,8 @@ import pytest
 
 import rgbd_rs.segmentation.merge as M
 from bad_input import Case, check, params
-from rgbd_rs import InvalidArgumentError, ShapeMismatchError
+from rgbd_rs import InvalidArgumentError, PinholeCamera, ShapeMismatchError
+from rgbd_rs.segmentation import segment
 from rgbd_rs.surface import SegmentFits
 
 SHAPE = ShapeMismatchError
@@ -19,6 +20,9 @@ P = np.dstack([*np.meshgrid(np.arange(4.0), np.arange(4.0)), np.full((4, 4), 2.0
     np.float32
 )
 PDF = np.full((4, 4, 2), 0.5, np.float32)
+CAM = PinholeCamera(40.0, 40.0, 15.5, 11.5, 32, 24)
+RGB = np.random.default_rng(0).integers(0, 255, (24, 32, 3), dtype=np.uint8)
+DEPTH = np.full((24, 32), 2.0, np.float32) + np.linspace(0, 0.2, 32, dtype=np.float32)
 
 CASES: list[Case] = [
     Case("adjacency", lambda: M.adjacency(L.astype(np.float32)), ARG, r"^labels: got dtype"),
@@ -99,6 +103,11 @@ CASES: list[Case] = [
         r"^pdfs: got 1 class",
     ),
     Case("majority_classes", lambda: M.majority_classes(L[:2], PDF), SHAPE, r"^pdfs", "shape"),
+    Case("segment", lambda: segment(RGB, DEPTH, "cam"), ARG, r"^camera: got str"),  # type: ignore[arg-type]
+    Case("segment", lambda: segment(RGB, DEPTH, CAM, n_segments=1), ARG, r"^n_segments", "k"),
+    Case("segment", lambda: segment(RGB[:, :-1], DEPTH, CAM), SHAPE, r"rgb|depth", "size"),
+    Case("segment", lambda: segment(RGB, DEPTH * np.nan, CAM), ARG, r"^depth", "no-depth"),
+    Case("segment", lambda: segment(RGB, DEPTH, CAM, n_segments=10**6), ARG, r"n_segments", "k>n"),
     Case(
         "MergeResult.labels_after",
         lambda: M.merge_regions(L, P).labels_after(99),

@@ -1,2 +1,50 @@
 """RGB-D segmentation (thesis ch. 4): 9-D features and HHA, normalized-cuts over-segmentation,
-B-spline fits and priority-queue region merging."""
+B-spline fits and priority-queue region merging.
+
+The stages are plain functions, exported here::
+
+    from rgbd_rs.segmentation import features, hha, oversegment, merge_regions, segment
+
+The functions ``features``, ``hha`` and ``oversegment`` share their names with the modules
+that define them; import a module's other names with ``from rgbd_rs.segmentation.hha import
+hha_details`` (``import rgbd_rs.segmentation.hha as m`` would give the function).
+"""
+
+from rgbd_rs.segmentation.features import Features, features, lab_colour
+from rgbd_rs.segmentation.hha import HhaResult, hha, hha_details, square_normals
+from rgbd_rs.segmentation.merge import (
+    T_C,
+    T_D,
+    T_SIM,
+    T_THETA_DEG,
+    MergeResult,
+    MergeStep,
+    adjacency,
+    majority_classes,
+    merge_regions,
+)
+from rgbd_rs.segmentation.oversegment import default_channel_weights, oversegment
+from rgbd_rs.segmentation.pipeline import Segmentation, segment
+
+__all__ = [
+    "T_C",
+    "T_D",
+    "T_SIM",
+    "T_THETA_DEG",
+    "Features",
+    "HhaResult",
+    "MergeResult",
+    "MergeStep",
+    "Segmentation",
+    "adjacency",
+    "default_channel_weights",
+    "features",
+    "hha",
+    "hha_details",
+    "lab_colour",
+    "majority_classes",
+    "merge_regions",
+    "oversegment",
+    "segment",
+    "square_normals",
+]
