@@ -24,7 +24,6 @@ from rgbd_rs.surface import SegmentFits
 
 FRAMES = ("0001", "0009")
 REPEATS = 5
-NYU = dict(fx=518.857901, fy=519.469611, cx=325.582449, cy=253.736166, width=640, height=480)
 
 
 def _merge_mean_color(graph, src, dst):  # type: ignore[no-untyped-def]
@@ -82,9 +81,7 @@ def row(idx: str, cam: object) -> str:
 
 
 def main() -> None:
-    from rgbd_rs import PinholeCamera
-
-    cam = PinholeCamera(**NYU)  # type: ignore[arg-type]
+    from rgbd_rs.data import NYUV2_CAMERA as cam
     print(
         "| frame | segments | rgbd_rs fit-only | rgbd_rs with PDFs | seam-test fits "
         "| skimage RAG+merge_hierarchical | speed-up (fit-only / PDFs) |"

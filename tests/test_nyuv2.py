@@ -70,7 +70,7 @@ def test_camera_and_names() -> None:
     assert isinstance(NYUV2_CAMERA, PinholeCamera)
     assert (NYUV2_CAMERA.width, NYUV2_CAMERA.height) == (640, 480)
     assert NYUV2_CAMERA.fx == pytest.approx(518.857901)
-    assert NYUV2_CAMERA.cy == pytest.approx(253.736166)
+    assert NYUV2_CAMERA.cy == pytest.approx(253.736166 - 1.0)  # 0-based pixel centres
     assert len(LABEL13_NAMES) == 14 and LABEL13_NAMES[0] == "unlabeled"
     assert (LABEL13_NAMES[5], LABEL13_NAMES[12], LABEL13_NAMES[13]) == ("floor", "wall", "window")
 

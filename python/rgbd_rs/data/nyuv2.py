@@ -36,10 +36,13 @@ F32 = npt.NDArray[np.float32]
 U8 = npt.NDArray[np.uint8]
 I32 = npt.NDArray[np.int32]
 
-#: The NYU Depth v2 colour camera (the dataset's standard intrinsics, 640x480, no distortion:
-#: the labeled frames are already undistorted).
+#: The NYU Depth v2 colour camera (640x480, no distortion: the labeled frames are already
+#: undistorted). The dataset's standard intrinsics (cx = 325.582449, cy = 253.736166) come from
+#: the MATLAB toolbox, whose pixel indices start at 1; rgbd_rs puts pixel centres at 0-based
+#: integers, so the principal point here is one pixel less (the MATLAB HHA reference of
+#: ../shared/data/hha matches only with this shift: tests/test_hha.py).
 NYUV2_CAMERA = PinholeCamera(
-    fx=518.857901, fy=519.469611, cx=325.582449, cy=253.736166, width=640, height=480
+    fx=518.857901, fy=519.469611, cx=324.582449, cy=252.736166, width=640, height=480
 )
 #: Names of the 13-class labels (``label13``), indexed by label value; 0 = unlabeled. The
 #: grouping the thesis evaluates (its 14th class, "unknown", is label 0 here).
