@@ -71,12 +71,15 @@ pub fn voxelize_mesh(vertices: &[f32], faces: &[u32], res: usize, fill: Fill) ->
             let mut out = Vec::new();
             for f in chunk.chunks_exact(3) {
                 let t = [corner(f[0]), corner(f[1]), corner(f[2])];
-                let lo: Vec<usize> = (0..3)
-                    .map(|a| grid.cell(a, t[0][a].min(t[1][a]).min(t[2][a])))
-                    .collect();
-                let hi: Vec<usize> = (0..3)
-                    .map(|a| grid.cell(a, t[0][a].max(t[1][a]).max(t[2][a])))
-                    .collect();
+                let lo: [usize; 3] =
+                    std::array::from_fn(|a| grid.cell(a, t[0][a].min(t[1][a]).min(t[2][a])));
+                let hi: [usize; 3] =
+                    std::array::from_fn(|a| grid.cell(a, t[0][a].max(t[1][a]).max(t[2][a])));
+                if lo == hi {
+                    // The whole triangle lies in one voxel (most faces of a dense mesh).
+                    out.push(grid.index(lo[0], lo[1], lo[2]));
+                    continue;
+                }
                 for k in lo[2]..=hi[2] {
                     for j in lo[1]..=hi[1] {
                         for i in lo[0]..=hi[0] {

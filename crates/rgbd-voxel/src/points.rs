@@ -21,7 +21,7 @@ pub fn voxelize_points(points: &[f32], res: usize, dilate: usize) -> Result<Voxe
         if n % (1 << 16) == 0 {
             check_interrupt()?;
         }
-        let c: Vec<usize> = (0..3).map(|a| grid.cell(a, f64::from(p[a]))).collect();
+        let c: [usize; 3] = std::array::from_fn(|a| grid.cell(a, f64::from(p[a])));
         let span = |x: usize| x.saturating_sub(dilate)..=(x + dilate).min(res - 1);
         for k in span(c[2]) {
             for j in span(c[1]) {
