@@ -114,10 +114,24 @@ pub fn solve(
             compact[r] = 0;
         }
     }
+    // Numbered along the shorter side of the box: the band half-width is about p times that
+    // side, and the band Cholesky costs n·bw² (a wide wall segment: several times less).
     let mut n_ids = 0u32;
-    for x in compact.iter_mut().filter(|x| **x == 0) {
-        *x = n_ids;
-        n_ids += 1;
+    if shape.0 <= shape.1 {
+        for x in compact.iter_mut().filter(|x| **x == 0) {
+            *x = n_ids;
+            n_ids += 1;
+        }
+    } else {
+        for i in 0..shape.0 {
+            for j in 0..shape.1 {
+                let x = &mut compact[j * shape.0 + i];
+                if *x == 0 {
+                    *x = n_ids;
+                    n_ids += 1;
+                }
+            }
+        }
     }
     let n_ids = n_ids as usize;
     let mut bw = 0;
