@@ -248,7 +248,9 @@ def ablation_markdown(results: Mapping[str, Sequence[ShapeEvaluation]]) -> str:
             table.setdefault(row_name(e.representations), {})[col] = e.accuracy
     head = "| representation | " + " | ".join(cols) + " | thesis ModelNet10 | thesis ModelNet40 |"
     lines = [head, "|---|" + "---:|" * (len(cols) + 2)]
-    for row, accs in table.items():
+    order = [*THESIS_TABLE_5_2, *sorted(set(table) - set(THESIS_TABLE_5_2))]
+    for row in (r for r in order if r in table):  # Table 5.2's row order, then the others
+        accs = table[row]
         thesis = THESIS_TABLE_5_2.get(row)
         ref = [_pct(v) for v in thesis] if thesis else ["-", "-"]
         vals = [_pct(accs[c]) if c in accs else "-" for c in cols]
