@@ -369,11 +369,11 @@ class EvaluationReport:
         c = self.count_match
         if c is None:
             return (
-                f"over-segmentation at ~{COUNT_MATCH_SEGMENTS} segments: ours not available, "
+                f"over-segmentation at {COUNT_MATCH_SEGMENTS} clusters: ours not available, "
                 "no comparison"
             )
         return (
-            f"over-segmentation at ~{COUNT_MATCH_SEGMENTS} segments (ours: "
+            f"over-segmentation at {COUNT_MATCH_SEGMENTS} clusters (ours: "
             f"{COUNT_MATCH_SEGMENTS} clusters, {c.segments_ours:.0f} segments after splitting; "
             f"SLIC (RGB) run to the same count per frame: {c.segments_slic:.0f}): boundary "
             f"recall (tolerance {BOUNDARY_TOLERANCE} px) ours {c.boundary_recall_ours:.3f} vs "
