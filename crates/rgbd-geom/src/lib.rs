@@ -14,6 +14,7 @@ pub mod normals;
 pub mod projection;
 pub mod remap;
 pub mod reproject;
+pub mod shape;
 pub mod stereo;
 
 pub use camera::{Intrinsics, Pose};

@@ -28,6 +28,9 @@
 use rayon::prelude::*;
 use rgbd_error::{check_interrupt, invalid, Result};
 
+use rgbd_geom::shape::used_vertices;
+pub use rgbd_geom::shape::{Cube, MAX_EXTENT};
+
 use crate::bvh::Bvh;
 use crate::math::V3;
 
@@ -35,8 +38,6 @@ use crate::math::V3;
 pub const VIEWS: usize = 6;
 /// Largest view side in pixels.
 pub const MAX_RESOLUTION: usize = 2048;
-/// Largest bounding-box extent accepted (coordinates beyond lose all precision in f32).
-pub const MAX_EXTENT: f64 = 1e30;
 /// Automatic splat radii (see [`auto_splat_radii`]): each point's disk is this many times the
 /// distance to its [`SPLAT_NEIGHBOURS`]-th nearest neighbour, so the disks follow the local
 /// density (dense parts stay sharp, sparse faces close). For points scattered uniformly at
@@ -70,57 +71,6 @@ pub const VIEW_AXES: [[(usize, f32); 3]; VIEWS] = [
     [(0, 1.0), (1, 1.0), (2, -1.0)],
     [(0, -1.0), (1, 1.0), (2, 1.0)],
 ];
-
-/// The cube the views are taken from: `centre` and `side` in the input's units.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Cube {
-    pub centre: [f64; 3],
-    pub side: f64,
-}
-
-impl Cube {
-    /// The cube of `points` (`n x 3`, finite): centred on the bounding box, side its largest
-    /// extent, or 1 when every extent is 0 (one point): never a division by zero.
-    pub fn fit(points: &[f32]) -> Result<Self> {
-        if points.is_empty() || !points.len().is_multiple_of(3) {
-            return Err(invalid(
-                "points",
-                format!("{} values", points.len()),
-                "a non-empty n x 3 array",
-            ));
-        }
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points.chunks_exact(3) {
-            for a in 0..3 {
-                let v = f64::from(p[a]);
-                if !v.is_finite() {
-                    return Err(invalid("points", v, "finite coordinates"));
-                }
-                lo[a] = lo[a].min(v);
-                hi[a] = hi[a].max(v);
-            }
-        }
-        let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        if !(extent <= MAX_EXTENT) {
-            return Err(invalid(
-                "points",
-                format!("a bounding box of extent {extent:e}"),
-                format!("an extent <= {MAX_EXTENT:e}"),
-            ));
-        }
-        Ok(Self {
-            centre: [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])),
-            side: if extent > 0.0 { extent } else { 1.0 },
-        })
-    }
-
-    /// `p` in cube coordinates: centre 0, side 1 (so every point lies in `[-0.5, 0.5]^3`).
-    #[inline]
-    pub fn normalize(&self, p: &[f32]) -> V3 {
-        [0, 1, 2].map(|a| ((f64::from(p[a]) - self.centre[a]) / self.side) as f32)
-    }
-}
 
 fn check_resolution(res: usize) -> Result<()> {
     if (1..=MAX_RESOLUTION).contains(&res) {
@@ -158,35 +108,7 @@ fn project(p: V3, k: usize, res: usize) -> (f32, f32, f32) {
 /// Checks a mesh and returns the cube of the vertices its faces use (stray vertices would
 /// shrink the shape) with the triangles in cube coordinates.
 fn mesh_in_cube(vertices: &[f32], faces: &[u32]) -> Result<(Cube, Vec<[V3; 3]>)> {
-    if vertices.is_empty() || !vertices.len().is_multiple_of(3) {
-        return Err(invalid(
-            "vertices",
-            format!("{} values", vertices.len()),
-            "a non-empty n x 3 array",
-        ));
-    }
-    if faces.is_empty() || !faces.len().is_multiple_of(3) {
-        return Err(invalid(
-            "faces",
-            format!("{} values", faces.len()),
-            "a non-empty m x 3 array of vertex indices",
-        ));
-    }
-    let n = vertices.len() / 3;
-    let mut used = vec![false; n];
-    for &f in faces {
-        let f = f as usize;
-        if f >= n {
-            return Err(invalid("faces", f, format!("vertex indices < {n}")));
-        }
-        used[f] = true;
-    }
-    let pts: Vec<f32> = vertices
-        .chunks_exact(3)
-        .zip(&used)
-        .filter(|(_, &u)| u)
-        .flat_map(|(p, _)| p.iter().copied())
-        .collect();
+    let pts = used_vertices(vertices, faces)?;
     let cube = Cube::fit(&pts)?;
     let v = |i: u32| cube.normalize(&vertices[3 * i as usize..3 * i as usize + 3]);
     let tris = faces

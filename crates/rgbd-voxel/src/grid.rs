@@ -1,6 +1,7 @@
 //! The cubic voxel grid of a shape and the occupancy it holds.
 
 use rgbd_error::{invalid, Result};
+use rgbd_geom::shape::Cube;
 
 /// Largest grid side (voxels); 1024³ bytes is a gigabyte.
 pub const MAX_RESOLUTION: usize = 1024;
@@ -14,10 +15,9 @@ pub struct Grid {
 }
 
 impl Grid {
-    /// The grid whose cube holds the bounding box of `points` (`n x 3`): the largest extent
-    /// spans all `res` voxels and the box is centred along the other axes. A degenerate box
-    /// (a flat shape, a line, one point) gets a cube of the largest extent, or of side 1 when
-    /// every extent is 0, so a single point lands in the centre voxel: never a division by 0.
+    /// The grid over the [`Cube`] of `points` (`n x 3`; rgbd-geom's shape frame, shared with
+    /// the depth views): the largest extent spans all `res` voxels, the other axes centred; a
+    /// single point lands in the centre voxel (never a division by 0).
     pub fn fit(points: &[f32], res: usize) -> Result<Self> {
         if !(1..=MAX_RESOLUTION).contains(&res) {
             return Err(invalid(
@@ -26,40 +26,10 @@ impl Grid {
                 format!("1..={MAX_RESOLUTION} voxels per side"),
             ));
         }
-        if points.is_empty() || !points.len().is_multiple_of(3) {
-            return Err(invalid(
-                "points",
-                format!("{} values", points.len()),
-                "a non-empty n x 3 array",
-            ));
-        }
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points.chunks_exact(3) {
-            for a in 0..3 {
-                let v = f64::from(p[a]);
-                if !v.is_finite() {
-                    return Err(invalid("points", v, "finite coordinates"));
-                }
-                lo[a] = lo[a].min(v);
-                hi[a] = hi[a].max(v);
-            }
-        }
-        let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        if !extent.is_finite() || extent > 1e30 {
-            return Err(invalid(
-                "points",
-                extent,
-                "a bounding box smaller than 1e30",
-            ));
-        }
-        let side = if extent > 0.0 { extent } else { 1.0 };
+        let cube = Cube::fit(points)?;
         // A hair of margin so the maximum lands inside the last voxel.
-        let size = side * (1.0 + 1e-9) / res as f64;
-        let mut min = [0.0; 3];
-        for a in 0..3 {
-            min[a] = 0.5 * (lo[a] + hi[a]) - 0.5 * size * res as f64;
-        }
+        let size = cube.side * (1.0 + 1e-9) / res as f64;
+        let min = cube.centre.map(|c| c - 0.5 * size * res as f64);
         Ok(Self { res, min, size })
     }
 

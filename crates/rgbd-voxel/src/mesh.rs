@@ -2,7 +2,8 @@
 //! scanline vote that tolerates holes.
 
 use rayon::prelude::*;
-use rgbd_error::{check_interrupt, invalid, Result};
+use rgbd_error::{check_interrupt, Result};
+use rgbd_geom::shape::used_vertices;
 
 use crate::grid::{Grid, Voxels};
 use crate::tribox::overlaps;
@@ -21,43 +22,10 @@ pub enum Fill {
     Solid,
 }
 
-fn check_mesh(vertices: &[f32], faces: &[u32]) -> Result<Vec<f32>> {
-    if !vertices.len().is_multiple_of(3) || vertices.is_empty() {
-        return Err(invalid(
-            "vertices",
-            format!("{} values", vertices.len()),
-            "a non-empty n x 3 array",
-        ));
-    }
-    if !faces.len().is_multiple_of(3) || faces.is_empty() {
-        return Err(invalid(
-            "faces",
-            format!("{} values", faces.len()),
-            "a non-empty m x 3 array of vertex indices",
-        ));
-    }
-    let n = vertices.len() / 3;
-    let mut used = vec![false; n];
-    for &f in faces {
-        let f = f as usize;
-        if f >= n {
-            return Err(invalid("faces", f, format!("vertex indices < {n}")));
-        }
-        used[f] = true;
-    }
-    // The grid bounds only the vertices the faces use (stray vertices would shrink the shape).
-    Ok(vertices
-        .chunks_exact(3)
-        .zip(&used)
-        .filter(|(_, &u)| u)
-        .flat_map(|(p, _)| p.iter().copied())
-        .collect())
-}
-
 /// Voxelizes the mesh `vertices` (`n x 3`) / `faces` (`m x 3` indices) in a `res³`
 /// [`Grid::fit`] grid of its used vertices.
 pub fn voxelize_mesh(vertices: &[f32], faces: &[u32], res: usize, fill: Fill) -> Result<Voxels> {
-    let used = check_mesh(vertices, faces)?;
+    let used = used_vertices(vertices, faces)?;
     let grid = Grid::fit(&used, res)?;
     let corner = |f: u32| -> [f64; 3] {
         let p = &vertices[3 * f as usize..3 * f as usize + 3];
