@@ -82,6 +82,7 @@ def row(idx: str, cam: object) -> str:
 
 def main() -> None:
     from rgbd_rs.data import NYUV2_CAMERA as cam
+
     print(
         "| frame | segments | rgbd_rs fit-only | rgbd_rs with PDFs | seam-test fits "
         "| skimage RAG+merge_hierarchical | speed-up (fit-only / PDFs) |"
