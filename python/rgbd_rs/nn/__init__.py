@@ -1,7 +1,8 @@
 """Torch networks of rgbd_rs and the one trainer they share.
 
 :class:`ConfidenceNet` / :class:`ConfidenceEstimator`: the ToF + stereo confidence ConvNet of
-thesis §3.6 (``fuse(confidence="convnet")`` runs the shipped weights).
+thesis §3.6 (``fuse(confidence="convnet")`` runs the shipped weights). :class:`ShapeNet`: the
+15-branch shape classifier of thesis Table 5.1.
 
 :func:`train` (single process or under ``torchrun``) with its :class:`TrainConfig`, and the
 checkpoints it writes (:func:`load_checkpoint`), which hold the architecture, its configuration
@@ -10,6 +11,7 @@ and the input normalisation alongside the weights.
 
 from rgbd_rs.nn.checkpoint import FORMAT, Checkpoint, load_checkpoint, save_checkpoint
 from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
+from rgbd_rs.nn.shapes import ShapeNet
 from rgbd_rs.nn.train import (
     EpochStats,
     TrainConfig,
@@ -26,6 +28,7 @@ __all__ = [
     "ConfidenceEstimator",
     "ConfidenceNet",
     "EpochStats",
+    "ShapeNet",
     "TrainConfig",
     "TrainResult",
     "is_main_process",
