@@ -542,10 +542,15 @@ fn local_union_fit_with_a_covering_window_is_the_exact_one() {
         }
     };
     check(&e, &l, &(0..8).collect::<Vec<_>>());
-    // A merge stores the exact fit whatever the window: identical afterwards.
-    assert_eq!(e.merge(1, 2), l.merge(1, 2));
-    assert_eq!(e.merge(5, 1), l.merge(5, 1));
-    assert_eq!(e.fit_error(5), l.fit_error(5));
+    // A merge stores the exact fit whatever the window: the same afterwards (up to the
+    // summation order of the parallel solve, ~1e-13 relative).
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-300);
+    for (i, j) in [(1, 2), (5, 1)] {
+        let (a, b) = (e.merge(i, j).unwrap(), l.merge(i, j).unwrap());
+        assert!(close(a, b), "merge {i}-{j}: exact {a}, local {b}");
+    }
+    let (a, b) = (e.fit_error(5).unwrap(), l.fit_error(5).unwrap());
+    assert!(close(a, b), "fit_error 5: exact {a}, local {b}");
     check(&e, &l, &[0, 3, 4, 5, 6, 7]);
 }
 
