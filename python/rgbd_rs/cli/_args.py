@@ -69,6 +69,17 @@ def real(minimum: float, maximum: float, *, low_open: bool = True) -> Callable[[
     return parse
 
 
+def shard(text: str) -> tuple[int, int]:
+    """Parse ``--shard i/n`` (shard i of n, 0 <= i < n): the flag long dataset jobs share."""
+    try:
+        i, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"got {text!r}, expected i/n (e.g. 0/4)") from None
+    if not 0 <= i < n:
+        raise argparse.ArgumentTypeError(f"got {text!r}, expected 0 <= i < n")
+    return i, n
+
+
 def named(flag: str, load: Callable[[], T]) -> T:
     """``load()``, with a bad file's error prefixed by the ``flag`` that named the file."""
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, integer, real
+from rgbd_rs.cli._args import Commands, integer, real, shard
 
 
 def register(commands: Commands) -> None:
@@ -43,7 +43,7 @@ def register(commands: Commands) -> None:
     )
     p.add_argument(
         "--shard",
-        type=_shard,
+        type=shard,
         default=None,
         help="only cache the clues of every n-th scene from i (i/n), then stop",
     )
@@ -58,16 +58,6 @@ def register(commands: Commands) -> None:
         help="start afresh in OUT, overwriting its checkpoints (default: resume from OUT/last.pt)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bars")
-
-
-def _shard(text: str) -> tuple[int, int]:
-    try:
-        i, n = (int(v) for v in text.split("/"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"got {text!r}, expected i/n (e.g. 0/4)") from None
-    if not 0 <= i < n:
-        raise argparse.ArgumentTypeError(f"got {text!r}, expected 0 <= i < n")
-    return i, n
 
 
 def run_train(args: argparse.Namespace) -> int:

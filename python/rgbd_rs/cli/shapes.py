@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, Parser, integer, named, real
+from rgbd_rs.cli._args import Commands, Parser, integer, named, real, shard
 
 
 def register(commands: Commands) -> None:
@@ -16,16 +16,6 @@ def register(commands: Commands) -> None:
     _cache(commands)
     _train(commands)
     _eval(commands)
-
-
-def _shard(text: str) -> tuple[int, int]:
-    try:
-        i, n = (int(v) for v in text.split("/"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"got {text!r}, expected i/n (e.g. 0/4)") from None
-    if not 0 <= i < n:
-        raise argparse.ArgumentTypeError(f"got {text!r}, expected 0 <= i < n")
-    return i, n
 
 
 def _representations(text: str) -> tuple[str, ...]:
@@ -126,7 +116,7 @@ def _cache(commands: Commands) -> None:
         help="per-map normalisation (lcn: local contrast normalisation, thesis)",
     )
     p.add_argument(
-        "--shard", type=_shard, default=(0, 1), metavar="i/n", help="compute shard i of n (i/n)"
+        "--shard", type=shard, default=(0, 1), metavar="i/n", help="compute shard i of n (i/n)"
     )
     p.add_argument(
         "--workers", type=integer(1, 1024), metavar="N", help="threads (default: CPU count)"
