@@ -6,8 +6,10 @@ labeled set. The suggested split: NNNN <= 43 train (25 frames), NNNN >= 46 test 
 consecutive frames often show the same room, hence the gap.
 
 Also the one home of the NYU colour camera's intrinsics (:data:`NYUV2_CAMERA`), the 13-class
-names (:data:`LABEL13_NAMES`) and the region ground truth used by the segmentation evaluation
-(:func:`region_ground_truth`)."""
+names (:data:`LABEL13_NAMES`), the region ground truth used by the segmentation evaluation
+(:func:`region_ground_truth`) and the object-instance ground truth of the full labeled set
+(:func:`instance_ground_truth`). The official ``nyu_depth_v2_labeled.mat`` (all 1449 frames, the
+795/654 split) is read by :mod:`rgbd_rs.data.nyuv2_mat` into the same :class:`NyuFrame`."""
 
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ __all__ = [
     "LABEL13_NAMES",
     "NYUV2_CAMERA",
     "NyuFrame",
+    "instance_ground_truth",
     "load_nyuv2_frame",
     "nyuv2_frames",
     "region_ground_truth",
@@ -34,6 +37,7 @@ __all__ = [
 
 F32 = npt.NDArray[np.float32]
 U8 = npt.NDArray[np.uint8]
+U16 = npt.NDArray[np.uint16]
 I32 = npt.NDArray[np.int32]
 
 #: The NYU Depth v2 colour camera (640x480, no distortion: the labeled frames are already
@@ -78,14 +82,26 @@ SPLITS = ("all", "train", "test")
 
 @dataclass(frozen=True)
 class NyuFrame:
-    """One labeled frame: colour, depth in metres (float32, NaN where the PNG holds 0), and the
-    13- and 40-class labels (uint8, 0 = unlabeled); ``index`` is NNNN."""
+    """One labeled frame: colour, depth in metres (float32, NaN where there is no measurement),
+    and the 13- and 40-class labels (uint8, 0 = unlabeled); ``index`` is NNNN, the 1-based index
+    in the 1449-frame labeled set.
+
+    Frames of the shared PNGs (:func:`load_nyuv2_frame`) leave the last three fields ``None``;
+    frames of the official ``nyu_depth_v2_labeled.mat`` (:class:`rgbd_rs.data.nyuv2_mat.
+    NyuMatDataset`) set ``official_split`` (the 795/654 split), ``label894`` (the raw classes,
+    uint16, 0 = unlabeled, 1..894) and ``instances`` (uint8 object-instance number within each
+    raw class; see :func:`instance_ground_truth`)."""
 
     index: int
     rgb: U8
     depth: F32
     label13: U8
     label40: U8
+    #: ``"train"`` / ``"test"`` of the official 795/654 split (``"none"`` for a frame in
+    #: neither); None for the shared PNG frames, whose split is the 25/25 one.
+    official_split: str | None = None
+    label894: U16 | None = None
+    instances: U8 | None = None
 
     @property
     def name(self) -> str:
@@ -94,8 +110,21 @@ class NyuFrame:
 
     @property
     def split(self) -> str:
-        """``"train"`` (NNNN <= 43), ``"test"`` (NNNN >= 46) or ``"none"`` (44, 45)."""
+        """The frame's split in the protocol of its source: for the shared PNG frames
+        ``"train"`` (NNNN <= 43), ``"test"`` (NNNN >= 46) or ``"none"`` (44, 45); for frames of
+        the official .mat, :attr:`official_split` (795 train / 654 test frames)."""
+        if self.official_split is not None:
+            return self.official_split
         return _split_of(self.index)
+
+    @property
+    def camera(self) -> PinholeCamera:
+        """The colour camera of this frame: :data:`NYUV2_CAMERA` at 640x480; for a frame of
+        another size (a resized copy) the same camera scaled to the frame's width and height."""
+        h, w = self.depth.shape[:2]
+        if (w, h) == (NYUV2_CAMERA.width, NYUV2_CAMERA.height):
+            return NYUV2_CAMERA
+        return NYUV2_CAMERA.scaled(w / NYUV2_CAMERA.width, h / NYUV2_CAMERA.height)
 
 
 def _split_of(index: int) -> str:
@@ -200,3 +229,43 @@ def region_ground_truth(label40: npt.ArrayLike) -> I32:
     keep[regions[labelled]] = True
     lut = np.where(keep, np.cumsum(keep) - 1, NO_REGION).astype(np.int32)
     return np.asarray(lut[regions], dtype=np.int32)
+
+
+def instance_ground_truth(label894: npt.ArrayLike, instances: npt.ArrayLike) -> I32:
+    """Object-instance ground truth of a frame of the official labeled set, as the NYU toolbox's
+    ``get_instance_masks``: one region per distinct (raw class, instance number) pair among the
+    labelled pixels, numbered 0..n-1 in raster order of their first pixel; unlabeled pixels
+    (class 0) are -1. ``label894`` and ``instances`` are :attr:`NyuFrame.label894` and
+    :attr:`NyuFrame.instances` (any integer dtype, same (H, W) shape). Unlike
+    :func:`region_ground_truth`, two touching chairs are two regions and one object split by an
+    occluder is one (the ground truth the thesis evaluates VoI / RI on)."""
+    lab = _validate.asarray("label894", label894)
+    ins = _validate.asarray("instances", instances)
+    for name, a in (("label894", lab), ("instances", ins)):
+        if a.dtype.kind not in "iu":
+            raise InvalidArgumentError(
+                f"{name}: got dtype {a.dtype}, expected an integer label image"
+            )
+        if a.ndim != 2 or a.size == 0:
+            raise ShapeMismatchError(
+                f"{name}: got shape {tuple(a.shape)}, expected a non-empty (H, W) image"
+            )
+        if int(a.min()) < 0 or int(a.max()) > 65535:
+            raise InvalidArgumentError(
+                f"{name}: got values in [{int(a.min())}, {int(a.max())}], expected 0..65535"
+            )
+    if lab.shape != ins.shape:
+        raise ShapeMismatchError(
+            f"instances: got shape {tuple(ins.shape)}, expected {tuple(lab.shape)} like label894"
+        )
+    key = lab.astype(np.int64).ravel() * 65536 + ins.astype(np.int64).ravel()
+    labelled = lab.ravel() != UNLABELED
+    out = np.full(key.shape, NO_REGION, np.int32)
+    if labelled.any():
+        _, first, inverse = np.unique(key[labelled], return_index=True, return_inverse=True)
+        # np.unique numbers the pairs by key; renumber them by their first pixel (raster order).
+        order = np.argsort(first, kind="stable")
+        rank = np.empty_like(order)
+        rank[order] = np.arange(order.size)
+        out[labelled] = rank[inverse].astype(np.int32)
+    return out.reshape(lab.shape)
