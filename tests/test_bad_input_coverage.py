@@ -13,6 +13,8 @@ from pathlib import Path
 
 import rgbd_rs
 import rgbd_rs.data
+import rgbd_rs.data.nyuv2
+import rgbd_rs.data.nyuv2_mat
 import rgbd_rs.fusion
 import rgbd_rs.io
 import rgbd_rs.meshes
@@ -36,6 +38,8 @@ PUBLIC_MODULES = (
     rgbd_rs.render,
     rgbd_rs.meshes,
     rgbd_rs.data,
+    rgbd_rs.data.nyuv2,
+    rgbd_rs.data.nyuv2_mat,
     rgbd_rs.io,
     rgbd_rs.viz,
     rgbd_rs.metrics,
@@ -82,6 +86,7 @@ EXEMPT: dict[str, str] = {
     "Synth3Sample": "result container built by Synth3Dataset",
     "MiddleburyPair": "result container built by load_middlebury",
     "NyuFrame": "result container built by load_nyuv2_frame",
+    "NyuMatDataset.close": "no arguments",
     "AzureKinectCalibration": "result container built by load_azure_kinect_calibration",
     "EpochStats": "result container built by train",
     "TrainResult": "result container built by train",

@@ -281,7 +281,10 @@ def load_nyuv2_splits(folder: str | Path | None = None) -> NyuSplits:
             raise RgbdError(f"{path}: {name} holds {arr.dtype} {arr.shape}, expected indices")
         flat = arr.ravel()
         if not np.all(flat == np.round(flat)) or flat.min() < 1:
-            raise RgbdError(f"{path}: {name} holds values below 1, expected 1-based indices")
+            raise RgbdError(
+                f"{path}: {name} holds values that are not integers >= 1, expected 1-based "
+                "frame indices"
+            )
         out.append(tuple(sorted({int(v) for v in flat})))
     if set(out[0]) & set(out[1]):
         raise RgbdError(f"{path}: trainNdxs and testNdxs share frames, expected disjoint splits")
