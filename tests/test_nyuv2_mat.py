@@ -129,6 +129,7 @@ def test_splits_and_official_split(written: fake.Fake, mapping: NyuClassMapping)
     train = NyuMatDataset(written.path, "train", mapping=mapping, splits=SPLITS)
     test = NyuMatDataset(written.path, "test", mapping=mapping, splits=SPLITS)
     assert (train.indices, test.indices) == ((2, 4), (1, 3, 5))
+    assert train.names == ("0002", "0004") and train[0].name == "0002"
     assert [f.index for f in train] == [2, 4]
     assert (train[1].split, test[0].split) == ("train", "test")
     assert test[2].official_split == "test"

@@ -304,7 +304,8 @@ def _h5py() -> Any:
 class NyuMatDataset:
     """The frames of one split of the official ``nyu_depth_v2_labeled.mat``, as
     :class:`~rgbd_rs.data.nyuv2.NyuFrame`: ``dataset[i]`` is the ``i``-th frame of the split
-    (``0 <= i < len(dataset)``), :meth:`frame` reads by 1-based NYU index.
+    (``0 <= i < len(dataset)``), :meth:`frame` reads by 1-based NYU index; ``indices`` and
+    ``names`` (``NNNN``) list the split's frames without reading them.
 
     ``split``: ``"all"`` (every frame in the file), ``"train"`` / ``"test"`` (the official
     795 / 654 of ``splits``). ``raw_depth``: depth from ``rawDepths`` (the projected raw Kinect
@@ -358,6 +359,8 @@ class NyuMatDataset:
                     f"split names frame {self.indices[-1]} (expected the {LABELED_FRAMES}-frame "
                     "labeled set)"
                 )
+        #: ``NNNN`` of each frame of the split (:attr:`NyuFrame.name`), without reading them.
+        self.names = tuple(f"{i:04d}" for i in self.indices)
 
     # -- the HDF5 file --------------------------------------------------------------------
 
