@@ -392,6 +392,7 @@ ALL_CASES: list[Case] = [
     ),
     # -- training
     Case("ShapeRecipe", lambda: ShapeRecipe(val_fraction=1.0), ARG, r"^val_fraction: got 1\.0"),
+    Case("ShapeRecipe", lambda: ShapeRecipe(rotate="yes"), ARG, r"^rotate: got 'yes'", "rotate"),  # type: ignore[arg-type]
     Case(
         "ShapeRecipe",
         lambda: ShapeRecipe(representations=("nurbs",)),

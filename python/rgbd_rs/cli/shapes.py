@@ -224,6 +224,11 @@ def _train(commands: Commands) -> None:
     p.add_argument(
         "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
     )
+    p.add_argument(
+        "--no-rotate",
+        action="store_true",
+        help="no random quarter turns about z of the training shapes (default: on)",
+    )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
     p.add_argument(
@@ -255,7 +260,10 @@ def run_train(args: argparse.Namespace) -> int:
         device=args.device,
     )
     recipe = ShapeRecipe(
-        representations=args.representations, width=args.width, val_fraction=args.val_fraction
+        representations=args.representations,
+        width=args.width,
+        val_fraction=args.val_fraction,
+        rotate=not args.no_rotate,
     )
     t0 = time.perf_counter()
     if args.ablation:
@@ -319,6 +327,11 @@ def _eval(commands: Commands) -> None:
         "--batch-size", type=integer(1), default=64, metavar="N", help="shapes per batch (64)"
     )
     p.add_argument("--device", default="cpu", metavar="DEV", help="cpu, cuda or cuda:N (cpu)")
+    p.add_argument(
+        "--turns",
+        action="store_true",
+        help="average the probabilities over the four quarter turns about z of each shape",
+    )
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -348,7 +361,12 @@ def run_eval(args: argparse.Namespace) -> int:
 
         def one(ck: Path = ck) -> ShapeEvaluation:
             return evaluate(
-                ck, cache, split=args.split, batch_size=args.batch_size, device=args.device
+                ck,
+                cache,
+                split=args.split,
+                batch_size=args.batch_size,
+                device=args.device,
+                turns=args.turns,
             )
 
         res = named(str(ck), one)

@@ -21,6 +21,7 @@ import torch
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.shapes.augment import quarter_turns
 from rgbd_rs.shapes.classify import ShapeClassifier
 from rgbd_rs.shapes.dataset import ShapeCache
 
@@ -62,6 +63,8 @@ class ShapeEvaluation:
     checkpoint: str
     dataset: str
     split: str
+    #: True when probabilities were averaged over four quarter turns about z.
+    turns: bool = False
 
     @property
     def count(self) -> int:
@@ -109,7 +112,8 @@ class ShapeEvaluation:
         return (
             f"{self.dataset} {self.split}: accuracy {_pct(self.accuracy)}, mean class accuracy "
             f"{_pct(self.mean_class_accuracy)} over {self.count} shapes "
-            f"({row_name(self.representations)}; {self.checkpoint})"
+            f"({row_name(self.representations)}{'; 4 turns averaged' if self.turns else ''}; "
+            f"{self.checkpoint})"
         )
 
     def markdown(self) -> str:
@@ -185,8 +189,11 @@ def evaluate(
     split: str = "test",
     batch_size: int = 64,
     device: str = "cpu",
+    turns: bool = False,
 ) -> ShapeEvaluation:
     """Accuracy of ``checkpoint`` on ``cache``'s ``split`` (``"test"``, ``"train"``, ``"all"``).
+    ``turns``: average each shape's probabilities over its four quarter turns about z
+    (:mod:`rgbd_rs.shapes.augment`).
     A cache computed with other inputs (resolution, normalisation, classes, missing
     representations) raises :class:`RgbdError` naming both."""
     clf = (
@@ -201,8 +208,14 @@ def evaluate(
     k = len(c.classes)
     confusion = np.zeros((k, k), np.int64)
     loader = torch.utils.data.DataLoader(data, batch_size=bs, shuffle=False)
+    if not isinstance(turns, bool):
+        raise InvalidArgumentError(f"turns: got {turns!r}, expected True or False")
     for x, y in loader:
-        pred = clf.probabilities_of_inputs(x).argmax(axis=1)
+        if turns:
+            probs = sum(clf.probabilities_of_inputs(t) for t in quarter_turns(x, clf.net.shapes))
+            pred = np.asarray(probs).argmax(axis=1)
+        else:
+            pred = clf.probabilities_of_inputs(x).argmax(axis=1)
         np.add.at(confusion, (y.numpy(), pred), 1)
     return ShapeEvaluation(
         classes=c.classes,
@@ -211,6 +224,7 @@ def evaluate(
         checkpoint=clf.source,
         dataset=str(c.meta.get("source", c.path.name)),
         split=split,
+        turns=turns,
     )
 
 

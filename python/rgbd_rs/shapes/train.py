@@ -27,6 +27,7 @@ from torch.nn import functional as F
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, parse_representations
+from rgbd_rs.shapes.augment import RotatedShapes
 from rgbd_rs.shapes.dataset import ShapeCache
 
 __all__ = [
@@ -47,11 +48,14 @@ COMBINED = "combined"
 class ShapeRecipe:
     """What ``rgbd train shapes`` varies besides :class:`~rgbd_rs.nn.train.TrainConfig`:
     ``representations`` (None: every one in the cache), ``width`` (descriptor length per branch,
-    128 in the thesis) and ``val_fraction`` of the training split held out for validation."""
+    128 in the thesis), ``val_fraction`` of the training split held out for validation and
+    ``rotate``: turn each training shape by a random number of quarter turns about z at every
+    step (:mod:`rgbd_rs.shapes.augment`; exact on the cached inputs; not in the thesis)."""
 
     representations: tuple[str, ...] | None = None
     width: int = THESIS_WIDTH
     val_fraction: float = 0.1
+    rotate: bool = True
 
     def __post_init__(self) -> None:
         if self.representations is not None:
@@ -65,6 +69,8 @@ class ShapeRecipe:
                 f"val_fraction: got {self.val_fraction}, expected 0 <= val_fraction < 1"
             )
         object.__setattr__(self, "val_fraction", f)
+        if not isinstance(self.rotate, bool):
+            raise InvalidArgumentError(f"rotate: got {self.rotate!r}, expected True or False")
 
 
 def default_config(**overrides: Any) -> Any:
@@ -139,6 +145,8 @@ def train_shapes(
         if len(data) < 2:
             raise RgbdError(f"{c.path}: {len(data)} training shape(s), too few to validate")
         train_set, val_set = split(data, r.val_fraction, seed=cfg.seed)
+    if r.rotate:
+        train_set = RotatedShapes(train_set, data.shapes)
     seed_everything(cfg.seed)  # the initial weights come from the seed too
     model = ShapeNet(
         len(c.classes),

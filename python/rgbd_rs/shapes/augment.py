@@ -1,0 +1,96 @@
+"""Rotation about the vertical axis, done exactly on the network inputs (no re-rendering).
+
+ModelNet's shapes stand upright (z up) but face any direction, so a classifier should not care
+about a turn about z. A quarter turn of a shape maps its bounding cube onto itself, so its inputs
+are a permutation of the old ones (checked against re-rendered inputs in
+``tests/test_shapes_augment.py``): side view ``k`` becomes view ``k + 1`` unchanged, the top view
+turns by +90° and the bottom view by -90° in the image (see :mod:`rgbd_rs.shapes.views` for the
+view frames), the X and Y density profiles swap (the new Y map is the old X map turned and
+transposed) and the Z map turns by +90°. Curvature maps move like the depth views they come from.
+Local contrast normalisation and per-map standardisation commute with these moves, so they apply
+to cached, normalised inputs.
+
+Training draws a random number of quarter turns per shape and step (:class:`RotatedShapes`);
+evaluation can average the class probabilities over the four turns (:func:`quarter_turns`), a
+cheap test-time augmentation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import torch
+from torch.utils.data import Dataset
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.nn.shapes import pack, unpack
+
+__all__ = ["RotatedShapes", "quarter_turns", "turn_inputs"]
+
+_SIDES = 4
+
+
+def _rot(t: torch.Tensor, k: int) -> torch.Tensor:
+    """Turn the images (last two axes) by ``k`` quarter turns counter-clockwise (``np.rot90``)."""
+    return torch.rot90(t, k, dims=(-2, -1))
+
+
+def _turn_views(v: torch.Tensor) -> torch.Tensor:
+    """One +90° turn of ``N x 6 x ...`` view maps (depth or curvature)."""
+    return torch.cat(
+        [v[:, 3:4], v[:, 0:3], _rot(v[:, 4:5], 1), _rot(v[:, 5:6], 3)], dim=1
+    ).contiguous()
+
+
+def _turn_volume(v: torch.Tensor) -> torch.Tensor:
+    """One +90° turn of ``N x 3 x R x R`` density profiles (X, Y, Z maps)."""
+    y = _rot(v[:, 0:1], 1).transpose(-2, -1)
+    return torch.cat([v[:, 1:2], y, _rot(v[:, 2:3], 1)], dim=1).contiguous()
+
+
+_TURNS = {"depth": _turn_views, "curvature": _turn_views, "volume": _turn_volume}
+
+
+def turn_inputs(inputs: Mapping[str, torch.Tensor], turns: int) -> dict[str, torch.Tensor]:
+    """The inputs (``{representation: N x ...}``) of the shapes turned by ``turns`` quarter turns
+    counter-clockwise about z (seen from above); any integer, taken modulo 4."""
+    k = _validate.integer("turns", turns, minimum=-(2**31), maximum=2**31 - 1) % _SIDES
+    out: dict[str, torch.Tensor] = {}
+    for name, value in inputs.items():
+        if name not in _TURNS:
+            raise InvalidArgumentError(
+                f"inputs: got representation {name!r}, expected one of {sorted(_TURNS)}"
+            )
+        t = value
+        for _ in range(k):
+            t = _TURNS[name](t)
+        out[name] = t
+    return out
+
+
+def quarter_turns(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> list[torch.Tensor]:
+    """The packed batch ``x`` (see :func:`rgbd_rs.nn.shapes.pack`) under 0, 1, 2 and 3 turns."""
+    parts = unpack(x, shapes)
+    return [pack(turn_inputs(parts, k), shapes) for k in range(_SIDES)]
+
+
+class RotatedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
+    """``dataset`` (items ``(packed inputs, label)``) with each item turned by a random number
+    of quarter turns drawn from torch's generator (seeded by the trainer: deterministic)."""
+
+    def __init__(self, dataset: Any, shapes: Mapping[str, tuple[int, ...]]) -> None:
+        self.dataset = dataset
+        self.shapes = dict(shapes)
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
+        x, y = self.dataset[i]
+        k = int(torch.randint(0, _SIDES, ()).item())
+        if k == 0:
+            return x, y
+        turned = turn_inputs(unpack(x[None], self.shapes), k)
+        return pack(turned, self.shapes)[0], y
