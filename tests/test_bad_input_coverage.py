@@ -23,6 +23,7 @@ import rgbd_rs.nn
 import rgbd_rs.render
 import rgbd_rs.segmentation
 import rgbd_rs.shapes
+import rgbd_rs.shapes.curvature
 import rgbd_rs.surface
 import rgbd_rs.viz
 from bad_input import Case
@@ -46,6 +47,7 @@ PUBLIC_MODULES = (
     rgbd_rs.nn,
     rgbd_rs.segmentation,
     rgbd_rs.shapes,
+    rgbd_rs.shapes.curvature,
 )
 
 #: Public callables with no caller input to check, and why.
