@@ -1,5 +1,6 @@
 """Dataset readers and writers: the real Azure Kinect ToF frame (:mod:`.azure_kinect`), Middlebury
-pairs (:mod:`.middlebury`), NYU Depth v2 labeled frames (:mod:`.nyuv2`), the synthetic
+pairs (:mod:`.middlebury`), NYU Depth v2 labeled frames (:mod:`.nyuv2`; the official
+``nyu_depth_v2_labeled.mat`` through :mod:`.nyuv2_mat`), the synthetic
 SYNTH3-style dataset (:mod:`.synth`), SYNTH3's own MATLAB layout (:mod:`.synth3`) and rig
 calibration JSON (:mod:`.calibration`)."""
 
@@ -16,9 +17,18 @@ from rgbd_rs.data.nyuv2 import (
     LABEL13_NAMES,
     NYUV2_CAMERA,
     NyuFrame,
+    instance_ground_truth,
     load_nyuv2_frame,
     nyuv2_frames,
     region_ground_truth,
+)
+from rgbd_rs.data.nyuv2_mat import (
+    NyuClassMapping,
+    NyuMatDataset,
+    NyuSplits,
+    NyuTestLabels,
+    load_nyuv2_mapping,
+    load_nyuv2_splits,
 )
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.data.synth import SynthDataset, SynthSample, synth3_rig, write_dataset
@@ -30,17 +40,24 @@ __all__ = [
     "AzureKinectCalibration",
     "AzureKinectFrame",
     "MiddleburyPair",
+    "NyuClassMapping",
     "NyuFrame",
+    "NyuMatDataset",
+    "NyuSplits",
+    "NyuTestLabels",
     "Synth3Dataset",
     "Synth3Sample",
     "SynthDataset",
     "SynthSample",
     "data_root",
+    "instance_ground_truth",
     "load_azure_kinect_calibration",
     "load_azure_kinect_frame",
     "load_camera",
     "load_middlebury",
     "load_nyuv2_frame",
+    "load_nyuv2_mapping",
+    "load_nyuv2_splits",
     "load_rig",
     "nyuv2_frames",
     "region_ground_truth",
