@@ -15,6 +15,7 @@ import rgbd_rs
 import rgbd_rs.data
 import rgbd_rs.data.nyuv2
 import rgbd_rs.data.nyuv2_mat
+import rgbd_rs.data.synth_indoor
 import rgbd_rs.fusion
 import rgbd_rs.io
 import rgbd_rs.meshes
@@ -48,6 +49,7 @@ PUBLIC_MODULES = (
     rgbd_rs.segmentation,
     rgbd_rs.shapes,
     rgbd_rs.shapes.curvature,
+    rgbd_rs.data.synth_indoor,
 )
 
 #: Public callables with no caller input to check, and why.
@@ -88,6 +90,7 @@ EXEMPT: dict[str, str] = {
     "Synth3Sample": "result container built by Synth3Dataset",
     "MiddleburyPair": "result container built by load_middlebury",
     "NyuFrame": "result container built by load_nyuv2_frame",
+    "IndoorFrame": "result container built by render_indoor_frame / IndoorFrames",
     "NyuMatDataset.close": "no arguments",
     "AzureKinectCalibration": "result container built by load_azure_kinect_calibration",
     "EpochStats": "result container built by train",
