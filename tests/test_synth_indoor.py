@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rgbd_rs import PinholeCamera, Pose
 from rgbd_rs.cli import indoor as cli_indoor
 from rgbd_rs.cli._args import Commands, Parser
 from rgbd_rs.data.nyuv2 import LABEL13_NAMES
@@ -19,7 +20,11 @@ from rgbd_rs.data.synth_indoor import (
     generate_indoor,
     render_indoor_frame,
 )
-from rgbd_rs.data.synth_indoor_objects import CEILING, FLOOR, WALL
+from rgbd_rs.data.synth_indoor_objects import CEILING, FLOOR, WALL, Part
+from rgbd_rs.data.synth_indoor_scene import IndoorScene
+from rgbd_rs.data.synth_indoor_sensor import kinect_depth
+from rgbd_rs.meshes import quad
+from rgbd_rs.render import Material, Scene
 
 W, H = 80, 60
 
@@ -103,37 +108,60 @@ def test_labels_follow_the_geometry_of_the_placed_objects() -> None:
     assert {FLOOR, WALL} <= seen and len(seen) >= 10, sorted(seen)
 
 
-def test_depth_noise_grows_with_depth_and_holes_exist() -> None:
-    near, far, holes = [], [], []
-    for k in range(6):
-        frame, _, truth = _render(5, k, 320, 240)
-        err = frame.depth - truth
-        ok = np.isfinite(err) & (np.abs(err) < 0.3)  # away from jagged edges
-        near.append(err[ok & (truth > 1.5) & (truth < 2.5)])
-        far.append(err[ok & (truth > 3.5) & (truth < 4.5)])
-        holes.append(np.isnan(frame.depth).mean())
-
-    def robust_sd(e: list[np.ndarray]) -> float:
-        x = np.concatenate(e)
-        return float(1.4826 * np.median(np.abs(x - np.median(x))))
-
-    sd_near, sd_far = robust_sd(near), robust_sd(far)
-    # sigma_z ~ 1.425e-3 z^2 (k drawn in 1.0e-3..1.85e-3, quantisation included): ~5.7 mm
-    # at 2 m, ~23 mm at 4 m.
-    assert 0.002 < sd_near < 0.012, sd_near
-    assert sd_far > 2.5 * sd_near, (sd_near, sd_far)
-    assert 0.005 < np.mean(holes) < 0.5
+def _strips(dark_lower: bool = True) -> tuple[IndoorScene, list[float]]:
+    """Walls at 1.5 .. 9.5 m, one per vertical image strip, tilted by ~6 degrees (so the true
+    disparity sweeps the quantisation steps); the lower half of each is a black surface (IR
+    albedo 0.005) when ``dark_lower``."""
+    cam = PinholeCamera(200.0, 200.0, 79.5, 59.5, 160, 120)
+    depths = [1.5, 2.0, 3.0, 4.0, 5.0, 6.0, 8.5, 9.5]
+    scene, parts = Scene(), []
+    bright = Material((0.6, 0.6, 0.6), 0.6)
+    black = Material((0.005, 0.005, 0.005), 0.005)
+    for k, z in enumerate(depths):
+        x0, x1 = ((20 * k - 1 - cam.cx) / cam.fx * z, (20 * k + 20 - cam.cx) / cam.fx * z)
+        for y0, y1, m in ((-z, 0.0, bright), (0.0, z, black if dark_lower else bright)):
+            z0, z1 = z * (1 + 0.1 * y0 / z), z * (1 + 0.1 * y1 / z)
+            mesh = quad([[x0, y0, z0], [x1, y0, z0], [x1, y1, z1], [x0, y1, z1]])
+            scene.add(mesh, m)
+            parts.append(Part(mesh, m, WALL))
+    return IndoorScene(scene, parts, cam, Pose.identity(), "test"), depths
 
 
-def test_holes_grow_beyond_the_working_range() -> None:
-    counts = np.zeros((2, 2))  # [near, far] x [holes, pixels]
-    for k in range(40):
-        frame, _, truth = _render(8, k, 48, 36)
-        for row, sel in enumerate((truth < 3.0, truth > 6.0)):
-            counts[row] += [np.isnan(frame.depth[sel]).sum(), sel.sum()]
-    assert counts[1, 1] > 100, "no far pixels: the test needs larger rooms"
-    near, far = counts[:, 0] / counts[:, 1]
-    assert far > 0.4 and far > 3 * near, (near, far)
+def _measure(scene: IndoorScene, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    built = scene.scene.build()
+    gb = built.gbuffer(scene.camera, scene.pose)
+    depth = kinect_depth(np.random.default_rng(seed), gb, built, scene)
+    return depth, gb.depth
+
+
+def test_depth_noise_grows_as_z_squared() -> None:
+    scene, depths = _strips(dark_lower=False)
+    errs: list[list[np.ndarray]] = [[] for _ in depths]
+    for seed in range(4):
+        depth, truth = _measure(scene, seed)
+        for k in range(len(depths)):
+            e = ((depth - truth) / truth**2)[:, 20 * k + 4 : 20 * k + 16]
+            errs[k].append(e[np.isfinite(e)])
+    # sigma_z / z^2 = k, drawn in 1.0e-3 .. 1.85e-3 (quantisation included), at every depth:
+    # the noise grows as z^2. (A quantised error: a MAD would be 0, so the plain deviation.)
+    ratio = np.array([np.concatenate(e).std() for e in errs[:5]])  # 1.5 .. 5 m
+    assert np.all((ratio > 0.9e-3) & (ratio < 2.0e-3)), ratio
+    assert ratio.max() < 1.5 * ratio.min(), ratio
+    bias = np.median(np.concatenate(errs[1])) * 2.0**2
+    assert abs(bias) < 0.003, bias
+
+
+def test_holes_on_black_surfaces_and_beyond_the_range() -> None:
+    scene, depths = _strips()
+    depth, _ = _measure(scene, 0)
+    hole = np.isnan(depth)
+    upper = [hole[:60, 20 * k + 4 : 20 * k + 16].mean() for k in range(len(depths))]
+    lower = [hole[60:, 20 * k + 4 : 20 * k + 16].mean() for k in range(len(depths))]
+    assert max(upper[:4]) < 0.1, upper  # bright, 1.5 .. 4 m: measured
+    assert min(upper[-2:]) > 0.6, upper  # 8.5, 9.5 m: beyond the working range
+    assert np.mean(lower[2:6]) > 0.6, lower  # black at 3 .. 6 m: lost
+    frame = render_indoor_frame(5, 0, width=160, height=120)
+    assert 0.005 < np.isnan(frame.depth).mean() < 0.5
 
 
 def test_class_frequencies_sum_to_one_and_walls_dominate() -> None:
@@ -150,7 +178,14 @@ def _cli(*args: str) -> int:
     return int(ns.run(ns))
 
 
-def test_cli_writes_frames_preview_and_stats(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_cli_writes_frames_preview_and_stats(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import rgbd_rs.data.paths
+
+    monkeypatch.setattr(rgbd_rs.data.paths, "data_root", lambda: None)  # skip reading NYUv2
     out = tmp_path / "d"
     common = ["--out", str(out), "--width", "32", "--height", "24", "--quiet"]
     assert _cli("synth-indoor", *common, "--count", "3", "--shard", "1/2", "--seed", "4") == 0

@@ -16,8 +16,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from rgbd_rs.data.synth_scene import shared_meshes
-from rgbd_rs.meshes import Mesh, box, cylinder, sphere
+from rgbd_rs.data.paths import data_root
+from rgbd_rs.meshes import Mesh, box, cylinder, load_mesh, sphere
 from rgbd_rs.render import Material, Texture
 
 # 13-class labels (rgbd_rs.data.nyuv2.LABEL13_NAMES).
@@ -71,7 +71,8 @@ def hsv(
 
 #: sRGB hue / saturation / value ranges of the material families (ordinary interiors).
 PALETTES: dict[str, list[tuple[tuple[float, float], tuple[float, float], tuple[float, float]]]] = {
-    "wall": [((20.0, 60.0), (0.02, 0.15), (0.72, 0.95))] * 4 + [((0, 360), (0.08, 0.35), (0.5, 0.9))],
+    "wall": [((20.0, 60.0), (0.02, 0.15), (0.72, 0.95))] * 4
+    + [((0, 360), (0.08, 0.35), (0.5, 0.9))],
     "ceiling": [((20, 60), (0.0, 0.08), (0.8, 0.97))],
     "wood": [((18, 38), (0.35, 0.7), (0.25, 0.75))],
     "laminate": [((0, 360), (0.0, 0.08), (0.6, 0.95)), ((20, 45), (0.1, 0.3), (0.6, 0.9))],
@@ -274,7 +275,7 @@ def cabinet(rng: Rng) -> Parts:
             )
     front = material(rng, fam) if rng.random() < 0.5 else body
     parts = [Part(_merge(meshes), body, FURNITURE), Part(_merge(fronts), front, FURNITURE)]
-    return Parts(parts, (w, d), [(-w / 2, w / 2, -d / 2, d / 2, h)] if h < 1.3 else [])
+    return Parts(parts, (w, d), [(-w / 2, w / 2, -d / 2, d / 2, h)])
 
 
 def shelf(rng: Rng) -> Parts:
@@ -307,7 +308,7 @@ def shelf(rng: Rng) -> Parts:
                 Part(mesh, material(rng, "bright" if rng.random() < 0.6 else "any"), BOOKS)
             )
             x += bw + 0.002
-    return Parts(parts, (w, d), [(-w / 2, w / 2, -d / 2, d / 2, h)] if h < 1.3 else [])
+    return Parts(parts, (w, d), [(-w / 2, w / 2, -d / 2, d / 2, h)])
 
 
 def screen(rng: Rng, *, monitor: bool) -> Parts:
@@ -325,48 +326,125 @@ def screen(rng: Rng, *, monitor: bool) -> Parts:
     return Parts(parts, (w, 0.2))
 
 
-def small_object(rng: Rng) -> Part:
-    """A box, bottle, cup, ball, lamp, bag or (rarely) a shared mesh (label objects)."""
-    kind = rng.choice(
-        ["box", "bottle", "cup", "ball", "lamp", "mesh"], p=[0.35, 0.2, 0.15, 0.1, 0.12, 0.08]
+def small_object(rng: Rng, *, floor: bool = False) -> list[Part]:
+    """Clutter (label objects unless books): boxes, bottles, cups, balls, lamps, papers, book
+    stacks, laptops, bins, bags and clothes (on the floor), or a shared mesh. ``floor``: sizes
+    of things standing on the floor."""
+    kinds = [
+        "box",
+        "bottle",
+        "cup",
+        "ball",
+        "lamp",
+        "paper",
+        "books",
+        "laptop",
+        "bin",
+        "bag",
+        "mesh",
+    ]
+    weights = (
+        [0.35, 0.02, 0.0, 0.05, 0.08, 0.0, 0.06, 0.0, 0.14, 0.22, 0.08]
+        if floor
+        else [0.16, 0.14, 0.12, 0.04, 0.08, 0.12, 0.14, 0.08, 0.0, 0.04, 0.08]
     )
+    kind = str(rng.choice(kinds, p=np.asarray(weights) / sum(weights)))
     mat = material(rng, "any")
     glossy = float(rng.uniform(0, 0.4))
-    if kind == "bottle":
-        r, h = float(rng.uniform(0.03, 0.05)), float(rng.uniform(0.15, 0.32))
-        return Part(cylinder(r, h, (0, -h / 2, 0), segments=16), mat, OBJECTS, glossy)
-    if kind == "cup":
-        r, h = float(rng.uniform(0.03, 0.06)), float(rng.uniform(0.07, 0.13))
-        return Part(cylinder(r, h, (0, -h / 2, 0), segments=16), mat, OBJECTS, glossy)
+    if kind in ("bottle", "cup", "bin"):
+        r_range, h_range = {
+            "bottle": ((0.03, 0.05), (0.15, 0.32)),
+            "cup": ((0.03, 0.06), (0.07, 0.13)),
+            "bin": ((0.1, 0.2), (0.25, 0.45)),
+        }[kind]
+        rr, hh = float(rng.uniform(*r_range)), float(rng.uniform(*h_range))
+        return [Part(cylinder(rr, hh, (0, -hh / 2, 0), segments=16), mat, OBJECTS, glossy)]
     if kind == "ball":
         r = float(rng.uniform(0.04, 0.13))
-        return Part(sphere(r, (0, -r, 0), rings=10, segments=16), mat, OBJECTS, glossy)
+        return [Part(sphere(r, (0, -r, 0), rings=10, segments=16), mat, OBJECTS, glossy)]
+    if kind == "bag":  # a bag or a heap of clothes: a squashed sphere
+        r = float(rng.uniform(0.12, 0.35) if floor else rng.uniform(0.08, 0.18))
+        sq = float(rng.uniform(0.3, 0.8))
+        m = sphere(r, rings=10, segments=16).scaled((1.0, sq, float(rng.uniform(0.6, 1.0))))
+        return [
+            Part(
+                m.transformed(translation=(0, -r * sq, 0)),
+                material(rng, "fabric", texture="weave"),
+                OBJECTS,
+            )
+        ]
     if kind == "lamp":
-        h, r = float(rng.uniform(0.3, 0.6)), float(rng.uniform(0.1, 0.2))
+        h = float(rng.uniform(1.2, 1.7) if floor else rng.uniform(0.3, 0.6))
+        r = float(rng.uniform(0.1, 0.25))
         lamp = cylinder(0.015, h, (0, -h / 2, 0), segments=8).merged(
             cylinder(r, r * 1.1, (0, -h - r * 0.4, 0), segments=20),
             box((r, 0.03, r), (0, -0.015, 0)),
         )
-        return Part(lamp, material(rng, "linen"), OBJECTS)
+        return [Part(lamp, material(rng, "linen"), OBJECTS)]
+    if kind == "paper":
+        w, d = float(rng.uniform(0.15, 0.35)), float(rng.uniform(0.2, 0.35))
+        m = slab(w, float(rng.uniform(0.002, 0.03)), d, 0, 0, 0)
+        return [Part(m, material(rng, "ceiling", texture="plain"), OBJECTS)]
+    if kind == "books":  # a stack of books lying flat
+        parts, y = [], 0.0
+        for _ in range(int(rng.integers(1, 6))):
+            t = float(rng.uniform(0.015, 0.05))
+            m = slab(float(rng.uniform(0.14, 0.25)), t, float(rng.uniform(0.2, 0.3)), 0, y, 0)
+            parts.append(
+                Part(m.transformed(_yaw(float(rng.normal(0, 0.1)))), material(rng, "bright"), BOOKS)
+            )
+            y += t
+        return parts
+    if kind == "laptop":
+        w, d = float(rng.uniform(0.3, 0.4)), float(rng.uniform(0.22, 0.28))
+        base = slab(w, 0.02, d, 0, 0, 0)
+        lid = slab(w, d, 0.01, 0, 0.02, d / 2)
+        return [
+            Part(base.merged(lid), material(rng, str(rng.choice(["dark", "metal"]))), OBJECTS, 0.3)
+        ]
     if kind == "mesh":
         meshes = _meshes()
         if meshes:
-            m = meshes[int(rng.integers(len(meshes)))].normalized(float(rng.uniform(0.15, 0.4)))
+            size = float(rng.uniform(0.5, 1.6) if floor else rng.uniform(0.15, 0.4))
+            m = meshes[int(rng.integers(len(meshes)))].normalized(size)
             m = m.transformed(np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]))  # z-up -> y-down
             bottom = float(m.bounds()[1][1])
-            return Part(m.transformed(translation=(0, -bottom, 0)), mat, OBJECTS, glossy)
-    s = rng.uniform([0.08, 0.05, 0.08], [0.5, 0.45, 0.45])
-    brown = rng.random() < 0.5  # cardboard
-    return Part(
-        slab(float(s[0]), float(s[1]), float(s[2]), 0, 0, 0),
-        material(rng, "wood", texture="plain") if brown else mat,
-        OBJECTS,
+            return [Part(m.transformed(translation=(0, -bottom, 0)), mat, OBJECTS, glossy)]
+    lo, hi = (
+        ([0.2, 0.15, 0.2], [0.7, 0.6, 0.6]) if floor else ([0.06, 0.04, 0.06], [0.35, 0.3, 0.3])
     )
+    parts, y = [], 0.0
+    for _ in range(int(rng.integers(1, 4)) if floor else 1):  # a stack of boxes
+        sz = rng.uniform(lo, hi)
+        brown = rng.random() < 0.5  # cardboard
+        m = slab(float(sz[0]), float(sz[1]), float(sz[2]), 0, y, 0).transformed(
+            _yaw(float(rng.normal(0, 0.15)))
+        )
+        parts.append(
+            Part(
+                m,
+                material(rng, "wood", texture="plain") if brown else material(rng, "any"),
+                OBJECTS,
+            )
+        )
+        y += float(sz[1])
+        lo, hi = [0.15, 0.1, 0.15], [float(sz[0]), 0.4, float(sz[2])]
+    return parts
+
+
+def _yaw(theta: float) -> np.ndarray:
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
 
 
 @lru_cache(maxsize=1)
 def _meshes() -> tuple[Mesh, ...]:
-    return tuple(shared_meshes())
+    """The OFF meshes of ``../shared/data/meshes`` (ModelNet bathtubs, the Stanford bunny: things
+    found indoors); empty when the data is absent."""
+    root = data_root()
+    if root is None or not (root / "meshes").is_dir():
+        return ()
+    return tuple(load_mesh(p) for p in sorted((root / "meshes").glob("*.off")))
 
 
 #: Builders of floor-standing furniture by kind.

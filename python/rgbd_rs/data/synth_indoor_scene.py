@@ -16,12 +16,13 @@ import numpy as np
 from rgbd_rs.camera import PinholeCamera, Pose
 from rgbd_rs.data.nyuv2 import NYUV2_CAMERA
 from rgbd_rs.data.synth_indoor_objects import (
+    BOOKS,
     CEILING,
     FLOOR,
+    FURNITURE,
     FURNITURE_BUILDERS,
     OBJECTS,
     PICTURE,
-    TV,
     WALL,
     WINDOW,
     Part,
@@ -33,7 +34,7 @@ from rgbd_rs.data.synth_indoor_objects import (
     slab,
     small_object,
 )
-from rgbd_rs.meshes import quad
+from rgbd_rs.meshes import cylinder, quad
 from rgbd_rs.render import PointLight, Scene
 
 Rng = np.random.Generator
@@ -46,8 +47,16 @@ ROOM_HEIGHT = (2.4, 3.1)
 #: Camera height above the floor (m), pitch (degrees, negative = looking down: mean, sd, range)
 #: and roll sd (degrees).
 CAMERA_HEIGHT = (1.0, 1.6)
-PITCH = (-12.0, 9.0, (-40.0, 10.0))
+PITCH = (-6.0, 8.0, (-35.0, 15.0))
 ROLL_SD = 3.0
+#: Things on the floor per room (range), and the free half-width around the camera (m).
+FLOOR_CLUTTER = (3, 16)
+KEEP_OUT = 0.5
+#: Chance of a monitor / TV on a wide enough top.
+P_SCREEN = 0.2
+#: Share of views aimed at a piece of furniture, and the aim's slack (degrees).
+P_AIMED = 0.8
+AIM_SD = 12.0
 #: Relative spread of the focal length and principal point (pixels, at 640 x 480) around the
 #: NYU camera.
 FOCAL_SPREAD = 0.06
@@ -55,28 +64,28 @@ PRINCIPAL_SD = 8.0
 #: Room types and the furniture they hold: kind -> (count range).
 ROOMS: dict[str, dict[str, tuple[int, int]]] = {
     "bedroom": {
-        "bed": (1, 1),
+        "bed": (1, 2),
         "cabinet": (1, 4),
         "shelf": (0, 2),
-        "chair": (0, 1),
+        "chair": (0, 2),
         "table": (0, 1),
     },
     "living": {
-        "sofa": (1, 2),
-        "table": (0, 2),
+        "sofa": (1, 3),
+        "table": (1, 2),
         "cabinet": (1, 3),
         "shelf": (0, 2),
         "chair": (0, 2),
     },
     "office": {
-        "table": (1, 3),
-        "cabinet": (0, 3),
+        "table": (1, 4),
+        "cabinet": (1, 3),
         "shelf": (0, 3),
         "sofa": (0, 1),
-        "chair": (0, 1),
+        "chair": (0, 3),
     },
-    "kitchen": {"cabinet": (2, 5), "table": (0, 1), "chair": (0, 1), "shelf": (0, 1)},
-    "library": {"shelf": (2, 6), "table": (0, 2), "cabinet": (0, 1), "chair": (0, 1)},
+    "kitchen": {"cabinet": (2, 6), "table": (0, 2), "chair": (0, 2), "shelf": (0, 1)},
+    "library": {"shelf": (2, 7), "table": (0, 2), "cabinet": (0, 2), "chair": (0, 2)},
 }
 ROOM_P = {"bedroom": 0.28, "living": 0.24, "office": 0.24, "kitchen": 0.12, "library": 0.12}
 #: Inward normals (x, z) of the walls z = 0, z = D, x = 0, x = W.
@@ -173,8 +182,8 @@ class _Room:
         """Small objects (and monitors / TVs) on the item's top surfaces."""
         r = _yaw_matrix(theta)
         for x0, x1, z0, z1, y in item.tops:
-            n = int(self.rng.integers(0, 2 + int((x1 - x0) * (z1 - z0) * 6)))
-            if (x1 - x0) > 0.6 and self.rng.random() < 0.45:
+            n = int(self.rng.integers(0, 3 + int((x1 - x0) * (z1 - z0) * 14)))
+            if (x1 - x0) > 0.6 and self.rng.random() < P_SCREEN:
                 tv = screen(self.rng, monitor=y > 0.6)
                 u = float(
                     self.rng.uniform(
@@ -186,16 +195,19 @@ class _Room:
                 self.add(tv.parts, float(x + p[0]), float(z + p[2]), theta, float(p[1]))
             for _ in range(n):
                 obj = small_object(self.rng)
-                lo, hi = obj.mesh.bounds()
+                lo = np.min([p.mesh.bounds()[0] for p in obj], axis=0)
+                hi = np.max([p.mesh.bounds()[1] for p in obj], axis=0)
                 if hi[0] - lo[0] > x1 - x0 or hi[2] - lo[2] > z1 - z0:
+                    continue
+                if y > 1.9 and -lo[1] + y > self.h - 0.05:
                     continue
                 u = float(self.rng.uniform(x0 - lo[0], x1 - hi[0]))
                 v = float(self.rng.uniform(z0 - lo[2], z1 - hi[2]))
                 p = r @ np.array([u, -y, v])
-                self.add([obj], float(x + p[0]), float(z + p[2]), theta, float(p[1]))
+                self.add(obj, float(x + p[0]), float(z + p[2]), theta, float(p[1]))
 
-    def wall_item(self, label: int, w: float, h: float, bottom: float, parts: list[Part]) -> None:
-        """A flat item of ``w x h`` whose bottom is ``bottom`` above the floor on a free span."""
+    def wall_item(self, w: float, bottom: float, parts: list[Part]) -> None:
+        """An item ``w`` wide whose bottom is ``bottom`` above the floor, on a free wall span."""
         for _ in range(15):
             k = int(self.rng.integers(4))
             if self.wall_length(k) < w + 0.2:
@@ -214,7 +226,7 @@ def _wall_items(room: _Room) -> None:
     if rng.random() < 0.9:  # a door
         w, h = float(rng.uniform(0.75, 0.95)), float(rng.uniform(1.95, 2.1))
         m = material(rng, str(rng.choice(["wood", "laminate", "wall"])), texture="wood")
-        room.wall_item(WALL, w, h, 0.0, [Part(slab(w, h, 0.04, 0, 0, 0), m, WALL)])
+        room.wall_item(w, 0.0, [Part(slab(w, h, 0.04, 0, 0, 0), m, WALL)])
     for _ in range(int(rng.choice([0, 1, 1, 2, 3]))):  # windows
         w, h = float(rng.uniform(0.6, 2.2)), float(rng.uniform(0.8, 1.6))
         bottom = float(rng.uniform(0.5, 1.0))
@@ -244,23 +256,60 @@ def _wall_items(room: _Room) -> None:
                         WINDOW,
                     )
                 )
-        room.wall_item(WINDOW, w, h, bottom, parts)
-    for _ in range(int(rng.integers(0, 5))):  # pictures, posters, a whiteboard or a wall TV
-        kind = rng.choice(["picture", "board", "tv"], p=[0.8, 0.12, 0.08])
+        room.wall_item(w, bottom, parts)
+    for _ in range(int(rng.integers(1, 8))):  # pictures, papers, boards, clocks, shelves, TVs
+        kind = str(
+            rng.choice(
+                ["picture", "paper", "board", "clock", "shelf", "tv"],
+                p=[0.47, 0.2, 0.08, 0.07, 0.14, 0.04],
+            )
+        )
         if kind == "tv":
             tv = screen(rng, monitor=False)
             w = tv.footprint[0]
-            room.wall_item(TV, w, w * 0.6, float(rng.uniform(0.9, 1.4)), tv.parts)
-            continue
-        w, h = float(rng.uniform(0.2, 1.2)), float(rng.uniform(0.2, 1.0))
-        bottom = float(rng.uniform(0.8, max(0.9, room.h - h - 0.3)))
-        if kind == "board":
-            w, h = float(rng.uniform(0.9, 2.0)), float(rng.uniform(0.6, 1.2))
-            m, label = material(rng, "ceiling", texture="plain"), OBJECTS
+            room.wall_item(w, float(rng.uniform(0.9, 1.4)), tv.parts)
+        elif kind == "shelf":
+            _wall_shelf(room)
+        elif kind == "clock":
+            r = float(rng.uniform(0.1, 0.2))
+            face = cylinder(r, 0.04, (0, -r, -0.02), segments=24, axis=2)
+            room.wall_item(
+                2 * r, float(rng.uniform(1.5, 2.1)), [Part(face, material(rng, "any"), OBJECTS)]
+            )
         else:
-            m, label = image_material(rng, max(w, h)), PICTURE
-        depth = float(rng.uniform(0.005, 0.04))
-        room.wall_item(label, w, h, bottom, [Part(slab(w, h, depth, 0, 0, -depth / 2), m, label)])
+            w, h = {
+                "picture": (rng.uniform(0.2, 1.2), rng.uniform(0.2, 1.0)),
+                "paper": (rng.uniform(0.15, 0.45), rng.uniform(0.2, 0.6)),
+                "board": (rng.uniform(0.9, 2.0), rng.uniform(0.6, 1.2)),
+            }[kind]
+            w, h = float(w), float(h)
+            if kind == "picture":
+                m, label = image_material(rng, max(w, h)), PICTURE
+            else:
+                m, label = material(rng, "ceiling", texture="plain"), OBJECTS
+            bottom = float(rng.uniform(0.8, max(0.9, room.h - h - 0.3)))
+            depth = float(rng.uniform(0.003, 0.04))
+            room.wall_item(w, bottom, [Part(slab(w, h, depth, 0, 0, -depth / 2), m, label)])
+
+
+def _wall_shelf(room: _Room) -> None:
+    """A board on the wall (furniture) with upright books (books) and objects."""
+    rng = room.rng
+    w, d = float(rng.uniform(0.6, 1.6)), float(rng.uniform(0.18, 0.3))
+    parts = [
+        Part(slab(w, 0.025, d, 0, 0, -d / 2), material(rng, "wood", texture="wood"), FURNITURE)
+    ]
+    x = -w / 2
+    while x < w / 2 - 0.06:
+        bw = float(rng.uniform(0.015, 0.06))
+        if rng.random() < 0.15:
+            x += float(rng.uniform(0.05, 0.3))
+            continue
+        bh, bd = float(rng.uniform(0.15, 0.3)), float(rng.uniform(0.12, d - 0.02))
+        mesh = slab(bw, bh, bd, x + bw / 2, 0.025, -bd / 2 - 0.01)
+        parts.append(Part(mesh, material(rng, "bright" if rng.random() < 0.6 else "any"), BOOKS))
+        x += bw + 0.002
+    room.wall_item(w, float(rng.uniform(1.0, min(2.0, room.h - 0.5))), parts)
 
 
 def _camera(rng: Rng, width: int, height: int) -> PinholeCamera:
@@ -277,30 +326,46 @@ def _camera(rng: Rng, width: int, height: int) -> PinholeCamera:
     )
 
 
-def _view(rng: Rng, room: _Room) -> tuple[float, float, float, Pose]:
-    """Camera position (x, z) in the room, height, and the world-to-camera pose."""
-    # Look across the room (hand-held captures face the room, rarely a wall at arm's length).
-    need = max(1.6, float(rng.uniform(0.4, 0.8)) * max(room.w, room.d))
-    for attempt in range(200):
-        x = float(rng.uniform(0.3, room.w - 0.3))
-        z = float(rng.uniform(0.3, room.d - 0.3))
-        yaw = float(rng.uniform(0, 2 * np.pi))
-        s, c = np.sin(yaw), np.cos(yaw)
-        # Distance to the wall ahead (ray against the room rectangle).
-        tx = (room.w - x) / s if s > 1e-6 else (-x / s if s < -1e-6 else np.inf)
-        tz = (room.d - z) / c if c > 1e-6 else (-z / c if c < -1e-6 else np.inf)
-        if min(tx, tz) > (need if attempt < 100 else 1.6):
-            break
+def _position(rng: Rng, room: _Room) -> tuple[float, float]:
+    """Where the operator stands: anywhere 0.4 m or more from the walls."""
+    m = min(0.4, room.w / 3, room.d / 3)
+    return float(rng.uniform(m, room.w - m)), float(rng.uniform(m, room.d - m))
+
+
+def _view(rng: Rng, room: _Room, x: float, z: float) -> Pose:
+    """The world-to-camera pose of a camera at (x, z): aimed at a piece of furniture (with some
+    slack), as people film a room, else across the room; pitch mostly slightly down."""
     height = float(rng.uniform(*CAMERA_HEIGHT))
+    targets = [
+        b for b in room.boxes if np.hypot((b[0] + b[1]) / 2 - x, (b[2] + b[3]) / 2 - z) > 1.0
+    ]
     mean, sd, (lo, hi) = PITCH
-    pitch = np.radians(float(np.clip(rng.normal(mean, sd), lo, hi)))
+    pitch_deg = float(rng.normal(mean, sd))
+    if targets and rng.random() < P_AIMED:
+        b = targets[int(rng.integers(len(targets)))]
+        tx, tz = (b[0] + b[1]) / 2 - x, (b[2] + b[3]) / 2 - z
+        yaw = float(np.arctan2(tx, tz) + rng.normal(0, np.radians(AIM_SD)))
+        look = float(rng.uniform(0.3, 1.1))  # height looked at
+        pitch_deg = float(-np.degrees(np.arctan2(height - look, np.hypot(tx, tz))))
+        pitch_deg += float(rng.normal(0, AIM_SD / 2))
+    else:
+        need = max(1.6, float(rng.uniform(0.3, 0.7)) * max(room.w, room.d))
+        for attempt in range(200):
+            yaw = float(rng.uniform(0, 2 * np.pi))
+            s, c = np.sin(yaw), np.cos(yaw)
+            # Distance to the wall ahead (ray against the room rectangle).
+            ax = (room.w - x) / s if s > 1e-6 else (-x / s if s < -1e-6 else np.inf)
+            az = (room.d - z) / c if c > 1e-6 else (-z / c if c < -1e-6 else np.inf)
+            if min(ax, az) > (need if attempt < 100 else 1.0):
+                break
+    pitch = np.radians(float(np.clip(pitch_deg, lo, hi)))
     roll = np.radians(float(rng.normal(0, ROLL_SD)))
     cp, sp, cr, sr = np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
     rx = np.array([[1, 0, 0], [0, cp, -sp], [0, sp, cp]])
     rz = np.array([[cr, -sr, 0], [sr, cr, 0], [0, 0, 1]])
     r_cw = _yaw_matrix(yaw) @ rx @ rz  # camera axes in the world
     centre = np.array([x, -height, z])
-    return x, z, height, Pose(r_cw.T, -r_cw.T @ centre)
+    return Pose(r_cw.T, -r_cw.T @ centre)
 
 
 def _lights(rng: Rng, room: _Room, scene: Scene) -> None:
@@ -351,8 +416,10 @@ def random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
         k = int(rng.integers(2, 6))
         shells[k] = (shells[k][0], material(rng, "wall"), WALL)
     room.parts += [Part(m, mat, lab) for m, mat, lab in shells]
-    cx, cz, _, pose = _view(rng, room)
-    keep_out: list[tuple[float, ...]] = [(cx - 0.35, cx + 0.35, cz - 0.35, cz + 0.35)]
+    cx, cz = _position(rng, room)
+    keep_out: list[tuple[float, ...]] = [
+        (cx - KEEP_OUT, cx + KEEP_OUT, cz - KEEP_OUT, cz + KEEP_OUT)
+    ]
     _wall_items(room)
     kind = str(rng.choice(list(ROOM_P), p=list(ROOM_P.values())))
     for name, (least, most) in ROOMS[kind].items():
@@ -365,10 +432,22 @@ def random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
             room.on_tops(item, *where)
             if name == "table":
                 _chairs_around(room, item, *where, keep_out)
-    for _ in range(int(rng.integers(0, 6))):  # boxes, bags, toys on the floor
-        obj = small_object(rng)
-        size = np.subtract(*obj.mesh.bounds()[::-1])
-        room.place(Parts([obj], (float(size[0]), float(size[2]))), free=True, keep_out=keep_out)
+    for _ in range(int(rng.integers(*FLOOR_CLUTTER))):  # boxes, bags, bins, lamps on the floor
+        obj = small_object(rng, floor=True)
+        lo = np.min([p.mesh.bounds()[0] for p in obj], axis=0)
+        hi = np.max([p.mesh.bounds()[1] for p in obj], axis=0)
+        centred = [
+            Part(
+                p.mesh.transformed(translation=-(lo + hi) * [0.5, 0, 0.5]),
+                p.material,
+                p.label,
+                p.glossy,
+            )
+            for p in obj
+        ]
+        item = Parts(centred, (float(hi[0] - lo[0]), float(hi[2] - lo[2])))
+        room.place(item, free=rng.random() < 0.4, keep_out=keep_out)
+    pose = _view(rng, room, cx, cz)
     scene = Scene()
     for p in room.parts:
         scene.add(p.mesh, p.material)

@@ -45,7 +45,7 @@ NEAR = (0.45, 0.6)
 FAR_START = (4.5, 6.5)
 FAR_RAMP = (0.5, 2.0)
 #: IR albedo x cos(incidence) / z^2 (m^-2) below which the pattern is lost (black surfaces).
-WEAK_SIGNAL = (0.001, 0.005)
+WEAK_SIGNAL = (0.0005, 0.003)
 #: Cosine of the incidence angle below which holes appear.
 GRAZING_COS = (0.08, 0.25)
 
@@ -187,4 +187,5 @@ def _shadow(
     rows = np.broadcast_to(np.arange(h)[:, None], (h, w))
     seen = zp[rows, np.clip(up, 0, w - 1)]
     occluded = np.isfinite(seen) & (seen < z - (0.01 + 0.01 * z))
-    return np.asarray(valid & (~inside | occluded), bool)
+    # The projector's field of view is wider than the camera's: outside it counts as lit.
+    return np.asarray(valid & inside & occluded, bool)
