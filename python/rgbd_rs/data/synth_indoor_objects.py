@@ -29,14 +29,16 @@ Rng = np.random.Generator
 
 @dataclass
 class Part:
-    """One renderable object: mesh, material, 13-class label, and how glossy it is for the
-    Kinect's IR pattern (0 = matte; the probability that the part reads as a depth hole)."""
+    """One renderable object: mesh, material, 13-class label, how glossy it is for the Kinect's
+    IR pattern (0 = matte; the probability that the part reads as a depth hole), whether it is
+    window glass (daylight in colour, no depth) or a lamp (glowing in colour)."""
 
     mesh: Mesh
     material: Material
     label: int
     glossy: float = 0.0
     glass: bool = False
+    emissive: bool = False
 
 
 @dataclass
@@ -71,7 +73,7 @@ def hsv(
 
 #: sRGB hue / saturation / value ranges of the material families (ordinary interiors).
 PALETTES: dict[str, list[tuple[tuple[float, float], tuple[float, float], tuple[float, float]]]] = {
-    "wall": [((20.0, 60.0), (0.02, 0.15), (0.72, 0.95))] * 4
+    "wall": [((15.0, 50.0), (0.02, 0.15), (0.72, 0.95))] * 4
     + [((0, 360), (0.08, 0.35), (0.5, 0.9))],
     "ceiling": [((20, 60), (0.0, 0.08), (0.8, 0.97))],
     "wood": [((18, 38), (0.35, 0.7), (0.25, 0.75))],
@@ -120,17 +122,25 @@ def material(rng: Rng, family: str, *, texture: str | None = None) -> Material:
 
 
 def image_material(rng: Rng, period: float) -> Material:
-    """A random picture (a few coloured blobs and gradients on a background), ``period`` metres
-    wide."""
-    n = 24
+    """A random picture ``period`` metres wide: a background with soft blobs (a photo, a
+    painting), sharp rectangles (a poster, a chart), fine noise, and often a frame border."""
+    n = 64
     yy, xx = np.mgrid[0:n, 0:n] / n
     img = np.ones((n, n, 3)) * np.asarray(color(rng, "any"))
-    for _ in range(int(rng.integers(2, 7))):
+    for _ in range(int(rng.integers(2, 8))):
         c = np.asarray(color(rng, "any"))
-        cx, cy, r = rng.uniform(0, 1), rng.uniform(0, 1), rng.uniform(0.1, 0.5)
-        w = np.clip(1.5 - np.hypot(xx - cx, yy - cy) / r, 0, 1)[..., None]
-        img = img * (1 - w) + c * w
-    img = img * (1 + 0.15 * rng.standard_normal((n, n, 1)))
+        cx, cy, r = rng.uniform(0, 1), rng.uniform(0, 1), rng.uniform(0.05, 0.5)
+        wgt = np.clip(1.5 - np.hypot(xx - cx, yy - cy) / r, 0, 1)[..., None]
+        img = img * (1 - wgt) + c * wgt
+    for _ in range(int(rng.integers(0, 6))):
+        x0, y0 = rng.uniform(0, 0.8, 2)
+        x1, y1 = x0 + rng.uniform(0.05, 0.5), y0 + rng.uniform(0.02, 0.4)
+        img[(xx >= x0) & (xx < x1) & (yy >= y0) & (yy < y1)] = color(rng, "any")
+    img = img * (1 + 0.1 * rng.standard_normal((n, n, 1)))
+    if rng.random() < 0.7:
+        b = int(rng.integers(2, 7))
+        frame = np.asarray(color(rng, str(rng.choice(["wood", "dark", "ceiling"]))))
+        img[:b], img[-b:], img[:, :b], img[:, -b:] = frame, frame, frame, frame
     return Material((1.0, 1.0, 1.0), 0.5, Texture.image(np.clip(img, 0, 1), period), 1.0)
 
 

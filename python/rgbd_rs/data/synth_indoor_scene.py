@@ -34,7 +34,7 @@ from rgbd_rs.data.synth_indoor_objects import (
     slab,
     small_object,
 )
-from rgbd_rs.meshes import cylinder, quad
+from rgbd_rs.meshes import box, cylinder, quad
 from rgbd_rs.render import PointLight, Scene
 
 Rng = np.random.Generator
@@ -149,7 +149,14 @@ class _Room:
         r = _yaw_matrix(theta)
         for p in parts:
             self.parts.append(
-                Part(p.mesh.transformed(r, (x, y, z)), p.material, p.label, p.glossy, p.glass)
+                Part(
+                    p.mesh.transformed(r, (x, y, z)),
+                    p.material,
+                    p.label,
+                    p.glossy,
+                    p.glass,
+                    p.emissive,
+                )
             )
 
     def place(
@@ -368,20 +375,38 @@ def _view(rng: Rng, room: _Room, x: float, z: float) -> Pose:
     return Pose(r_cw.T, -r_cw.T @ centre)
 
 
-def _lights(rng: Rng, room: _Room, scene: Scene) -> None:
+def _lights(rng: Rng, room: _Room) -> tuple[list[PointLight], tuple[float, float, float]]:
+    """Ceiling lamps (a panel or a pendant shade, glowing, label objects, each with a point light
+    just below it) and the ambient light standing for the light bounced around the room."""
     warm = float(rng.uniform(-0.15, 0.25))  # colour temperature of the lamps
     tint = np.array([1 + warm, 1.0, 1 - warm])
     n = int(rng.integers(1, 5))
+    lights = []
     for _ in range(n):
-        pos = (
-            float(rng.uniform(0.3, room.w - 0.3)),
-            -room.h + float(rng.uniform(0.1, 0.8)),
-            float(rng.uniform(0.3, room.d - 0.3)),
-        )
+        x, z = float(rng.uniform(0.4, room.w - 0.4)), float(rng.uniform(0.4, room.d - 0.4))
+        glow = material(rng, "ceiling", texture="plain")
+        if rng.random() < 0.6:  # a flush panel
+            sx, sz = float(rng.uniform(0.2, 1.2)), float(rng.uniform(0.2, 0.6))
+            mesh, low = box((sx, 0.04, sz), (x, -room.h + 0.02, z)), room.h - 0.04
+        else:  # a pendant with a shade
+            drop, r = float(rng.uniform(0.2, 0.9)), float(rng.uniform(0.1, 0.3))
+            mesh = cylinder(0.006, drop, (x, -room.h + drop / 2, z), segments=6).merged(
+                cylinder(r, r * 0.8, (x, -room.h + drop + r * 0.4, z), segments=20)
+            )
+            low = room.h - drop - r * 0.8
+        room.parts.append(Part(mesh, glow, OBJECTS, emissive=True))
         power = float(rng.uniform(1.0, 4.0)) * room.h**2 / n
-        scene.lights.append(PointLight(pos, tuple(float(v) for v in power * tint)))  # type: ignore[arg-type]
+        lights.append(PointLight((x, -low + 0.05, z), tuple(float(v) for v in power * tint)))  # type: ignore[arg-type]
+    # Light bounced off the floor and walls: a weak lamp low in the room lights the ceiling.
+    fill = float(rng.uniform(0.1, 0.4)) * sum(float(np.mean(li.intensity)) for li in lights)
+    pos = (
+        float(rng.uniform(0, room.w)),
+        -float(rng.uniform(0.2, 1.0)),
+        float(rng.uniform(0, room.d)),
+    )
+    lights.append(PointLight(pos, tuple(float(v) for v in fill * tint)))  # type: ignore[arg-type]
     amb = float(rng.uniform(0.08, 0.35))
-    scene.ambient = tuple(float(v) for v in amb * tint)  # type: ignore[assignment]
+    return lights, (float(amb * tint[0]), float(amb * tint[1]), float(amb * tint[2]))
 
 
 def random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
@@ -448,10 +473,10 @@ def random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
         item = Parts(centred, (float(hi[0] - lo[0]), float(hi[2] - lo[2])))
         room.place(item, free=rng.random() < 0.4, keep_out=keep_out)
     pose = _view(rng, room, cx, cz)
-    scene = Scene()
+    lights, ambient = _lights(rng, room)
+    scene = Scene(lights=lights, ambient=ambient)
     for p in room.parts:
         scene.add(p.mesh, p.material)
-    _lights(rng, room, scene)
     return IndoorScene(scene, room.parts, _camera(rng, width, height), pose, kind, room.boxes)
 
 

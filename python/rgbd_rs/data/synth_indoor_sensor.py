@@ -32,6 +32,14 @@ if TYPE_CHECKING:
 F32 = npt.NDArray[np.float32]
 Rng = np.random.Generator
 
+#: Colour camera: mid-grey level the auto-exposure aims the scene's mean log luminance at
+#: (linear), and the white-balance gains of red and blue (green = 1; indoor light is warm).
+EXPOSURE = (0.05, 0.2)
+GAIN_R = (1.0, 1.4)
+GAIN_B = (0.8, 1.15)
+#: Radiance of window glass and of lamps relative to the room's mean (overexposed mostly).
+WINDOW_GLOW = (2.5, 14.0)
+LAMP_GLOW = (6.0, 25.0)
 #: Kinect v1 depth noise: sigma_z = k z^2, k in m^-1 (Khoshelham & Elberink 2012), drawn from
 #: this range around 1.425e-3.
 NOISE_K = (1.0e-3, 1.85e-3)
@@ -81,18 +89,22 @@ def kinect_color(
     h, w = obj.shape
     img = np.asarray(linear, np.float32).copy()
     glass = np.array([p.glass for p in scene.parts] + [False])[obj]
+    lamp = np.array([p.emissive for p in scene.parts] + [False])[obj]
     lum = img @ np.array([0.2126, 0.7152, 0.0722], np.float32)
-    inside = lum[~glass] if (~glass).any() else lum.ravel()
-    key = float(np.exp(np.mean(np.log(inside + 1e-4))))
-    if glass.any():
+    lit = ~(glass | lamp)
+    key = float(np.exp(np.mean(np.log((lum[lit] if lit.any() else lum.ravel()) + 1e-4))))
+    if glass.any():  # daylight through the windows
         sky = np.array(
             [rng.uniform(0.75, 1.0), rng.uniform(0.85, 1.0), rng.uniform(0.85, 1.1)], np.float32
         )
-        level = key * float(rng.uniform(2.5, 14.0))
+        level = key * float(rng.uniform(*WINDOW_GLOW))
         tex = 1 + float(rng.uniform(0.05, 0.4)) * (_field(rng, h, w, 12.0, 0.2) - 0.5)
         img[glass] = (level * sky)[None, :] * tex[glass][:, None]
-    exposure = float(rng.uniform(0.07, 0.2)) / key
-    gains = np.array([rng.uniform(0.95, 1.3), 1.0, rng.uniform(0.7, 1.05)], np.float32)
+    if lamp.any():  # glowing lamps
+        shade = np.array([1.0, rng.uniform(0.85, 1.0), rng.uniform(0.6, 0.95)], np.float32)
+        img[lamp] = key * float(rng.uniform(*LAMP_GLOW)) * shade
+    exposure = float(rng.uniform(*EXPOSURE)) / key
+    gains = np.array([rng.uniform(*GAIN_R), 1.0, rng.uniform(*GAIN_B)], np.float32)
     img *= exposure * gains
     sigma = float(rng.uniform(0.3, 1.0))
     img = np.asarray(cv2.GaussianBlur(img, (0, 0), sigma), np.float32)
