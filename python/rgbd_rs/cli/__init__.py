@@ -25,6 +25,7 @@ from rgbd_rs.cli import (
     data,
     demo,
     fusion,
+    indoor,
     segmentation,
     segmentation_eval,
     shapes,
@@ -35,7 +36,7 @@ from rgbd_rs.errors import RgbdError
 __all__ = ["PIPELINES", "build_parser", "main"]
 
 #: The modules whose ``register(commands)`` adds commands, in ``rgbd --help`` order.
-PIPELINES = (demo, data, fusion, confidence, segmentation, segmentation_eval, shapes)
+PIPELINES = (demo, data, indoor, fusion, confidence, segmentation, segmentation_eval, shapes)
 
 
 def build_parser() -> argparse.ArgumentParser:
