@@ -80,9 +80,12 @@ class TrainConfig:
 
     ``batch_size`` is per process (under torchrun the effective batch is ``batch_size`` times the
     number of processes). ``lr`` decays by ``lr_gamma`` every ``lr_step`` epochs (StepLR;
-    ``lr_step=0`` keeps it constant). ``momentum`` is used by SGD only. ``checkpoint_steps > 0``
-    also writes ``last.pt`` every that many optimizer steps within an epoch, so an interrupted
-    epoch loses at most that many steps. ``grad_clip`` clips the gradients' global L2 norm.
+    ``lr_step=0`` keeps it constant), or, with ``lr_plateau > 0`` instead, after every
+    ``lr_plateau`` epochs in a row without a new lowest validation loss (training loss without a
+    validation set; ReduceLROnPlateau, any decrease counts as a gain). ``momentum`` is used by
+    SGD only. ``checkpoint_steps > 0`` also writes ``last.pt`` every that many optimizer steps
+    within an epoch, so an interrupted epoch loses at most that many steps. ``grad_clip`` clips
+    the gradients' global L2 norm.
     ``device``: ``"auto"`` (CUDA when available, else CPU), ``"cpu"``, ``"cuda"``, ``"cuda:N"``.
     """
 
@@ -94,6 +97,7 @@ class TrainConfig:
     weight_decay: float = 0.0
     lr_step: int = 0
     lr_gamma: float = 0.1
+    lr_plateau: int = 0
     seed: int = 0
     num_workers: int = 0
     checkpoint_steps: int = 0
@@ -115,6 +119,16 @@ class TrainConfig:
         if self.grad_clip is not None:
             reals["grad_clip"] = _validate.real("grad_clip", self.grad_clip, positive=True)
         _validate.integer("lr_step", self.lr_step)
+        _validate.integer("lr_plateau", self.lr_plateau)
+        if self.lr_plateau and self.lr_step:
+            raise InvalidArgumentError(
+                f"lr_plateau: got {self.lr_plateau} with lr_step {self.lr_step}, expected one "
+                "schedule (set the other to 0)"
+            )
+        if self.lr_plateau and reals["lr_gamma"] >= 1:
+            raise InvalidArgumentError(
+                f"lr_gamma: got {self.lr_gamma} with lr_plateau, expected 0 < lr_gamma < 1"
+            )
         _validate.integer("seed", self.seed, maximum=2**32 - 1)  # numpy's seed range
         _validate.integer("num_workers", self.num_workers)
         _validate.integer("checkpoint_steps", self.checkpoint_steps)
@@ -126,12 +140,19 @@ class TrainConfig:
             _validate.choice("device", self.device, ("auto", "cpu", "cuda"))
         for name, value in reals.items():  # one type per field, so saved configs compare equal
             object.__setattr__(self, name, value)
-        for name in ("epochs", "batch_size", "lr_step", "seed", "num_workers", "checkpoint_steps"):
+        for name in (
+            "epochs", "batch_size", "lr_step", "lr_plateau", "seed", "num_workers",
+            "checkpoint_steps",
+        ):  # fmt: skip
             object.__setattr__(self, name, int(getattr(self, name)))
 
     def to_dict(self) -> dict[str, Any]:
-        """The fields as a plain dict (what checkpoints store)."""
-        return dataclasses.asdict(self)
+        """The fields as a plain dict (what checkpoints store). ``lr_plateau`` is left out at
+        its default 0, so checkpoints written before it existed still resume."""
+        out = dataclasses.asdict(self)
+        if not out["lr_plateau"]:
+            del out["lr_plateau"]
+        return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
@@ -341,8 +362,14 @@ def _run(
         opt = torch.optim.SGD(params, cfg.lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
     else:
         opt = torch.optim.Adam(params, cfg.lr, weight_decay=cfg.weight_decay)
-    gamma = cfg.lr_gamma if cfg.lr_step else 1.0
-    sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_step or 1, gamma=gamma)
+    sched: Any
+    if cfg.lr_plateau:  # reduce after lr_plateau bad epochs in a row (torch counts patience + 1)
+        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
+            opt, "min", factor=cfg.lr_gamma, patience=cfg.lr_plateau - 1, threshold=0.0
+        )
+    else:
+        gamma = cfg.lr_gamma if cfg.lr_step else 1.0
+        sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_step or 1, gamma=gamma)
     history: list[dict[str, Any]] = []
     best_val: float | None = None
     best_epoch: int | None = None
@@ -369,7 +396,7 @@ def _run(
             )
         model.load_state_dict(ckpt.model_state)
         opt.load_state_dict(ckpt.optimizer_state)  # type: ignore[arg-type]
-        sched.load_state_dict(ckpt.scheduler_state)  # type: ignore[arg-type]
+        sched.load_state_dict(ckpt.scheduler_state)
         restore_rng(ckpt.rng_state["ranks"][g.rank])  # type: ignore[index]
         history, best_val, best_epoch = list(ckpt.history), ckpt.best_val_loss, ckpt.best_epoch
         start_epoch, start_step = ckpt.epoch, ckpt.step
@@ -436,10 +463,13 @@ def _run(
                     total = g.sum([loss_sum, samples])
                     save(epoch, step, {"loss_sum": total[0], "samples": total[1]}, [last_path])
             loss_sum, samples = g.sum([loss_sum, samples])
-            lr = float(sched.get_last_lr()[0])
+            lr = float(opt.param_groups[0]["lr"])
             val = _evaluate(model, val_set, loss_fn, cfg, g) if val_set is not None else None
-            sched.step()
             train_loss = loss_sum / samples
+            if cfg.lr_plateau:
+                sched.step(val if val is not None else train_loss)
+            else:
+                sched.step()
             history.append(
                 {"epoch": epoch + 1, "train_loss": train_loss, "val_loss": val, "lr": lr}
             )
