@@ -356,7 +356,7 @@ def small_object(rng: Rng, *, floor: bool = False) -> list[Part]:
     weights = (
         [0.35, 0.02, 0.0, 0.05, 0.08, 0.0, 0.06, 0.0, 0.14, 0.22, 0.08]
         if floor
-        else [0.16, 0.14, 0.12, 0.04, 0.08, 0.12, 0.14, 0.08, 0.0, 0.04, 0.08]
+        else [0.17, 0.15, 0.13, 0.04, 0.03, 0.12, 0.15, 0.08, 0.0, 0.05, 0.08]
     )
     kind = str(rng.choice(kinds, p=np.asarray(weights) / sum(weights)))
     mat = material(rng, "any")

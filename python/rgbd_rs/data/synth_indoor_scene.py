@@ -50,7 +50,7 @@ CAMERA_HEIGHT = (1.0, 1.6)
 PITCH = (-6.0, 8.0, (-35.0, 15.0))
 ROLL_SD = 3.0
 #: Things on the floor per room (range), and the free half-width around the camera (m).
-FLOOR_CLUTTER = (3, 16)
+FLOOR_CLUTTER = (5, 22)
 KEEP_OUT = 0.5
 #: Chance of a monitor / TV on a wide enough top.
 P_SCREEN = 0.2
@@ -65,7 +65,7 @@ PRINCIPAL_SD = 8.0
 ROOMS: dict[str, dict[str, tuple[int, int]]] = {
     "bedroom": {
         "bed": (1, 2),
-        "cabinet": (1, 4),
+        "cabinet": (2, 5),
         "shelf": (0, 2),
         "chair": (0, 2),
         "table": (0, 1),
@@ -73,19 +73,19 @@ ROOMS: dict[str, dict[str, tuple[int, int]]] = {
     "living": {
         "sofa": (1, 3),
         "table": (1, 2),
-        "cabinet": (1, 3),
-        "shelf": (0, 2),
+        "cabinet": (1, 4),
+        "shelf": (0, 3),
         "chair": (0, 2),
     },
     "office": {
         "table": (1, 4),
-        "cabinet": (1, 3),
-        "shelf": (0, 3),
+        "cabinet": (1, 4),
+        "shelf": (1, 3),
         "sofa": (0, 1),
         "chair": (0, 3),
     },
-    "kitchen": {"cabinet": (2, 6), "table": (0, 2), "chair": (0, 2), "shelf": (0, 1)},
-    "library": {"shelf": (2, 7), "table": (0, 2), "cabinet": (0, 2), "chair": (0, 2)},
+    "kitchen": {"cabinet": (3, 7), "table": (0, 2), "chair": (0, 2), "shelf": (0, 2)},
+    "library": {"shelf": (3, 8), "table": (0, 2), "cabinet": (0, 2), "chair": (0, 2)},
 }
 ROOM_P = {"bedroom": 0.28, "living": 0.24, "office": 0.24, "kitchen": 0.12, "library": 0.12}
 #: Inward normals (x, z) of the walls z = 0, z = D, x = 0, x = W.
@@ -189,7 +189,7 @@ class _Room:
         """Small objects (and monitors / TVs) on the item's top surfaces."""
         r = _yaw_matrix(theta)
         for x0, x1, z0, z1, y in item.tops:
-            n = int(self.rng.integers(0, 3 + int((x1 - x0) * (z1 - z0) * 14)))
+            n = int(self.rng.integers(1, 4 + int((x1 - x0) * (z1 - z0) * 20)))
             if (x1 - x0) > 0.6 and self.rng.random() < P_SCREEN:
                 tv = screen(self.rng, monitor=y > 0.6)
                 u = float(
@@ -234,8 +234,8 @@ def _wall_items(room: _Room) -> None:
         w, h = float(rng.uniform(0.75, 0.95)), float(rng.uniform(1.95, 2.1))
         m = material(rng, str(rng.choice(["wood", "laminate", "wall"])), texture="wood")
         room.wall_item(w, 0.0, [Part(slab(w, h, 0.04, 0, 0, 0), m, WALL)])
-    for _ in range(int(rng.choice([0, 1, 1, 2, 3]))):  # windows
-        w, h = float(rng.uniform(0.6, 2.2)), float(rng.uniform(0.8, 1.6))
+    for _ in range(int(rng.choice([0, 1, 1, 2, 2, 3]))):  # windows
+        w, h = float(rng.uniform(0.6, 2.6)), float(rng.uniform(0.8, 1.8))
         bottom = float(rng.uniform(0.5, 1.0))
         frame = material(rng, str(rng.choice(["laminate", "wood", "metal"])))
         f = 0.05
@@ -264,11 +264,11 @@ def _wall_items(room: _Room) -> None:
                     )
                 )
         room.wall_item(w, bottom, parts)
-    for _ in range(int(rng.integers(1, 8))):  # pictures, papers, boards, clocks, shelves, TVs
+    for _ in range(int(rng.integers(2, 11))):  # pictures, papers, boards, clocks, shelves, TVs
         kind = str(
             rng.choice(
-                ["picture", "paper", "board", "clock", "shelf", "tv"],
-                p=[0.47, 0.2, 0.08, 0.07, 0.14, 0.04],
+                ["picture", "paper", "board", "clock", "shelf", "tv", "coat"],
+                p=[0.36, 0.2, 0.08, 0.06, 0.14, 0.04, 0.12],
             )
         )
         if kind == "tv":
@@ -277,6 +277,14 @@ def _wall_items(room: _Room) -> None:
             room.wall_item(w, float(rng.uniform(0.9, 1.4)), tv.parts)
         elif kind == "shelf":
             _wall_shelf(room)
+        elif kind == "coat":  # clothes, bags or a towel hanging on the wall
+            w, h, t = (float(v) for v in rng.uniform([0.3, 0.4, 0.05], [0.7, 1.1, 0.25]))
+            coat = slab(w, h, t, 0, 0, -t / 2)
+            room.wall_item(
+                w,
+                float(rng.uniform(0.6, 1.2)),
+                [Part(coat, material(rng, "fabric", texture="weave"), OBJECTS)],
+            )
         elif kind == "clock":
             r = float(rng.uniform(0.1, 0.2))
             face = cylinder(r, 0.04, (0, -r, -0.02), segments=24, axis=2)
@@ -297,6 +305,22 @@ def _wall_items(room: _Room) -> None:
             bottom = float(rng.uniform(0.8, max(0.9, room.h - h - 0.3)))
             depth = float(rng.uniform(0.003, 0.04))
             room.wall_item(w, bottom, [Part(slab(w, h, depth, 0, 0, -depth / 2), m, label)])
+
+
+def _upper_cabinets(room: _Room) -> None:
+    """A row of wall cabinets (furniture) high on a wall, as in kitchens and offices."""
+    rng = room.rng
+    w, d = float(rng.uniform(1.0, 3.0)), float(rng.uniform(0.3, 0.4))
+    h = float(rng.uniform(0.5, 0.9))
+    body = material(rng, str(rng.choice(["wood", "laminate"])), texture="wood")
+    n = max(1, round(w / 0.6))
+    parts = [Part(slab(w, h, d, 0, 0, -d / 2), body, FURNITURE)]
+    fronts = [
+        slab(w / n - 0.01, h - 0.02, 0.015, -w / 2 + (k + 0.5) * w / n, 0.01, -d - 0.008)
+        for k in range(n)
+    ]
+    parts.append(Part(fronts[0].merged(*fronts[1:]), material(rng, "laminate"), FURNITURE))
+    room.wall_item(w, float(rng.uniform(1.4, max(1.45, room.h - h - 0.05))), parts)
 
 
 def _wall_shelf(room: _Room) -> None:
@@ -352,7 +376,7 @@ def _view(rng: Rng, room: _Room, x: float, z: float) -> Pose:
         b = targets[int(rng.integers(len(targets)))]
         tx, tz = (b[0] + b[1]) / 2 - x, (b[2] + b[3]) / 2 - z
         yaw = float(np.arctan2(tx, tz) + rng.normal(0, np.radians(AIM_SD)))
-        look = float(rng.uniform(0.3, 1.1))  # height looked at
+        look = float(rng.uniform(0.5, 1.3))  # height looked at
         pitch_deg = float(-np.degrees(np.arctan2(height - look, np.hypot(tx, tz))))
         pitch_deg += float(rng.normal(0, AIM_SD / 2))
     else:
@@ -445,8 +469,10 @@ def random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
     keep_out: list[tuple[float, ...]] = [
         (cx - KEEP_OUT, cx + KEEP_OUT, cz - KEEP_OUT, cz + KEEP_OUT)
     ]
-    _wall_items(room)
     kind = str(rng.choice(list(ROOM_P), p=list(ROOM_P.values())))
+    if kind in ("kitchen", "office") and rng.random() < 0.6:
+        _upper_cabinets(room)
+    _wall_items(room)
     for name, (least, most) in ROOMS[kind].items():
         for _ in range(int(rng.integers(least, most + 1))):
             item = FURNITURE_BUILDERS[name](rng)
@@ -471,7 +497,7 @@ def random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
             for p in obj
         ]
         item = Parts(centred, (float(hi[0] - lo[0]), float(hi[2] - lo[2])))
-        room.place(item, free=rng.random() < 0.4, keep_out=keep_out)
+        room.place(item, free=rng.random() < 0.35, keep_out=keep_out)
     pose = _view(rng, room, cx, cz)
     lights, ambient = _lights(rng, room)
     scene = Scene(lights=lights, ambient=ambient)
