@@ -166,6 +166,9 @@ def _merge(meshes: list[Mesh]) -> Mesh:
 
 # -- furniture ---------------------------------------------------------------------------------
 
+#: Share of round (pedestal) dining and coffee tables.
+P_ROUND_TABLE = 0.25
+
 
 def table(rng: Rng) -> Parts:
     """A dining table, desk or coffee table (label table)."""
@@ -176,6 +179,15 @@ def table(rng: Rng) -> Parts:
     t = float(rng.uniform(0.02, 0.05))
     fam = str(rng.choice(["wood", "laminate", "dark"], p=[0.5, 0.35, 0.15]))
     mat = material(rng, fam, texture="wood" if fam == "wood" else None)
+    if kind != "desk" and rng.random() < P_ROUND_TABLE:  # round top on a pedestal
+        r = min(w, 1.2) / 2
+        top = cylinder(r, t, (0, -(h - t / 2), 0), segments=40)
+        foot = cylinder(r * 0.4, 0.03, (0, -0.015, 0), segments=24)
+        post = cylinder(float(rng.uniform(0.03, 0.08)), h - t, (0, -(h - t) / 2, 0), segments=12)
+        a = r / np.sqrt(2)
+        return Parts(
+            [Part(_merge([top, foot, post]), mat, TABLE)], (2 * r, 2 * r), [(-a, a, -a, a, h)]
+        )
     meshes = [slab(w, t, d, 0, h - t, 0)]
     if kind == "desk" and rng.random() < 0.6:  # side panels / a drawer block
         pw = float(rng.uniform(0.02, 0.4))

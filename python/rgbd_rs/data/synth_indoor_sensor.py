@@ -40,6 +40,9 @@ GAIN_B = (0.8, 1.15)
 #: Radiance of window glass and of lamps relative to the room's mean (overexposed mostly).
 WINDOW_GLOW = (2.5, 14.0)
 LAMP_GLOW = (6.0, 25.0)
+#: Share of frames with motion blur, and its length (pixels at 640 x 480).
+P_MOTION_BLUR = 0.2
+MOTION_BLUR = (2.0, 9.0)
 #: Kinect v1 depth noise: sigma_z = k z^2, k in m^-1 (Khoshelham & Elberink 2012), drawn from
 #: this range around 1.425e-3.
 NOISE_K = (1.0e-3, 1.85e-3)
@@ -106,8 +109,18 @@ def kinect_color(
     exposure = float(rng.uniform(*EXPOSURE)) / key
     gains = np.array([rng.uniform(*GAIN_R), 1.0, rng.uniform(*GAIN_B)], np.float32)
     img *= exposure * gains
-    sigma = float(rng.uniform(0.3, 1.0))
-    img = np.asarray(cv2.GaussianBlur(img, (0, 0), sigma), np.float32)
+    sigma = float(rng.uniform(0.3, 1.0)) * w / 640
+    img = np.asarray(cv2.GaussianBlur(img, (0, 0), max(sigma, 0.2)), np.float32)
+    if rng.random() < P_MOTION_BLUR:  # a hand-held camera moving during the exposure
+        n = max(2, round(float(rng.uniform(*MOTION_BLUR)) * w / 640))
+        kernel = np.zeros((n | 1, n | 1), np.float32)
+        kernel[(n | 1) // 2, :] = 1
+        rot = cv2.getRotationMatrix2D(
+            ((n | 1) / 2 - 0.5, (n | 1) / 2 - 0.5), float(rng.uniform(0, 180)), 1
+        )
+        kernel = np.asarray(cv2.warpAffine(kernel, rot, kernel.shape[::-1]), np.float32)
+        kernel /= max(float(kernel.sum()), 1e-6)
+        img = np.asarray(cv2.filter2D(img, -1, kernel), np.float32)
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
     img *= (1 - float(rng.uniform(0.0, 0.35)) * r2)[..., None]
