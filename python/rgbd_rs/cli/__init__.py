@@ -28,6 +28,7 @@ from rgbd_rs.cli import (
     indoor,
     segmentation,
     segmentation_eval,
+    semantic,
     shapes,
 )
 from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message
@@ -36,7 +37,17 @@ from rgbd_rs.errors import RgbdError
 __all__ = ["PIPELINES", "build_parser", "main"]
 
 #: The modules whose ``register(commands)`` adds commands, in ``rgbd --help`` order.
-PIPELINES = (demo, data, indoor, fusion, confidence, segmentation, segmentation_eval, shapes)
+PIPELINES = (
+    demo,
+    data,
+    indoor,
+    fusion,
+    confidence,
+    segmentation,
+    segmentation_eval,
+    semantic,
+    shapes,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
