@@ -35,9 +35,9 @@ from rgbd_rs.render import PointLight, Scene
 Rng = np.random.Generator
 
 #: Room width / depth (m) and height (m); a share of large rooms (offices, shops, halls).
-ROOM_SIZE = (2.5, 6.0)
+ROOM_SIZE = (2.5, 6.5)
 LARGE_ROOM = (6.0, 10.0)
-P_LARGE = 0.15
+P_LARGE = 0.25
 ROOM_HEIGHT = (2.4, 3.1)
 #: Camera height above the floor (m), pitch (degrees, negative = looking down: mean, sd, range)
 #: and roll sd (degrees).
@@ -49,9 +49,13 @@ FLOOR_CLUTTER = (5, 22)
 KEEP_OUT = 0.5
 #: Chance of a monitor / TV on a wide enough top.
 P_SCREEN = 0.2
+#: Share of views taken from near a wall.
+P_AT_WALL = 0.6
 #: Share of views aimed at a piece of furniture, and the aim's slack (degrees).
 P_AIMED = 0.8
 AIM_SD = 12.0
+#: Nearest furniture a view is aimed at (m).
+MIN_AIM = 1.4
 #: Relative spread of the focal length and principal point (pixels, at 640 x 480) around the
 #: NYU camera.
 FOCAL_SPREAD = 0.06
@@ -238,9 +242,18 @@ def _camera(rng: Rng, width: int, height: int) -> PinholeCamera:
 
 
 def _position(rng: Rng, room: _Room) -> tuple[float, float]:
-    """Where the operator stands: anywhere 0.4 m or more from the walls."""
+    """Where the operator stands: often near a wall or a doorway, looking into the room (with
+    :data:`P_AT_WALL`), else anywhere 0.4 m or more from the walls."""
     m = min(0.4, room.w / 3, room.d / 3)
-    return float(rng.uniform(m, room.w - m)), float(rng.uniform(m, room.d - m))
+    x, z = float(rng.uniform(m, room.w - m)), float(rng.uniform(m, room.d - m))
+    if rng.random() < P_AT_WALL:
+        off = float(rng.uniform(m, max(m, min(1.0, room.w / 3, room.d / 3))))
+        k = int(rng.integers(4))
+        if k < 2:
+            z = off if k == 0 else room.d - off
+        else:
+            x = off if k == 2 else room.w - off
+    return x, z
 
 
 def _view(rng: Rng, room: _Room, x: float, z: float) -> Pose:
@@ -248,7 +261,7 @@ def _view(rng: Rng, room: _Room, x: float, z: float) -> Pose:
     slack), as people film a room, else across the room; pitch mostly slightly down."""
     height = float(rng.uniform(*CAMERA_HEIGHT))
     targets = [
-        b for b in room.boxes if np.hypot((b[0] + b[1]) / 2 - x, (b[2] + b[3]) / 2 - z) > 1.0
+        b for b in room.boxes if np.hypot((b[0] + b[1]) / 2 - x, (b[2] + b[3]) / 2 - z) > MIN_AIM
     ]
     mean, sd, (lo, hi) = PITCH
     pitch_deg = float(rng.normal(mean, sd))

@@ -34,9 +34,9 @@ Rng = np.random.Generator
 
 #: Colour camera: mid-grey level the auto-exposure aims the scene's mean log luminance at
 #: (linear), and the white-balance gains of red and blue (green = 1; indoor light is warm).
-EXPOSURE = (0.05, 0.2)
+EXPOSURE = (0.045, 0.18)
 GAIN_R = (1.0, 1.4)
-GAIN_B = (0.8, 1.15)
+GAIN_B = (0.75, 1.1)
 #: Radiance of window glass and of lamps relative to the room's mean (overexposed mostly).
 WINDOW_GLOW = (2.5, 14.0)
 LAMP_GLOW = (6.0, 25.0)
