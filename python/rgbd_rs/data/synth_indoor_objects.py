@@ -12,12 +12,10 @@ from __future__ import annotations
 
 import colorsys
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 
-from rgbd_rs.data.paths import data_root
-from rgbd_rs.meshes import Mesh, box, cylinder, load_mesh, sphere
+from rgbd_rs.meshes import Mesh, box, cylinder, sphere
 from rgbd_rs.render import Material, Texture
 
 # 13-class labels (rgbd_rs.data.nyuv2.LABEL13_NAMES).
@@ -350,8 +348,8 @@ def screen(rng: Rng, *, monitor: bool) -> Parts:
 
 def small_object(rng: Rng, *, floor: bool = False) -> list[Part]:
     """Clutter (label objects unless books): boxes, bottles, cups, balls, lamps, papers, book
-    stacks, laptops, bins, bags and clothes (on the floor), or a shared mesh. ``floor``: sizes
-    of things standing on the floor."""
+    stacks, laptops, bins, bags and clothes, pot plants. ``floor``: sizes of things standing on
+    the floor."""
     kinds = [
         "box",
         "bottle",
@@ -363,7 +361,7 @@ def small_object(rng: Rng, *, floor: bool = False) -> list[Part]:
         "laptop",
         "bin",
         "bag",
-        "mesh",
+        "plant",
     ]
     weights = (
         [0.35, 0.02, 0.0, 0.05, 0.08, 0.0, 0.06, 0.0, 0.14, 0.22, 0.08]
@@ -424,14 +422,26 @@ def small_object(rng: Rng, *, floor: bool = False) -> list[Part]:
         return [
             Part(base.merged(lid), material(rng, str(rng.choice(["dark", "metal"]))), OBJECTS, 0.3)
         ]
-    if kind == "mesh":
-        meshes = _meshes()
-        if meshes:
-            size = float(rng.uniform(0.5, 1.6) if floor else rng.uniform(0.15, 0.4))
-            m = meshes[int(rng.integers(len(meshes)))].normalized(size)
-            m = m.transformed(np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]))  # z-up -> y-down
-            bottom = float(m.bounds()[1][1])
-            return [Part(m.transformed(translation=(0, -bottom, 0)), mat, OBJECTS, glossy)]
+    if kind == "plant":  # a pot plant
+        r = float(rng.uniform(0.12, 0.25) if floor else rng.uniform(0.05, 0.1))
+        ph = r * float(rng.uniform(1.0, 1.8))
+        pot = cylinder(r, ph, (0, -ph / 2, 0), segments=16)
+        leaf_r = r * float(rng.uniform(1.3, 2.5))
+        leaves = sphere(leaf_r, rings=8, segments=12).scaled(
+            (1.0, float(rng.uniform(0.8, 2.0)), 1.0)
+        )
+        top = float(leaves.bounds()[1][1])
+        leaves = leaves.transformed(translation=(0, -ph - top + 0.02, 0))
+        green = Material(
+            hsv(rng, (70, 140), (0.3, 0.8), (0.15, 0.55)),
+            0.4,
+            Texture.noise(float(rng.uniform(0.01, 0.04)), int(rng.integers(2**31))),
+            float(rng.uniform(0.3, 0.7)),
+        )
+        return [
+            Part(pot, material(rng, str(rng.choice(["wood", "any", "ceiling"]))), OBJECTS),
+            Part(leaves, green, OBJECTS),
+        ]
     lo, hi = (
         ([0.2, 0.15, 0.2], [0.7, 0.6, 0.6]) if floor else ([0.06, 0.04, 0.06], [0.35, 0.3, 0.3])
     )
@@ -457,16 +467,6 @@ def small_object(rng: Rng, *, floor: bool = False) -> list[Part]:
 def _yaw(theta: float) -> np.ndarray:
     c, s = np.cos(theta), np.sin(theta)
     return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-@lru_cache(maxsize=1)
-def _meshes() -> tuple[Mesh, ...]:
-    """The OFF meshes of ``../shared/data/meshes`` (ModelNet bathtubs, the Stanford bunny: things
-    found indoors); empty when the data is absent."""
-    root = data_root()
-    if root is None or not (root / "meshes").is_dir():
-        return ()
-    return tuple(load_mesh(p) for p in sorted((root / "meshes").glob("*.off")))
 
 
 #: Builders of floor-standing furniture by kind.
