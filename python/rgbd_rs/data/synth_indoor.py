@@ -1,17 +1,21 @@
 """Synthetic labeled indoor RGB-D frames (Kinect-v1-like) to pre-train the semantic-labeling
 ConvNet of thesis §4.6 before fine-tuning on real NYUv2 frames.
 
-Each frame is a furnished room (floor, walls, ceiling, windows, pictures, doors, tables, chairs,
-beds, sofas, cabinets, shelves with books, monitors / TVs, boxes and small objects) rendered by
-the ray-casting core (:mod:`rgbd_rs.render`), seen by a hand-held camera at 1-1.6 m looking
-roughly horizontally. Every pixel is labeled with the 13 classes of
-:data:`rgbd_rs.data.nyuv2.LABEL13_NAMES` through the renderer's per-object ids. Colour gets
-auto-exposure, white balance, sRGB gamma, vignetting, blur and noise; depth gets the Kinect v1's
+Each frame is a furnished room (bedroom, living room, office, kitchen or library, 2.5-10 m:
+floor, walls, ceiling, doors, windows with curtains, pictures, tables, chairs, beds, sofas,
+cabinets, shelves with books, monitors / TVs, lamps, plants, boxes and clutter) rendered by the
+ray-casting core (:mod:`rgbd_rs.render`), seen by a hand-held camera at 1-1.6 m looking roughly
+horizontally, mostly at some furniture. Every pixel is labeled with the 13 classes of
+:data:`rgbd_rs.data.nyuv2.LABEL13_NAMES` through the renderer's per-object ids (0 only where no
+surface is hit: never inside a closed room). Colour gets glowing windows and lamps,
+auto-exposure, white balance, sRGB gamma, vignetting, blur, sometimes motion blur, and noise;
+depth gets the Kinect v1's
 error model (:mod:`rgbd_rs.data.synth_indoor_sensor`): noise with sigma ~ 1.425e-3 z^2 m, disparity
 quantisation, jagged edges, and holes on dark or glossy surfaces, glass, grazing angles,
 projector shadows beside depth edges and beyond the working range. Every constant is drawn from
 a range per frame (room, furniture, materials, lights, intrinsics around
-:data:`~rgbd_rs.data.nyuv2.NYUV2_CAMERA`, sensor), so nothing is tuned to one value.
+:data:`~rgbd_rs.data.nyuv2.NYUV2_CAMERA`, sensor), so nothing is tuned to one value. (The real
+NYUv2 frames' depth is in-painted; these keep the raw sensor's holes as NaN.)
 
 Frame ``k`` of seed ``s`` depends only on ``(s, k)``: shards and resumed runs give the same bytes.
 On disk (:func:`generate_indoor`, read by :class:`IndoorFrames`): ``NNNNNN_rgb.png`` (uint8 RGB),
