@@ -252,7 +252,7 @@ def tiny_frames(n: int = 2, seed: int = 0) -> list[LabeledFrame]:
 def tiny_run() -> tuple[Path, Path, list[dict[str, float]]]:
     tmp = Path(tempfile.mkdtemp(prefix="rgbd_semantic_nn_"))
     cache = build_cache(tiny_frames(), tmp / "cache", size=(64, 48), cues=_colour_cues, quiet=True)
-    cfg = default_config(epochs=30, batch_size=1, lr=0.02, checkpoint_steps=0, device="cpu")
+    cfg = default_config(epochs=60, batch_size=1, lr=0.02, checkpoint_steps=0, device="cpu")
     recipe = SemanticRecipe(width=16, val_fraction=0, augment=False, lcn_window=5)
     best = train_semantic(cache, tmp / "run", recipe=recipe, config=cfg, quiet=True)
     history = load_checkpoint(best).history

@@ -207,6 +207,12 @@ def _train(commands: Commands) -> None:
         "--device", default="auto", metavar="DEV", help="auto, cpu, cuda or cuda:N (auto)"
     )
     p.add_argument(
+        "--threads",
+        type=integer(1, 1024),
+        metavar="N",
+        help="torch CPU threads (default: torch's; 1 is fastest on a machine other jobs share)",
+    )
+    p.add_argument(
         "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
     )
     p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
@@ -229,6 +235,10 @@ def run_train(args: argparse.Namespace) -> int:
         train_semantic,
     )
 
+    if args.threads is not None:
+        import torch
+
+        torch.set_num_threads(args.threads)
     cache = named("--cache", lambda: SemanticCache(args.cache))
     val = None
     if args.val_cache is not None:
@@ -261,3 +271,22 @@ def run_train(args: argparse.Namespace) -> int:
     if args.ship:
         print(f"shipped weights: {ship(best)}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m rgbd_rs.cli.semantic ...``: these commands alone (``rgbd`` runs them once the
+    module is in :data:`rgbd_rs.cli.PIPELINES`)."""
+    from rgbd_rs.cli._args import fail
+    from rgbd_rs.errors import RgbdError
+
+    p = Parser(prog="rgbd")
+    register(Commands(p.add_subparsers(dest="command", metavar="COMMAND", required=True)))
+    args = p.parse_args(argv)
+    try:
+        return int(args.run(args))
+    except RgbdError as exc:
+        return fail(str(exc))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -26,7 +26,10 @@ Choices the thesis leaves open (stated here and with every result):
   network.
 - "Same" zero padding, so the output is exactly 1/4 of an input whose sides are multiples of 4
   (the thesis does not say how borders are handled).
-- Glorot (Xavier) initialisation of the convolutions, zero biases: the usual choice for tanh.
+- Glorot (Xavier) initialisation of every convolution and of the classifier (tanh gain), zero
+  biases: the usual choice for tanh. (A zero or small classifier starts at uniform PDFs and
+  avoids a loss spike in the first epochs on NYUv2 frames, but learns 2-3x slower: two tiny
+  frames reached 40-45 % class accuracy in 60 epochs instead of 80 %.)
 - Class ``ignore_index`` (0 = unlabeled in NYUv2's 13-class labels) keeps its row of the
   classifier (the thesis' 256 x 14 shape) but is never a target: training ignores its pixels and
   its probability is fixed at 0 (its logit masked before the softmax) in training and inference
