@@ -37,7 +37,7 @@ from rgbd_rs.segmentation.semantic_data import (
     NyuFrames,
     SemanticCache,
     SyntheticFrames,
-    build_cache,
+    build_semantic_cache,
     downsample_cues,
     downsample_labels,
     open_frames,
@@ -79,8 +79,8 @@ FRAMES = [
     )
     for i in range(3)
 ]
-CACHE = build_cache(FRAMES, TMP / "cache", size=(16, 12), cues=cues, quiet=True)
-OTHER_SIZE = build_cache(FRAMES, TMP / "cache8", size=(8, 8), cues=cues, quiet=True)
+CACHE = build_semantic_cache(FRAMES, TMP / "cache", size=(16, 12), cues=cues, quiet=True)
+OTHER_SIZE = build_semantic_cache(FRAMES, TMP / "cache8", size=(8, 8), cues=cues, quiet=True)
 NET = SemanticNet(14, width=4, lcn_window=3)
 NORM = {"input_size": [16, 12], "classes": list(CACHE.classes), "ignore_index": 0}
 CKPT = save_checkpoint(
@@ -100,6 +100,13 @@ NAMES_OFF = save_checkpoint(
     Checkpoint(TMP / "n.pt", ARCH, NET.arch_config(), {**NORM, "classes": ["a"]}, NET.state_dict()),
     TMP / "n.pt",
 )
+OTHER_CUES = save_checkpoint(
+    Checkpoint(
+        TMP / "oc.pt", ARCH, NET.arch_config(), {**NORM, "cues": CACHE.meta["cues"]},
+        NET.state_dict(),
+    ),
+    TMP / "oc.pt",
+)  # fmt: skip
 OTHER_ARCH = save_checkpoint(
     Checkpoint(TMP / "o.pt", "other/1", {}, NORM, NET.state_dict()), TMP / "o.pt"
 )
@@ -193,46 +200,57 @@ ALL_CASES: list[Case] = [
         "SyntheticFrames", lambda: SyntheticFrames(TMP / "empty"), RgbdError, r"empty: no complete"
     ),
     # -- the cache
-    Case("build_cache", lambda: build_cache("frames", TMP / "x"), ARG, r"^frames: got str"),
-    Case("build_cache", lambda: build_cache([], TMP / "x"), ARG, r"^frames: got no frames", "none"),
     Case(
-        "build_cache",
-        lambda: build_cache(FRAMES, TMP / "x", size=(2, 12), cues=cues),
+        "build_semantic_cache",
+        lambda: build_semantic_cache("frames", TMP / "x"),
+        ARG,
+        r"^frames: got str",
+    ),
+    Case(
+        "build_semantic_cache",
+        lambda: build_semantic_cache([], TMP / "x"),
+        ARG,
+        r"^frames: got no frames",
+        "none",
+    ),
+    Case(
+        "build_semantic_cache",
+        lambda: build_semantic_cache(FRAMES, TMP / "x", size=(2, 12), cues=cues),
         ARG,
         r"^size\[0\]: got 2",
         "size",
     ),
     Case(
-        "build_cache",
-        lambda: build_cache(FRAMES, TMP / "x", shard=(2, 2), cues=cues),
+        "build_semantic_cache",
+        lambda: build_semantic_cache(FRAMES, TMP / "x", shard=(2, 2), cues=cues),
         ARG,
         r"^shard: got \(2, 2\)",
         "shard",
     ),
     Case(
-        "build_cache",
-        lambda: build_cache(FRAMES, TMP / "x", cues=3),
+        "build_semantic_cache",
+        lambda: build_semantic_cache(FRAMES, TMP / "x", cues=3),
         ARG,
         r"^cues: got int",
         "cues",
     ),
     Case(
-        "build_cache",
-        lambda: build_cache([FRAMES[0], FRAMES[0]], TMP / "x", cues=cues),
+        "build_semantic_cache",
+        lambda: build_semantic_cache([FRAMES[0], FRAMES[0]], TMP / "x", cues=cues),
         ARG,
         r"^frames: got repeated frame names",
         "names",
     ),
     Case(
-        "build_cache",
-        lambda: build_cache(FRAMES, TMP / "cache", size=(16, 12), cues=cues, seed=9),
+        "build_semantic_cache",
+        lambda: build_semantic_cache(FRAMES, TMP / "cache", size=(16, 12), cues=cues, seed=9),
         RgbdError,
         r"cache: a cache of other frames or settings .*seed",
         "settings",
     ),
     Case(
-        "build_cache",
-        lambda: build_cache(FRAMES, TMP / "cache", size=(16, 12), cues=wrong_cues),
+        "build_semantic_cache",
+        lambda: build_semantic_cache(FRAMES, TMP / "cache", size=(16, 12), cues=wrong_cues),
         RgbdError,
         r"other frames or settings .*cues",
         "cue function",
@@ -441,6 +459,15 @@ ALL_CASES: list[Case] = [
         r"depth",
     ),
     Case(
+        "SemanticLabeler.pdfs",
+        lambda: SemanticLabeler.load(OTHER_CUES).pdfs(
+            np.zeros((24, 32, 3), np.uint8), np.ones((24, 32), np.float32), CAMERA
+        ),
+        RgbdError,
+        r"oc\.pt: a network trained on the cues of test_bad_input_semantic\.cues",
+        "other cues",
+    ),
+    Case(
         "SemanticLabeler.labels",
         lambda: LAB.labels(np.zeros((24, 32), np.uint8), np.zeros((24, 32), np.float32), CAMERA),
         SHAPE,
@@ -453,7 +480,9 @@ def test_a_bad_frame_is_marked_failed_naming_it(tmp_path: Path) -> None:
     """A frame whose cue function returns the wrong channels fails alone, with a warning naming
     the frame and the cues."""
     with pytest.warns(UserWarning, match=r"frame 0 \(f0\): frame f0 cues: got shape \(3, 24, 32\)"):
-        c = build_cache(FRAMES[:1], tmp_path / "c", size=(16, 12), cues=wrong_cues, quiet=True)
+        c = build_semantic_cache(
+            FRAMES[:1], tmp_path / "c", size=(16, 12), cues=wrong_cues, quiet=True
+        )
     assert c.done.tolist() == [2]
     with pytest.raises(RgbdError, match="no computed frames"):
         c.dataset()

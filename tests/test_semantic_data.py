@@ -25,7 +25,7 @@ from rgbd_rs.segmentation.semantic_data import (
     LabeledFrame,
     NyuFrames,
     SemanticCache,
-    build_cache,
+    build_semantic_cache,
     downsample_cues,
     downsample_labels,
     open_frames,
@@ -92,7 +92,7 @@ def _bytes(path: Path) -> dict[str, bytes]:
 
 def test_cache_contents(tmp_path: Path) -> None:
     fs = frames(3)
-    c = build_cache(fs, tmp_path / "c", size=(16, 12), cues=fake_cues, seed=3, quiet=True)
+    c = build_semantic_cache(fs, tmp_path / "c", size=(16, 12), cues=fake_cues, seed=3, quiet=True)
     assert c.complete and len(c) == 3 and c.names == ("frame0", "frame1", "frame2")
     assert c.cues().dtype == np.float16 and c.cues().shape == (3, 9, 12, 16)
     want = downsample_cues(fake_cues(fs[1].rgb, fs[1].depth, CAMERA, seed=3), (16, 12))
@@ -108,7 +108,7 @@ def test_cache_contents(tmp_path: Path) -> None:
 
 def test_resume_and_shards_give_the_same_cache(tmp_path: Path) -> None:
     fs = frames(5)
-    whole = build_cache(fs, tmp_path / "whole", size=(16, 12), cues=fake_cues, quiet=True)
+    whole = build_semantic_cache(fs, tmp_path / "whole", size=(16, 12), cues=fake_cues, quiet=True)
     calls = []
 
     def interrupted(*args: Any, **kw: Any) -> np.ndarray:
@@ -119,16 +119,16 @@ def test_resume_and_shards_give_the_same_cache(tmp_path: Path) -> None:
 
     interrupted.__qualname__ = fake_cues.__qualname__  # the cue function is part of the settings
     with pytest.raises(KeyboardInterrupt):
-        build_cache(fs, tmp_path / "resumed", size=(16, 12), cues=interrupted, quiet=True)
+        build_semantic_cache(fs, tmp_path / "resumed", size=(16, 12), cues=interrupted, quiet=True)
     part = SemanticCache(tmp_path / "resumed")
     assert part.done.tolist() == [1, 1, 0, 0, 0]
     calls.clear()
     calls.extend([1, 1, 1])  # never interrupt again
-    build_cache(fs, tmp_path / "resumed", size=(16, 12), cues=interrupted, quiet=True)
+    build_semantic_cache(fs, tmp_path / "resumed", size=(16, 12), cues=interrupted, quiet=True)
     assert len(calls) == 3 + 3  # only the three frames left were computed
     assert _bytes(tmp_path / "resumed") == _bytes(tmp_path / "whole")
     for i in (1, 0):  # shards in any order
-        build_cache(
+        build_semantic_cache(
             fs, tmp_path / "sharded", size=(16, 12), cues=fake_cues, shard=(i, 2), quiet=True
         )
     assert _bytes(tmp_path / "sharded") == _bytes(tmp_path / "whole")
@@ -137,13 +137,15 @@ def test_resume_and_shards_give_the_same_cache(tmp_path: Path) -> None:
 
 def test_other_settings_are_refused(tmp_path: Path) -> None:
     fs = frames(2)
-    build_cache(fs, tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
+    build_semantic_cache(fs, tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
     with pytest.raises(RgbdError, match=r"other frames or settings .*size"):
-        build_cache(fs, tmp_path / "c", size=(32, 24), cues=fake_cues, quiet=True)
+        build_semantic_cache(fs, tmp_path / "c", size=(32, 24), cues=fake_cues, quiet=True)
     with pytest.raises(RgbdError, match=r"seed"):
-        build_cache(fs, tmp_path / "c", size=(16, 12), cues=fake_cues, seed=1, quiet=True)
+        build_semantic_cache(fs, tmp_path / "c", size=(16, 12), cues=fake_cues, seed=1, quiet=True)
     with pytest.raises(RgbdError, match=r"names"):
-        build_cache(frames(3)[1:], tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
+        build_semantic_cache(
+            frames(3)[1:], tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True
+        )
 
 
 def test_failed_frames_are_marked_and_skipped(tmp_path: Path) -> None:
@@ -151,7 +153,7 @@ def test_failed_frames_are_marked_and_skipped(tmp_path: Path) -> None:
     bad = LabeledFrame("bad", fs[1].rgb, fs[1].depth[:5], fs[1].label13, CAMERA)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        c = build_cache(
+        c = build_semantic_cache(
             [fs[0], bad, fs[2]], tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True
         )
     assert c.done.tolist() == [1, 2, 1]
@@ -160,7 +162,7 @@ def test_failed_frames_are_marked_and_skipped(tmp_path: Path) -> None:
 
 
 def test_augmentation_flips_cues_and_labels_together(tmp_path: Path) -> None:
-    c = build_cache(frames(2), tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
+    c = build_semantic_cache(frames(2), tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
     plain, aug = c.dataset(), c.dataset(augment=True)
     x0, y0 = plain[0]
     np.random.seed(0)  # noqa: NPY002 - the generator the trainer seeds
@@ -213,7 +215,7 @@ def test_nyu_frames_and_real_cues(tmp_path: Path) -> None:
         def __getitem__(self, i: int) -> LabeledFrame:
             return f
 
-    c = build_cache(One(), tmp_path / "c", size=(160, 120), quiet=True)
+    c = build_semantic_cache(One(), tmp_path / "c", size=(160, 120), quiet=True)
     assert c.complete and c.meta["cues"] == "rgbd_rs.segmentation.cues.semantic_cues"
     x = c.cues()[0].astype(np.float32)
     assert np.isfinite(x).all() and x[:6].min() >= 0 and x[:6].max() <= 1
@@ -247,7 +249,7 @@ def test_commands_parse_and_run(tmp_path: Path, capsys: pytest.CaptureFixture[st
     )
     assert t.width == 32 and t.epochs == 3 and t.init == Path("p.pt") and t.plateau == 10
     # A run end to end on a tiny cache (stand-in cues).
-    build_cache(frames(4), tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
+    build_semantic_cache(frames(4), tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
     t = p.parse_args(
         ["train", "semantic", "--cache", str(tmp_path / "c"), "--out", str(tmp_path / "o"),
          "--width", "8", "--epochs", "2", "--device", "cpu", "--val-fraction", "0.25", "--quiet"]

@@ -28,7 +28,7 @@ from rgbd_rs.nn.semantic import (
 )
 from rgbd_rs.nn.train import TrainConfig, train
 from rgbd_rs.segmentation.labeling import SemanticLabeler
-from rgbd_rs.segmentation.semantic_data import LabeledFrame, build_cache
+from rgbd_rs.segmentation.semantic_data import LabeledFrame, build_semantic_cache
 from rgbd_rs.segmentation.semantic_train import (
     SemanticLoss,
     SemanticRecipe,
@@ -251,7 +251,9 @@ def tiny_frames(n: int = 2, seed: int = 0) -> list[LabeledFrame]:
 @pytest.fixture(scope="module")
 def tiny_run() -> tuple[Path, Path, list[dict[str, float]]]:
     tmp = Path(tempfile.mkdtemp(prefix="rgbd_semantic_nn_"))
-    cache = build_cache(tiny_frames(), tmp / "cache", size=(64, 48), cues=_colour_cues, quiet=True)
+    cache = build_semantic_cache(
+        tiny_frames(), tmp / "cache", size=(64, 48), cues=_colour_cues, quiet=True
+    )
     cfg = default_config(epochs=60, batch_size=1, lr=0.02, checkpoint_steps=0, device="cpu")
     recipe = SemanticRecipe(width=16, val_fraction=0, augment=False, lcn_window=5)
     best = train_semantic(cache, tmp / "run", recipe=recipe, config=cfg, quiet=True)
@@ -289,7 +291,7 @@ def test_untrained_network_is_worse(tiny_run: tuple[Path, Path, list[dict[str, f
 
 def test_fine_tune_ship_and_label(tiny_run: tuple[Path, Path, list[dict[str, float]]]) -> None:
     tmp, best, _ = tiny_run
-    other = build_cache(
+    other = build_semantic_cache(
         tiny_frames(2, seed=5), tmp / "cache2", size=(64, 48), cues=_colour_cues, quiet=True
     )
     cfg = default_config(epochs=1, batch_size=2, lr=0.01, checkpoint_steps=0, device="cpu")

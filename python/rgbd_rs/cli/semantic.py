@@ -79,7 +79,7 @@ def _cache(sub: argparse._SubParsersAction[Parser]) -> None:
 
 
 def run_cache(args: argparse.Namespace) -> int:
-    from rgbd_rs.segmentation.semantic_data import build_cache, open_frames
+    from rgbd_rs.segmentation.semantic_data import build_semantic_cache, open_frames
 
     frames = named("--frames", lambda: open_frames(args.frames, args.split, args.calib))
     source = (
@@ -93,7 +93,7 @@ def run_cache(args: argparse.Namespace) -> int:
 
         before = int((named("--out", lambda: SemanticCache(args.out)).done != 0).sum())
     t0 = time.perf_counter()
-    cache = build_cache(
+    cache = build_semantic_cache(
         frames, args.out, size=args.size, shard=args.shard, seed=args.seed, source=source,
         quiet=args.quiet,
     )  # fmt: skip

@@ -29,6 +29,9 @@ from rgbd_rs.nn.semantic import ARCH, N_CUES, SemanticNet, class_probabilities
 
 __all__ = ["WEIGHT_FILE", "SemanticLabeler", "weights_path"]
 
+#: The cue function :meth:`SemanticLabeler.pdfs` runs (what the caches record by default).
+CUE_FUNCTION = "rgbd_rs.segmentation.cues.semantic_cues"
+
 #: The checkpoint the package ships (trained on synthetic scenes, fine-tuned on NYUv2 frames).
 WEIGHT_FILE = "semantic_nyuv2.pt"
 _WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "nn" / "weights"
@@ -51,6 +54,7 @@ class SemanticLabeler:
         *,
         ignore_index: int | None = 0,
         seed: int = 0,
+        cues: str | None = CUE_FUNCTION,
         source: str = "",
     ) -> None:
         if not isinstance(net, SemanticNet):
@@ -75,6 +79,7 @@ class SemanticLabeler:
         self.classes = tuple(classes)
         self.ignore_index = ignore_index
         self.seed = _validate.integer("seed", seed, maximum=2**32 - 1)
+        self.cues = cues
         self.source = source
 
     @classmethod
@@ -118,7 +123,8 @@ class SemanticLabeler:
             out = cls(
                 net, size, classes,  # type: ignore[arg-type]
                 ignore_index=None if ignore is None else int(ignore),
-                seed=int(norm.get("cue_seed") or 0), source=str(file),
+                seed=int(norm.get("cue_seed") or 0), cues=norm.get("cues", CUE_FUNCTION),
+                source=str(file),
             )  # fmt: skip
         except (RgbdError, TypeError, ValueError) as exc:
             raise RgbdError(f"{file}: invalid semantic ConvNet checkpoint ({exc})") from None
@@ -184,6 +190,11 @@ class SemanticLabeler:
         too: their cues are the colour ones, geometry 0)."""
         from rgbd_rs.segmentation.cues import semantic_cues
 
+        if self.cues not in (None, CUE_FUNCTION):
+            raise RgbdError(
+                f"{self.source}: a network trained on the cues of {self.cues}, not "
+                f"{CUE_FUNCTION}; compute those and call pdfs_from_full_cues"
+            )
         return self.pdfs_from_full_cues(semantic_cues(rgb, depth, camera, seed=self.seed))
 
     def labels(

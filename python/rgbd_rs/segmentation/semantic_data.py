@@ -10,7 +10,7 @@ generate_indoor` (a camera per frame), :class:`FrameFolder` a folder of ``NAME_r
 ``camera.json``; :func:`open_frames` picks one from a name or folder. A source that also has
 ``names`` (one str per frame) lets a cache be sharded without loading frames of other shards.
 
-**Cache** (:func:`build_cache`, :class:`SemanticCache`): per frame the 9 cues of eq. 4.2
+**Cache** (:func:`build_semantic_cache`, :class:`SemanticCache`): per frame the 9 cues of eq. 4.2
 (:func:`rgbd_rs.segmentation.cues.semantic_cues`) computed at the frame's full size, then
 reduced to the network's input size (default 320 x 240, §4.6): ``cues.npy`` (``N x 9 x h x w``
 float16) and ``labels.npy`` (``N x h x w`` uint8), memory-mappable, plus ``done.npy`` (per
@@ -62,7 +62,7 @@ __all__ = [
     "SemanticCache",
     "SemanticFrames",
     "SyntheticFrames",
-    "build_cache",
+    "build_semantic_cache",
     "downsample_cues",
     "downsample_labels",
     "open_frames",
@@ -387,7 +387,7 @@ def _names(frames: Any) -> list[str]:
     return names
 
 
-def build_cache(
+def build_semantic_cache(
     frames: Any,
     out: str | os.PathLike[str],
     *,
@@ -501,7 +501,7 @@ def _check_meta(root: Path, meta: dict[str, Any], names: list[str]) -> None:
 
 
 class SemanticCache:
-    """An opened cache folder written by :func:`build_cache` (read-only memory maps)."""
+    """An opened cache folder written by :func:`build_semantic_cache` (read-only memory maps)."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         if not isinstance(path, (str, os.PathLike)) or not str(path):
@@ -509,7 +509,9 @@ class SemanticCache:
         self.path = Path(path)
         meta_path = self.path / "meta.json"
         if not meta_path.is_file():
-            raise RgbdError(f"{self.path}: no meta.json, expected a folder written by build_cache")
+            raise RgbdError(
+                f"{self.path}: no meta.json, expected a folder written by build_semantic_cache"
+            )
         try:
             meta = json.loads(meta_path.read_text())
         except (ValueError, UnicodeDecodeError) as exc:

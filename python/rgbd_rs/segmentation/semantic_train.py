@@ -1,6 +1,7 @@
 """Training recipe of the semantic ConvNet (``rgbd train semantic``), thesis §4.6 and §4.8.
 
-1. A cue cache (:func:`rgbd_rs.segmentation.semantic_data.build_cache`; resumable, shardable).
+1. A cue cache (:func:`rgbd_rs.segmentation.semantic_data.build_semantic_cache`; resumable,
+   shardable).
 2. A seeded ``val_fraction`` of its frames held out for validation (frames drawn independently:
    a cache whose frames are consecutive views of one room should be validated on another cache
    instead, ``val_fraction=0`` then).
