@@ -3,6 +3,7 @@ and the meta-test that counts these cases)."""
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -32,10 +33,11 @@ def _corrupt(tmp: str) -> object:
     return S.IndoorFrames(tmp)[0]
 
 
-def _tmp() -> str:
-    import tempfile
+_ROOT = tempfile.TemporaryDirectory(prefix="rgbd_indoor_bad_")  # removed at exit
 
-    return tempfile.mkdtemp(prefix="rgbd_indoor_bad_")
+
+def _tmp() -> str:
+    return tempfile.mkdtemp(dir=_ROOT.name)
 
 
 CASES: list[Case] = [
