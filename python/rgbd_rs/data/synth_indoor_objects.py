@@ -423,12 +423,12 @@ def small_object(rng: Rng, *, floor: bool = False) -> list[Part]:
             Part(base.merged(lid), material(rng, str(rng.choice(["dark", "metal"]))), OBJECTS, 0.3)
         ]
     if kind == "plant":  # a pot plant
-        r = float(rng.uniform(0.12, 0.25) if floor else rng.uniform(0.05, 0.1))
+        r = float(rng.uniform(0.1, 0.2) if floor else rng.uniform(0.05, 0.1))
         ph = r * float(rng.uniform(1.0, 1.8))
         pot = cylinder(r, ph, (0, -ph / 2, 0), segments=16)
-        leaf_r = r * float(rng.uniform(1.3, 2.5))
+        leaf_r = r * float(rng.uniform(1.2, 2.0))
         leaves = sphere(leaf_r, rings=8, segments=12).scaled(
-            (1.0, float(rng.uniform(0.8, 2.0)), 1.0)
+            (1.0, float(rng.uniform(0.8, 1.5)), 1.0)
         )
         top = float(leaves.bounds()[1][1])
         leaves = leaves.transformed(translation=(0, -ph - top + 0.02, 0))

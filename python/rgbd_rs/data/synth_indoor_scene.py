@@ -45,7 +45,7 @@ CAMERA_HEIGHT = (1.0, 1.6)
 PITCH = (-6.0, 8.0, (-35.0, 15.0))
 ROLL_SD = 3.0
 #: Things on the floor per room (range), and the free half-width around the camera (m).
-FLOOR_CLUTTER = (5, 22)
+FLOOR_CLUTTER = (8, 28)
 KEEP_OUT = 0.5
 #: Chance of a monitor / TV on a wide enough top.
 P_SCREEN = 0.2
@@ -130,7 +130,7 @@ class _Room:
         self.h = float(rng.uniform(*ROOM_HEIGHT))
         self.parts: list[Part] = []
         self.boxes: list[tuple[float, float, float, float]] = []
-        self.wall_spans: list[list[tuple[float, float]]] = [[], [], [], []]
+        self.wall_spans: list[list[tuple[float, float, float, float]]] = [[], [], [], []]
 
     def wall_length(self, k: int) -> float:
         return self.w if k < 2 else self.d
@@ -213,15 +213,22 @@ class _Room:
                 self.add(obj, float(x + p[0]), float(z + p[2]), theta, float(p[1]))
 
     def wall_item(self, w: float, bottom: float, parts: list[Part]) -> None:
-        """An item ``w`` wide whose bottom is ``bottom`` above the floor, on a free wall span."""
+        """An item ``w`` wide whose bottom is ``bottom`` above the floor, where it overlaps no
+        other wall item."""
+        lo = min(float(p.mesh.bounds()[0][1]) for p in parts)
+        hi = max(float(p.mesh.bounds()[1][1]) for p in parts)
+        y0, y1 = bottom - hi, bottom - lo  # heights above the floor
         for _ in range(15):
             k = int(self.rng.integers(4))
             if self.wall_length(k) < w + 0.2:
                 continue
             u = float(self.rng.uniform(w / 2 + 0.05, self.wall_length(k) - w / 2 - 0.05))
-            if any(a < u + w / 2 and u - w / 2 < b for a, b in self.wall_spans[k]):
+            if any(
+                a < u + w / 2 and u - w / 2 < b and c < y1 and y0 < d
+                for a, b, c, d in self.wall_spans[k]
+            ):
                 continue
-            self.wall_spans[k].append((u - w / 2, u + w / 2))
+            self.wall_spans[k].append((u - w / 2, u + w / 2, y0, y1))
             x, z, theta = self.wall_point(k, u, 0.0)
             self.add(parts, x, z, theta, -bottom)
             return

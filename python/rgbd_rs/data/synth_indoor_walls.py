@@ -1,7 +1,8 @@
 """Things on the walls of the synthetic indoor rooms (:mod:`rgbd_rs.data.synth_indoor`);
 private: doors (label wall), windows with frames, glass and sometimes curtains (window),
-pictures (picture), papers, whiteboards, clocks and hanging clothes (objects), wall shelves with
-books, upper cabinets (furniture, books) and wall-mounted TVs (tv)."""
+pictures (picture), papers, whiteboards, clocks, fixtures, radiators and hanging clothes
+(objects), wall shelves with books, upper cabinets (furniture, books) and wall-mounted TVs
+(tv)."""
 
 from __future__ import annotations
 
@@ -15,12 +16,14 @@ from rgbd_rs.data.synth_indoor_objects import (
     WALL,
     WINDOW,
     Part,
+    color,
     image_material,
     material,
     screen,
     slab,
 )
 from rgbd_rs.meshes import cylinder
+from rgbd_rs.render import Material, Texture
 
 if TYPE_CHECKING:
     from rgbd_rs.data.synth_indoor_scene import _Room
@@ -61,12 +64,17 @@ def wall_items(room: _Room) -> None:
                         WINDOW,
                     )
                 )
+        if bottom > 0.6 and rng.random() < 0.5:  # a radiator below the window
+            rw = min(w, float(rng.uniform(0.5, 1.5)))
+            rad = slab(rw, bottom - 0.2, 0.08, 0, -(bottom - 0.1), -0.06)
+            ribs = Texture.stripes(float(rng.uniform(0.04, 0.08)), 0.0)
+            parts.append(Part(rad, Material(color(rng, "tile"), 0.5, ribs, 0.3), OBJECTS))
         room.wall_item(w, bottom, parts)
     for _ in range(int(rng.integers(2, 11))):  # pictures, papers, boards, clocks, shelves, TVs
         kind = str(
             rng.choice(
-                ["picture", "paper", "board", "clock", "shelf", "tv", "coat"],
-                p=[0.36, 0.2, 0.08, 0.06, 0.14, 0.04, 0.12],
+                ["picture", "paper", "board", "clock", "shelf", "tv", "coat", "fixture"],
+                p=[0.36, 0.17, 0.07, 0.05, 0.12, 0.03, 0.1, 0.1],
             )
         )
         if kind == "tv":
@@ -75,6 +83,15 @@ def wall_items(room: _Room) -> None:
             room.wall_item(w, float(rng.uniform(0.9, 1.4)), tv.parts)
         elif kind == "shelf":
             _wall_shelf(room)
+        elif kind == "fixture":  # a switch box, speaker, air conditioner, extinguisher
+            w, h, t = (float(v) for v in rng.uniform([0.08, 0.08, 0.03], [0.9, 0.5, 0.3]))
+            box_ = slab(w, h, t, 0, 0, -t / 2)
+            fam = str(rng.choice(["ceiling", "dark", "any"]))
+            room.wall_item(
+                w,
+                float(rng.uniform(0.3, max(0.4, room.h - h - 0.1))),
+                [Part(box_, material(rng, fam), OBJECTS)],
+            )
         elif kind == "coat":  # clothes, bags or a towel hanging on the wall
             w, h, t = (float(v) for v in rng.uniform([0.3, 0.4, 0.05], [0.7, 1.1, 0.25]))
             coat = slab(w, h, t, 0, 0, -t / 2)
