@@ -271,22 +271,3 @@ def run_train(args: argparse.Namespace) -> int:
     if args.ship:
         print(f"shipped weights: {ship(best)}")
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m rgbd_rs.cli.semantic ...``: these commands alone (``rgbd`` runs them once the
-    module is in :data:`rgbd_rs.cli.PIPELINES`)."""
-    from rgbd_rs.cli._args import fail
-    from rgbd_rs.errors import RgbdError
-
-    p = Parser(prog="rgbd")
-    register(Commands(p.add_subparsers(dest="command", metavar="COMMAND", required=True)))
-    args = p.parse_args(argv)
-    try:
-        return int(args.run(args))
-    except RgbdError as exc:
-        return fail(str(exc))
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
