@@ -63,7 +63,7 @@ MIN_SIDE, MAX_SIDE = 16, 4096
 #: Name of the file recording how a folder's frames were made (checked when resuming).
 MANIFEST = "indoor.json"
 #: Version of the generator; frames of another version are not mixed into one folder.
-VERSION = 3
+VERSION = 4
 #: RGB colours (0-255) of the 13 classes (index = label; 0 unlabeled is black), for previews.
 LABEL13_COLORS: tuple[tuple[int, int, int], ...] = (
     (0, 0, 0),

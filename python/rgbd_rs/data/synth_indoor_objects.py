@@ -41,12 +41,14 @@ class Part:
 
 @dataclass
 class Parts:
-    """A piece of furniture in its local frame: parts, footprint ``(width, depth)`` and the
-    surfaces ``(x0, x1, z0, z1, y)`` objects can stand on."""
+    """A piece of furniture in its local frame: parts, footprint ``(width, depth)``, the
+    surfaces ``(x0, x1, z0, z1, y)`` objects can stand on and whether they are soft (a bed, a
+    sofa seat: clutter, no screens)."""
 
     parts: list[Part]
     footprint: tuple[float, float]
     tops: list[tuple[float, float, float, float, float]] = field(default_factory=list)
+    soft: bool = False
 
 
 # -- colours and materials ---------------------------------------------------------------------
@@ -164,6 +166,8 @@ def _merge(meshes: list[Mesh]) -> Mesh:
 
 # -- furniture ---------------------------------------------------------------------------------
 
+#: Share of beds and sofas with things lying on them (clothes, bags, books, papers).
+P_CLUTTERED = 0.5
 #: Share of round (pedestal) dining and coffee tables.
 P_ROUND_TABLE = 0.25
 
@@ -234,7 +238,8 @@ def sofa(rng: Rng) -> Parts:
         x = float(rng.uniform(-(w / 2 - arm - p / 2), w / 2 - arm - p / 2))
         pil = slab(p, p, 0.12, x, seat, d / 2 - bt - 0.08)
         parts.append(Part(pil, material(rng, "fabric", texture="weave"), OBJECTS))
-    return Parts(parts, (w, d))
+    seat_top = (-(w / 2 - arm), w / 2 - arm, -d / 2, d / 2 - bt - 0.2, seat)
+    return Parts(parts, (w, d), [seat_top] if rng.random() < P_CLUTTERED else [], soft=True)
 
 
 def bed(rng: Rng) -> Parts:
@@ -258,7 +263,8 @@ def bed(rng: Rng) -> Parts:
         x = -w / 2 + (k + 0.5) * w / n
         pil = slab(pw, 0.14, 0.4, x, top, length / 2 - 0.3)
         parts.append(Part(pil, material(rng, "linen", texture="weave"), OBJECTS))
-    return Parts(parts, (w, length))
+    cover_top = (-w / 2, w / 2, -length / 2, length / 2 - 0.55, top)
+    return Parts(parts, (w, length), [cover_top] if rng.random() < P_CLUTTERED else [], soft=True)
 
 
 def cabinet(rng: Rng) -> Parts:

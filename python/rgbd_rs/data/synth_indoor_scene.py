@@ -45,7 +45,7 @@ CAMERA_HEIGHT = (1.0, 1.6)
 PITCH = (-6.0, 8.0, (-35.0, 15.0))
 ROLL_SD = 3.0
 #: Things on the floor per room (range), and the free half-width around the camera (m).
-FLOOR_CLUTTER = (8, 28)
+FLOOR_CLUTTER = (10, 34)
 KEEP_OUT = 0.5
 #: Chance of a monitor / TV on a wide enough top.
 P_SCREEN = 0.2
@@ -64,27 +64,27 @@ PRINCIPAL_SD = 8.0
 ROOMS: dict[str, dict[str, tuple[int, int]]] = {
     "bedroom": {
         "bed": (1, 2),
-        "cabinet": (2, 5),
-        "shelf": (0, 2),
+        "cabinet": (2, 6),
+        "shelf": (0, 3),
         "chair": (0, 2),
-        "table": (0, 1),
+        "table": (0, 2),
     },
     "living": {
         "sofa": (1, 3),
-        "table": (1, 2),
-        "cabinet": (1, 4),
-        "shelf": (0, 3),
-        "chair": (0, 2),
-    },
-    "office": {
-        "table": (1, 4),
-        "cabinet": (1, 4),
-        "shelf": (1, 3),
-        "sofa": (0, 1),
+        "table": (1, 3),
+        "cabinet": (2, 5),
+        "shelf": (1, 4),
         "chair": (0, 3),
     },
-    "kitchen": {"cabinet": (3, 7), "table": (0, 2), "chair": (0, 2), "shelf": (0, 2)},
-    "library": {"shelf": (3, 8), "table": (0, 2), "cabinet": (0, 2), "chair": (0, 2)},
+    "office": {
+        "table": (2, 5),
+        "cabinet": (2, 5),
+        "shelf": (1, 4),
+        "sofa": (0, 1),
+        "chair": (1, 4),
+    },
+    "kitchen": {"cabinet": (4, 9), "table": (0, 2), "chair": (0, 3), "shelf": (0, 2)},
+    "library": {"shelf": (3, 9), "table": (1, 3), "cabinet": (1, 3), "chair": (0, 3)},
 }
 ROOM_P = {"bedroom": 0.28, "living": 0.24, "office": 0.24, "kitchen": 0.12, "library": 0.12}
 #: Inward normals (x, z) of the walls z = 0, z = D, x = 0, x = W.
@@ -188,8 +188,8 @@ class _Room:
         """Small objects (and monitors / TVs) on the item's top surfaces."""
         r = _yaw_matrix(theta)
         for x0, x1, z0, z1, y in item.tops:
-            n = int(self.rng.integers(1, 4 + int((x1 - x0) * (z1 - z0) * 20)))
-            if (x1 - x0) > 0.6 and self.rng.random() < P_SCREEN:
+            n = int(self.rng.integers(1, 4 + int((x1 - x0) * (z1 - z0) * 24)))
+            if not item.soft and (x1 - x0) > 0.6 and self.rng.random() < P_SCREEN:
                 tv = screen(self.rng, monitor=y > 0.6)
                 u = float(
                     self.rng.uniform(

@@ -70,7 +70,7 @@ def wall_items(room: _Room) -> None:
             ribs = Texture.stripes(float(rng.uniform(0.04, 0.08)), 0.0)
             parts.append(Part(rad, Material(color(rng, "tile"), 0.5, ribs, 0.3), OBJECTS))
         room.wall_item(w, bottom, parts)
-    for _ in range(int(rng.integers(2, 11))):  # pictures, papers, boards, clocks, shelves, TVs
+    for _ in range(int(rng.integers(3, 15))):  # pictures, papers, boards, clocks, shelves, TVs
         kind = str(
             rng.choice(
                 ["picture", "paper", "board", "clock", "shelf", "tv", "coat", "fixture"],
