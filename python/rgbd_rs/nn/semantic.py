@@ -265,6 +265,7 @@ def class_probabilities(
     if size is not None:
         h = _validate.integer("size[0]", size[0], minimum=1, maximum=_validate.MAX_SIDE)
         w = _validate.integer("size[1]", size[1], minimum=1, maximum=_validate.MAX_SIDE)
-        if (h, w) != tuple(p.shape[-2:]):
+        if (h, w) != tuple(p.shape[-2:]):  # channels-last: the H x W x C view is contiguous
+            p = p.contiguous(memory_format=torch.channels_last)
             p = F.interpolate(p, size=(h, w), mode="bilinear", align_corners=False)
     return p

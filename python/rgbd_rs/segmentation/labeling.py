@@ -165,7 +165,7 @@ class SemanticLabeler:
         with torch.inference_mode():
             logits = self.net(torch.nan_to_num(x.to(device, torch.float32)))
             p = class_probabilities(logits, out_size, ignore_index=self.ignore_index)
-        arr = p.permute(0, 2, 3, 1).contiguous().cpu().numpy().astype(np.float32)
+        arr = np.ascontiguousarray(p.permute(0, 2, 3, 1).cpu().numpy(), dtype=np.float32)
         return arr[0] if single else arr
 
     def pdfs_from_full_cues(self, cues: npt.ArrayLike) -> npt.NDArray[np.float32]:
