@@ -111,6 +111,7 @@ OTHER_ARCH = save_checkpoint(
     Checkpoint(TMP / "o.pt", "other/1", {}, NORM, NET.state_dict()), TMP / "o.pt"
 )
 (TMP / "garbage.pt").write_bytes(b"not a checkpoint")
+(TMP / "x.mat").write_bytes(b"not a MAT-file")
 (TMP / "empty").mkdir()
 (TMP / "notcache").mkdir()
 (TMP / "notcache" / "meta.json").write_text('{"format": "other"}')
@@ -192,6 +193,20 @@ ALL_CASES: list[Case] = [
         "folder split",
     ),
     Case("open_frames", lambda: open_frames(TMP / "empty"), RgbdError, r"empty: no NAME_", "empty"),
+    Case(
+        "open_frames",
+        lambda: open_frames(TMP / "x.mat", camera=CAMERA),
+        ARG,
+        r"^camera: given with a \.mat file",
+        "mat camera",
+    ),
+    Case(
+        "open_frames",
+        lambda: open_frames(TMP / "x.mat"),
+        RgbdError,
+        r"x\.mat: not an HDF5 file",
+        "mat garbage",
+    ),
     Case("NyuFrames", lambda: NyuFrames("all", TMP / "empty"), RgbdError, r"empty: no NNNN_"),
     Case("NyuFrames", lambda: NyuFrames("none"), ARG, r"^split: got 'none'", "split"),
     Case("FrameFolder", lambda: FrameFolder(TMP / "nope"), RgbdError, r"nope: not a folder"),

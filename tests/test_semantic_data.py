@@ -196,6 +196,27 @@ def test_frame_folder(tmp_path: Path) -> None:
     assert np.isnan(g.depth[:2]).all() and np.allclose(g.depth[2:], f.depth[2:], atol=6e-4)
 
 
+@pytest.mark.skipif(not HAVE_NYU, reason="needs ../shared/data/nyuv2 (mappings, splits)")
+def test_official_mat_file(tmp_path: Path) -> None:
+    """The official nyu_depth_v2_labeled.mat (here the fabricated one of tests/nyuv2_fake.py)
+    feeds a cache directly: 13-class labels through the 894 -> 40 -> 13 mappings."""
+    pytest.importorskip("h5py")
+    import nyuv2_fake
+
+    written = nyuv2_fake.write(tmp_path / "nyu_depth_v2_labeled.mat")
+    src = open_frames(written.path, "all")
+    assert len(src) == nyuv2_fake.N and src.names[0] == "0001"
+    c = build_semantic_cache(src, tmp_path / "c", size=(32, 24), cues=fake_cues, quiet=True)
+    assert c.complete
+    to13 = np.zeros(int(max(nyuv2_fake.TO13)) + 1, np.uint8)
+    for raw, v in nyuv2_fake.TO13.items():
+        to13[raw] = v
+    want = downsample_labels(to13[written.labels[2]], (32, 24))
+    assert (c.labels()[2] == want).all()
+    with pytest.raises(RgbdError, match="split names frame"):
+        open_frames(written.path, "train")  # the official split needs the 1449-frame file
+
+
 @pytest.mark.skipif(not HAVE_NYU, reason="needs ../shared/data/nyuv2")
 def test_nyu_frames_and_real_cues(tmp_path: Path) -> None:
     train = open_frames("nyuv2", "train")

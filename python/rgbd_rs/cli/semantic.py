@@ -53,12 +53,16 @@ def _cache(sub: argparse._SubParsersAction[Parser]) -> None:
         "--frames",
         required=True,
         metavar="SRC",
-        help="nyuv2 (the shared NYUv2 frames), a folder in that layout, a folder of synthetic "
+        help="nyuv2 (the shared NYUv2 frames), the official nyu_depth_v2_labeled.mat (795/654 "
+        "split), a folder in the NYUv2 layout, a folder of synthetic "
         "indoor frames (rgbd synth-indoor) or a folder of NAME_{rgb,depth,label13}.png with a "
         "camera.json (or --calib)",
     )
     p.add_argument(
-        "--split", choices=("train", "test", "all"), default="all", help="NYUv2 split (all)"
+        "--split",
+        choices=("train", "test", "all"),
+        default="all",
+        help="NYUv2 split (all; of the .mat: the official 795/654)",
     )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="cache folder")
     p.add_argument(
@@ -85,7 +89,7 @@ def run_cache(args: argparse.Namespace) -> int:
     source = (
         f"nyuv2-{args.split}"
         if args.frames.lower() == "nyuv2"
-        else f"{Path(args.frames).resolve().name}-{args.split}"
+        else f"{Path(args.frames).resolve().stem}-{args.split}"
     )
     before = 0
     if (args.out / "done.npy").is_file():

@@ -231,12 +231,19 @@ def open_frames(
     frames: str | os.PathLike[str],
     split: str = "all",
     camera: PinholeCamera | str | os.PathLike[str] | None = None,
-) -> NyuFrames | FrameFolder | SyntheticFrames:
-    """``"nyuv2"`` (the shared NYUv2 frames, ``split`` ``"all"``/``"train"``/``"test"``), a
-    folder in the NYUv2 layout (``NNNN_{rgb,depth,label13,label40}.png`` and no camera: NYUv2
-    frames, split by NNNN), a folder of synthetic indoor frames (``camera_NNNNNN.json`` per
-    frame: :class:`SyntheticFrames`) or a :class:`FrameFolder`; folders other than NYUv2 ones
-    take only ``split="all"``."""
+) -> Any:
+    """The labeled frames ``frames`` names:
+
+    - ``"nyuv2"``: the shared NYUv2 frames (:class:`NyuFrames`, ``split`` ``"all"``,
+      ``"train"`` or ``"test"``);
+    - the official ``nyu_depth_v2_labeled.mat`` (:class:`rgbd_rs.data.nyuv2_mat.NyuMatDataset`:
+      the thesis' 795 / 654 split, in-painted depth);
+    - a folder in the NYUv2 layout (``NNNN_{rgb,depth,label13,label40}.png``, no camera);
+    - a folder of synthetic indoor frames (``camera_NNNNNN.json`` per frame:
+      :class:`SyntheticFrames`);
+    - else a :class:`FrameFolder`.
+
+    Folders other than NYUv2 ones take only ``split="all"``."""
     split = _validate.choice("split", split, ("all", "train", "test"))
     if not isinstance(frames, (str, os.PathLike)) or not str(frames):
         raise InvalidArgumentError(f"frames: got {frames!r}, expected 'nyuv2' or a folder")
@@ -245,8 +252,16 @@ def open_frames(
             raise InvalidArgumentError("camera: given with 'nyuv2', expected none (NYUV2_CAMERA)")
         return NyuFrames(split)
     p = Path(frames)
+    if p.is_file() and p.suffix.lower() == ".mat":
+        if camera is not None:
+            raise InvalidArgumentError("camera: given with a .mat file, expected none")
+        from rgbd_rs.data.nyuv2_mat import NyuMatDataset
+
+        return NyuMatDataset(p, split)
     if not p.is_dir():
-        raise InvalidArgumentError(f"frames: got {str(frames)!r}, expected 'nyuv2' or a folder")
+        raise InvalidArgumentError(
+            f"frames: got {str(frames)!r}, expected 'nyuv2', nyu_depth_v2_labeled.mat or a folder"
+        )
     nyu_layout = any(p.glob("[0-9][0-9][0-9][0-9]_label40.png"))
     if camera is None and not (p / "camera.json").is_file() and nyu_layout:
         return NyuFrames(split, p)
