@@ -289,6 +289,19 @@ def test_untrained_network_is_worse(tiny_run: tuple[Path, Path, list[dict[str, f
     )
 
 
+def test_same_seed_same_weights(tiny_run: tuple[Path, Path, list[dict[str, float]]]) -> None:
+    """Deterministic by seed (flips included); another seed gives other weights."""
+    tmp, _, _ = tiny_run
+    recipe = SemanticRecipe(width=8, val_fraction=0, augment=True, lcn_window=5)
+    states = []
+    for name, seed in (("s0", 0), ("s0b", 0), ("s1", 1)):
+        cfg = default_config(epochs=2, batch_size=1, checkpoint_steps=0, device="cpu", seed=seed)
+        best = train_semantic(tmp / "cache", tmp / name, recipe=recipe, config=cfg, quiet=True)
+        states.append(load_checkpoint(best).model_state)
+    assert all(torch.equal(states[0][k], states[1][k]) for k in states[0])
+    assert not torch.equal(states[0]["classifier.weight"], states[2]["classifier.weight"])
+
+
 def test_fine_tune_ship_and_label(tiny_run: tuple[Path, Path, list[dict[str, float]]]) -> None:
     tmp, best, _ = tiny_run
     other = build_semantic_cache(

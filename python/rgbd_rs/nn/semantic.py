@@ -155,7 +155,8 @@ class GroupedConv(nn.Module):
     def dense_weight(self) -> torch.Tensor:
         """``out x in x k x k``: zero outside each filter's group."""
         w = self.weight.index_select(1, self.slot)  # type: ignore[arg-type]
-        return w * self.mask[:, :, None, None]  # type: ignore[index]
+        w = w * self.mask[:, :, None, None]  # type: ignore[index]
+        return w.contiguous(memory_format=torch.channels_last)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         pad = self.kernel_size[0] // 2
@@ -212,6 +213,8 @@ class SemanticNet(nn.Module):
                 nn.init.xavier_uniform_(m.weight, gain=nn.init.calculate_gain("tanh"))
                 if m.bias is not None:
                     nn.init.zeros_(m.bias)
+        # Channels-last convolutions: ~2x faster on CPU (oneDNN); same values, same state_dict.
+        self.to(memory_format=torch.channels_last)
 
     def arch_config(self) -> dict[str, Any]:
         """The constructor arguments (what checkpoints store to rebuild the network)."""
@@ -235,7 +238,8 @@ class SemanticNet(nn.Module):
             raise ShapeMismatchError(
                 f"x: got {x.shape[-2]} x {x.shape[-1]} pixels, expected sides >= {MIN_SIDE}"
             )
-        return self.classifier(self.features(self.lcn(x)))  # type: ignore[no-any-return]
+        x = self.lcn(x).contiguous(memory_format=torch.channels_last)
+        return self.classifier(self.features(x))  # type: ignore[no-any-return]
 
 
 def class_probabilities(
