@@ -3,6 +3,7 @@ the scikit-image peers (one- or two-point grids, so it stays fast)."""
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -123,15 +124,23 @@ def test_our_stages_plug_in(monkeypatch: pytest.MonkeyPatch) -> None:
         return E.slic_rgb(n_segments=n_segments)(vectors, np.empty(0, np.float32), NYUV2_CAMERA)
 
     def segment(
-        rgb: np.ndarray, depth: np.ndarray, camera: object, *, n_segments: int = 9, seed: int = 1
+        rgb: np.ndarray,
+        depth: np.ndarray,
+        camera: object,
+        *,
+        labeler: object = "auto",
+        n_segments: int = 9,
+        seed: int = 1,
     ) -> SimpleNamespace:
+        assert labeler is None, "the fit-only row runs without a ConvNet"
         calls["segment"] += 1
         over = E.slic_rgb(n_segments=n_segments)(rgb, depth, camera)  # type: ignore[arg-type]
         return SimpleNamespace(over=over, labels=over // 8)
 
-    stages = {"features": features, "oversegment": oversegment, "segment": segment}
-    monkeypatch.setattr(E, "_stage", lambda module, name: stages[name])
-    ours = [m for m in E.default_methods() if m.kind == "ours"]
+    for module, fn in (("features", features), ("oversegment", oversegment), ("pipeline", segment)):
+        mod = importlib.import_module(f"rgbd_rs.segmentation.{module}")
+        monkeypatch.setattr(mod, fn.__name__, fn)
+    ours = [m for m in E.default_methods() if m.kind == "ours" and m.name != E.OURS_FULL]
     report = E.evaluate([46], tuning_frames=[1], methods=ours, quiet=True)
     assert [s.name for s in report.scores] == [E.OURS_OVER, E.OURS_MERGED]
     # Tuning: the over-segmentation grid on frame 1; evaluation: once more, and no third run
@@ -249,3 +258,26 @@ BAD: list[Case] = [
 @pytest.mark.parametrize("case", params(BAD))
 def test_bad_input(case: Case) -> None:
     check(case)
+
+
+def test_full_method_row_scores_the_labels() -> None:
+    import torch
+
+    from rgbd_rs.data.nyuv2 import LABEL13_NAMES
+    from rgbd_rs.nn.semantic import SemanticNet
+    from rgbd_rs.segmentation.labeling import SemanticLabeler
+
+    torch.manual_seed(0)
+    tiny = SemanticLabeler(SemanticNet(14, width=8, lcn_window=5), (80, 60), LABEL13_NAMES)
+    full = [m for m in E.default_methods(labeler=tiny) if m.name == E.OURS_FULL]
+    full = [E.Method(E.OURS_FULL, full[0].make, ({"n_segments": 60},), "ours")]
+    report = E.evaluate([46], tuning_frames=[46], methods=full, quiet=True)
+    assert [s.name for s in report.scores] == [E.OURS_FULL]
+    sem = report.semantic
+    assert sem is not None and sem.frames == 1
+    labeled = int((load_nyuv2_frame(46).label13 > 0).sum())
+    assert sem.network.sum() == sem.refined.sum() == labeled
+    assert sem.network[0].sum() == 0, "unlabeled truth is left out"
+    for acc in (*sem.network_accuracy, *sem.refined_accuracy):
+        assert 0 <= acc <= 1
+    assert "after segment refinement" in sem.table() and "| wall |" in sem.per_class_table()

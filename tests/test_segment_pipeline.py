@@ -22,7 +22,7 @@ def frame():  # type: ignore[no-untyped-def]
 
 @pytest.fixture(scope="module")
 def result(frame):  # type: ignore[no-untyped-def]
-    return segment(frame.rgb, frame.depth, NYUV2_CAMERA, n_segments=150)
+    return segment(frame.rgb, frame.depth, NYUV2_CAMERA, n_segments=150, labeler=None)
 
 
 def test_stages_and_shapes(frame, result) -> None:  # type: ignore[no-untyped-def]
@@ -48,7 +48,7 @@ def test_merging_moves_toward_the_ground_truth(frame, result) -> None:  # type: 
 
 
 def test_deterministic(frame, result) -> None:  # type: ignore[no-untyped-def]
-    again = segment(frame.rgb, frame.depth, NYUV2_CAMERA, n_segments=150)
+    again = segment(frame.rgb, frame.depth, NYUV2_CAMERA, n_segments=150, labeler=None)
     np.testing.assert_array_equal(again.labels, result.labels)
 
 
@@ -60,8 +60,73 @@ def test_cli_writes_labels_overlay_and_frames(tmp_path: Path) -> None:
     out = tmp_path / "seg"
     argv = ["segment", "--rgb", str(f / "0001_rgb.png"), "--depth", str(f / "0001_depth.png")]
     argv += ["--calib", str(calib), "--out", str(out), "--segments", "60", "--frames", "10"]
+    argv += ["--labeler", "none"]
     assert main([*argv, "--quiet"]) == 0
     labels = np.load(out / "labels.npy")
     assert labels.shape == (480, 640)
     for name in ("labels.png", "overlay.png", "segments.png", "over.npy", "merge/0000.png"):
         assert (out / name).exists(), name
+
+
+def _tiny_labeler():  # type: ignore[no-untyped-def]
+    import torch
+
+    from rgbd_rs.data.nyuv2 import LABEL13_NAMES
+    from rgbd_rs.nn.semantic import SemanticNet
+    from rgbd_rs.segmentation.labeling import SemanticLabeler
+
+    torch.manual_seed(0)
+    return SemanticLabeler(SemanticNet(14, width=8, lcn_window=5), (80, 60), LABEL13_NAMES)
+
+
+@pytest.fixture(scope="module")
+def labeled(frame):  # type: ignore[no-untyped-def]
+    return segment(frame.rgb, frame.depth, NYUV2_CAMERA, n_segments=150, labeler=_tiny_labeler())
+
+
+def test_convnet_drives_the_merging_and_labels_segments(frame, labeled) -> None:  # type: ignore[no-untyped-def]
+    assert list(labeled.seconds) == ["features", "oversegment", "fits", "semantic", "merge"]
+    assert labeled.merge.mode == "similarity"
+    pdfs = labeled.pdfs
+    assert pdfs is not None and pdfs.shape == (480, 640, 14)
+    np.testing.assert_allclose(pdfs.sum(axis=-1), 1, atol=1e-4)
+    net = labeled.network_labels
+    assert net is not None and net.min() >= 1, "never the unlabeled class"
+    sem = labeled.semantic
+    assert sem is not None
+    # Each final segment has one class: the most common per-pixel class among its pixels (§4.7).
+    for s in np.unique(labeled.labels[labeled.labels >= 0])[:20]:
+        inside = labeled.labels == s
+        assert np.unique(sem[inside]).size == 1
+        assert sem[inside][0] == np.bincount(net[inside], minlength=14).argmax()
+
+
+def test_labeler_none_is_fit_only_and_bad_labelers(frame) -> None:  # type: ignore[no-untyped-def]
+    from rgbd_rs.errors import InvalidArgumentError, RgbdError
+
+    with pytest.raises(InvalidArgumentError, match=r"^labeler: got 3"):
+        segment(frame.rgb, frame.depth, NYUV2_CAMERA, labeler=3)  # type: ignore[arg-type]
+    with pytest.raises(RgbdError, match="no such checkpoint"):
+        segment(frame.rgb, frame.depth, NYUV2_CAMERA, labeler="/nonexistent/semantic.pt")
+
+
+def test_cli_with_a_checkpoint_writes_classes(tmp_path: Path) -> None:
+    from rgbd_rs.nn.checkpoint import Checkpoint, save_checkpoint
+    from rgbd_rs.nn.semantic import ARCH
+
+    lab = _tiny_labeler()
+    ckpt = tmp_path / "semantic.pt"
+    norm = {"input_size": [80, 60], "classes": list(lab.classes), "ignore_index": 0}
+    state = lab.net.state_dict()
+    save_checkpoint(Checkpoint(ckpt, ARCH, lab.net.arch_config(), norm, state), ckpt)
+    root = data_root()
+    assert root is not None
+    f = root / "nyuv2" / "frames"
+    calib = Path(__file__).parents[1] / "examples" / "nyu_camera.json"
+    out = tmp_path / "seg"
+    argv = ["segment", "--rgb", str(f / "0001_rgb.png"), "--depth", str(f / "0001_depth.png")]
+    argv += ["--calib", str(calib), "--out", str(out), "--segments", "60", "--labeler", str(ckpt)]
+    assert main([*argv, "--quiet"]) == 0
+    for name in ("semantic.npy", "semantic.png", "network.png", "overlay.png"):
+        assert (out / name).exists(), name
+    assert main([*argv[:-2], "--labeler", str(tmp_path / "nope.pt"), "--quiet"]) == 2

@@ -12,12 +12,15 @@ from rgbd_rs.cli._args import Commands, integer, named
 DESCRIPTION = (
     "Segment an RGB-D frame: 9-D colour/position/normal features (eq. 4.1), normalized-cuts "
     "over-segmentation with the Nystrom approximation (§4.4), spline fits of every segment and "
-    "region merging (§4.7). Without --pdfs the merging is the fit-only baseline (couples merged "
-    "in order of fit improvement while eq. 4.8 holds); with --pdfs (per-pixel class "
-    "probabilities, H x W x C .npy) it is Algorithm 1 and every segment gets a class. Writes "
-    "OUT/labels.png (16-bit segment ids + 1, 0 = no depth), OUT/labels.npy, OUT/over.npy, "
-    "OUT/overlay.png (boundaries on the colour image), OUT/segments.png, OUT/semantic.npy with "
-    "--pdfs, and with --frames N every N-th merge step as OUT/merge/NNNN.png (Fig. 4.5)."
+    "the semantic ConvNet's class PDFs (§4.6) and region merging (Algorithm 1, §4.7); every final "
+    "segment gets its majority class. The ConvNet is the one shipped in the package (--labeler "
+    "auto, NYUv2's 13 classes), a checkpoint of `rgbd train semantic` (--labeler FILE), or none "
+    "(--labeler none: the fit-only baseline, couples merged in order of fit improvement while "
+    "eq. 4.8 holds); --pdfs (per-pixel class probabilities, H x W x C .npy) replaces the ConvNet. "
+    "Writes OUT/labels.png (16-bit segment ids + 1, 0 = no depth), OUT/labels.npy, OUT/over.npy, "
+    "OUT/overlay.png (boundaries on the colour image), OUT/segments.png; with classes "
+    "OUT/semantic.npy, OUT/semantic.png (refined classes), OUT/network.png (the ConvNet's "
+    "per-pixel classes); with --frames N every N-th merge step as OUT/merge/NNNN.png (Fig. 4.5)."
 )
 
 
@@ -46,6 +49,13 @@ def register(commands: Commands) -> None:
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--pdfs", type=Path, help="per-pixel class probabilities (.npy, H x W x C)")
     p.add_argument(
+        "--labeler",
+        default="auto",
+        metavar="auto|none|FILE",
+        help="semantic ConvNet: the shipped weights (auto), none (fit-only merging) or a "
+        "checkpoint file",
+    )
+    p.add_argument(
         "--segments", type=integer(2, 100000), default=None, help="normalized-cuts clusters"
     )
     p.add_argument(
@@ -71,11 +81,17 @@ def run_segment(args: argparse.Namespace) -> int:
     camera = named("--calib", lambda: load_camera(args.calib))
     pdfs = None if args.pdfs is None else named("--pdfs", lambda: read_npy(args.pdfs))
     n = DEFAULT_N_SEGMENTS if args.segments is None else args.segments
+    labeler = None if args.labeler == "none" else args.labeler
+    if labeler not in (None, "auto") and not Path(labeler).is_file():
+        from rgbd_rs.errors import RgbdError
+
+        raise RgbdError(f"--labeler: {labeler}: no such checkpoint file (or auto, none)")
     result = segment(
         rgb,
         depth,
         camera,
         pdfs=pdfs,
+        labeler=labeler,
         n_segments=n,
         touching=args.touching,
         seed=args.seed,
@@ -91,8 +107,19 @@ def run_segment(args: argparse.Namespace) -> int:
     write_png(out / "labels.png", png, rgb=False)
     save_png(out / "overlay.png", outline_segments(rgb, result.labels))
     save_png(out / "segments.png", paint_segments(result.labels))
+    written = "labels.png, labels.npy, over.npy, overlay.png, segments.png"
     if result.semantic is not None:
+        from rgbd_rs.data.synth_indoor import label_colors
+
         np.save(out / "semantic.npy", result.semantic)
+        save_png(
+            out / "semantic.png", label_colors(np.clip(result.semantic, 0, 255).astype(np.uint8))
+        )
+        written += ", semantic.npy, semantic.png"
+        if result.network_labels is not None:
+            net = np.clip(result.network_labels, 0, 255).astype(np.uint8)
+            save_png(out / "network.png", label_colors(net))
+            written += ", network.png"
     if args.frames:
         steps = len(result.merge.history)
         for k in range(0, steps + 1, args.frames):
@@ -104,5 +131,5 @@ def run_segment(args: argparse.Namespace) -> int:
             f"{n_over} segments -> {result.merge.n_segments} after {len(result.merge.history)} "
             f"merges ({result.merge.mode} mode); {stages}"
         )
-        print(f"wrote {out}/labels.png, labels.npy, over.npy, overlay.png, segments.png")
+        print(f"wrote in {out}/: {written}")
     return 0

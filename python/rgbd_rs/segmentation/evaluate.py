@@ -38,8 +38,6 @@ those modules provide them (the report lists what was not available).
 
 from __future__ import annotations
 
-import importlib
-import inspect
 import itertools
 import time
 import warnings
@@ -61,7 +59,8 @@ from rgbd_rs.data.nyuv2 import (
     nyuv2_frames,
     region_ground_truth,
 )
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.segmentation.evaluate_semantic import LAST_FULL, LabelingScores
 
 __all__ = [
     "CountMatch",
@@ -95,6 +94,7 @@ SEED = 0
 #: Row names of our methods (the figure's panels look them up).
 OURS_OVER = "ours: over-segmentation"
 OURS_MERGED = "ours: fit-only merging"
+OURS_FULL = "ours: full method (ConvNet + fits)"
 
 #: The parameter grids swept on the tuning frames.
 FELZENSZWALB_GRID: tuple[Params, ...] = tuple(
@@ -195,15 +195,6 @@ def slic_rgbd(*, n_segments: int, depth_weight: float) -> Segmenter:
     return run
 
 
-def _stage(module: str, name: str) -> Any:
-    """``rgbd_rs.segmentation.<module>.<name>``; AttributeError while that stage is not written
-    yet (the evaluation then lists the method as not available)."""
-    found = getattr(importlib.import_module(f"rgbd_rs.segmentation.{module}"), name, None)
-    if found is None:
-        raise AttributeError(f"rgbd_rs.segmentation.{module}.{name} is not available yet")
-    return found
-
-
 class _LastOver:
     """The over-segmentation the fit-only pipeline started from on the latest frame, so the
     same-count line reuses it instead of computing it a second time (keyed by the identity of
@@ -228,15 +219,13 @@ _LAST_OVER = _LastOver()
 
 def ours_oversegment(*, n_segments: int) -> Segmenter:
     """Our normalized-cuts over-segmentation of the 9-D features (features + oversegment)."""
-    features = _stage("features", "features")
-    oversegment = _stage("oversegment", "oversegment")
+    from rgbd_rs.segmentation.features import features
+    from rgbd_rs.segmentation.oversegment import oversegment
 
     n = _validate.integer("n_segments", n_segments, minimum=1)
 
     def run(rgb: U8, depth: F32, camera: PinholeCamera) -> Labels:
-        f = features(rgb, depth, camera)
-        f = getattr(f, "vectors", f)  # an H x W x 9 array, or a result holding one
-        return np.asarray(oversegment(f, n_segments=n, seed=SEED))
+        return oversegment(features(rgb, depth, camera).vectors, n_segments=n, seed=SEED)
 
     return run
 
@@ -244,18 +233,14 @@ def ours_oversegment(*, n_segments: int) -> Segmenter:
 def ours_fit_merge(*, n_segments: int = COUNT_MATCH_SEGMENTS) -> Segmenter:
     """The pipeline's fit-only merging (surface fits alone, the thesis' reference [74]): the
     pipeline without class PDFs, on ``n_segments`` over-segmentation clusters."""
-    segment = _stage("pipeline", "segment")
+    from rgbd_rs.segmentation.pipeline import segment
+
     n = _validate.integer("n_segments", n_segments, minimum=2)
-    takes = inspect.signature(segment).parameters
-    # Fit-only is the pipeline without PDFs; pass mode="fit" where the pipeline names it.
-    extra: dict[str, object] = {"mode": "fit"} if "mode" in takes else {}
-    extra.update(n_segments=n, seed=SEED)
 
     def run(rgb: U8, depth: F32, camera: PinholeCamera) -> Labels:
-        result = segment(rgb, depth, camera, **extra)
-        if hasattr(result, "over"):
-            _LAST_OVER.store(rgb, depth, n, np.asarray(result.over))
-        return np.asarray(result.labels)
+        result = segment(rgb, depth, camera, labeler=None, n_segments=n, seed=SEED)
+        _LAST_OVER.store(rgb, depth, n, result.over)
+        return result.labels
 
     return run
 
@@ -285,8 +270,15 @@ class Method:
             ) from None
 
 
-def default_methods() -> list[Method]:
-    """The peers (scikit-image) and ours, in table order."""
+def default_methods(labeler: Any = "auto") -> list[Method]:
+    """The peers (scikit-image) and ours, in table order; the full method runs ``labeler``
+    (the shipped semantic ConvNet by default; a checkpoint path or a SemanticLabeler)."""
+
+    def full(*, n_segments: int) -> Segmenter:
+        from rgbd_rs.segmentation.evaluate_semantic import ours_full
+
+        return ours_full(n_segments=n_segments, seed=SEED, labeler=labeler)
+
     return [
         Method("felzenszwalb (RGB)", felzenszwalb_rgb, FELZENSZWALB_GRID),
         Method("felzenszwalb (RGB-D)", felzenszwalb_rgbd, FELZENSZWALB_RGBD_GRID),
@@ -294,6 +286,7 @@ def default_methods() -> list[Method]:
         Method("slic (RGB-D)", slic_rgbd, SLIC_RGBD_GRID),
         Method(OURS_OVER, ours_oversegment, OVERSEGMENT_GRID, "ours"),
         Method(OURS_MERGED, ours_fit_merge, ({"n_segments": COUNT_MATCH_SEGMENTS},), "ours"),
+        Method(OURS_FULL, full, ({"n_segments": COUNT_MATCH_SEGMENTS},), "ours"),
     ]
 
 
@@ -301,7 +294,7 @@ def _available(method: Method) -> str | None:
     """None when ``method`` can be built, else why not (our stages not landed yet)."""
     try:
         method.segmenter(method.grid[0])
-    except (ImportError, AttributeError) as exc:
+    except (ImportError, AttributeError, RgbdError) as exc:
         return str(exc).split(" (")[0]
     return None
 
@@ -345,6 +338,8 @@ class EvaluationReport:
     count_match: CountMatch | None
     #: Methods left out, with the reason (e.g. our stage not available yet).
     missing: dict[str, str] = field(default_factory=dict)
+    #: Pixel / class accuracy of the full method's labels (None when it did not run).
+    semantic: LabelingScores | None = None
 
     def table(self) -> str:
         """The Markdown table (means over the evaluation frames)."""
@@ -576,6 +571,7 @@ def evaluate(
         default=None,
     )
 
+    semantic = LabelingScores() if any(m.name == OURS_FULL for m in usable) else None
     per = np.zeros((len(eval_ids), len(usable), 6))
     match = np.zeros((len(eval_ids), 4))
     for k, index in enumerate(
@@ -590,6 +586,9 @@ def evaluate(
             seconds = time.perf_counter() - t0
             results[m.name] = labels
             per[k, i] = (*_scores(labels, gt), _count(labels), seconds)
+            full = LAST_FULL.take()
+            if semantic is not None and full is not None:
+                semantic.add(full, frame.label13)
         if count_run is not None:
             ours = _LAST_OVER.get(frame.rgb, frame.depth, COUNT_MATCH_SEGMENTS)
             if ours is None:
@@ -626,4 +625,6 @@ def evaluate(
         for i, (m, (p, v)) in enumerate(zip(usable, tuned, strict=True))
     )
     count_match = None if count_run is None else CountMatch(*(float(v) for v in match_means))
-    return EvaluationReport(tuple(eval_ids), tuple(tune_ids), scores, count_match, missing)
+    return EvaluationReport(
+        tuple(eval_ids), tuple(tune_ids), scores, count_match, missing, semantic
+    )

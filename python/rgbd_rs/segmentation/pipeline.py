@@ -1,9 +1,10 @@
 """The segmentation pipeline of thesis ch. 4: 9-D features (eq. 4.1) -> normalized-cuts
-over-segmentation (§4.4) -> spline fits of every segment (§4.5) -> region merging (§4.7).
+over-segmentation (§4.4) -> spline fits of every segment (§4.5) -> HHA and the semantic ConvNet's
+class PDFs (§4.6) -> region merging (Algorithm 1, §4.7) -> a class per final segment.
 
 Each stage is a plain function of :mod:`rgbd_rs.segmentation` and can be called alone;
-:func:`segment` runs them in order and times each. Without class PDFs (the semantic ConvNet of
-§4.6 is a later stage) the merging is the fit-only baseline; with them it is Algorithm 1.
+:func:`segment` runs them in order and times each. With class PDFs (given, or from the ConvNet:
+the shipped weights by default) the merging is Algorithm 1; without, the fit-only baseline.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from rgbd_rs.segmentation.features import Features, features
 from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, square_normals
 from rgbd_rs.segmentation.merge import MergeResult, merge_regions
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
+from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, class_pdfs, resolve_labeler
 from rgbd_rs.surface import SegmentFits
 
 __all__ = ["ADJACENCY_NORMAL_RADIUS", "Segmentation", "segment"]
@@ -45,16 +47,24 @@ class Segmentation:
     merge: MergeResult
     #: The per-pixel features the stages used (Lab, points, normals, 9-D vectors).
     features: Features
-    #: The seam-test fits of the final segments (built with ``surfaces=False``: for fitting error
-    #: and curvature maps build ``SegmentFits(features.points, labels)``).
+    #: The seam-test fits of the final segments (with the surface fits only when the ConvNet ran:
+    #: for fitting error and curvature maps build ``SegmentFits(features.points, labels)``).
     fits: SegmentFits
     #: Seconds spent in each stage, in order.
     seconds: dict[str, float] = field(default_factory=dict)
+    #: ``H x W x C`` class PDFs the merging used (the ConvNet's or the caller's), else None.
+    pdfs: np.ndarray | None = None
 
     @property
     def semantic(self) -> np.ndarray | None:
         """``H x W`` int32 class per pixel of each final segment (with PDFs), else None."""
         return self.merge.semantic
+
+    @property
+    def network_labels(self) -> np.ndarray | None:
+        """``H x W`` int32 per-pixel argmax of :attr:`pdfs` (the network's own labeling, before
+        the segment refinement of §4.7), else None."""
+        return None if self.pdfs is None else self.pdfs.argmax(axis=-1).astype(np.int32)
 
 
 def segment(
@@ -63,6 +73,7 @@ def segment(
     camera: PinholeCamera,
     *,
     pdfs: npt.ArrayLike | None = None,
+    labeler: LabelerArg = AUTO,
     n_segments: int = DEFAULT_N_SEGMENTS,
     touching: bool = False,
     seed: int = 0,
@@ -72,11 +83,14 @@ def segment(
     (NaN or 0 = missing), ``camera`` the intrinsics of both (registered depth).
 
     ``pdfs`` (``H x W x C`` per-pixel class probabilities) switch the merging from the fit-only
-    baseline to Algorithm 1 and label every final segment; ``n_segments`` is the number of
-    normalized-cuts clusters of the over-segmentation (disconnected clusters are split, so the
-    over-segmentation has somewhat more segments); ``touching=True`` treats every pair of
-    touching segments as adjacent (the thesis' faster option) instead of the boundary tests of
-    eq. 4.3-4.5. Deterministic given ``seed``.
+    baseline to Algorithm 1 and label every final segment. Without them, ``labeler`` computes
+    them: ``"auto"`` runs the semantic ConvNet shipped in the package (fit-only merging, with a
+    warning, when none is installed), a :class:`~rgbd_rs.segmentation.labeling.SemanticLabeler`
+    or a checkpoint path runs that network, None asks for fit-only merging. ``n_segments`` is
+    the number of normalized-cuts clusters of the over-segmentation (disconnected clusters are
+    split, so the over-segmentation has somewhat more segments); ``touching=True`` treats every
+    pair of touching segments as adjacent (the thesis' faster option) instead of the boundary
+    tests of eq. 4.3-4.5. Deterministic given ``seed``.
     """
     if not isinstance(camera, PinholeCamera):
         raise InvalidArgumentError(
@@ -95,14 +109,25 @@ def segment(
     f = features(rgb, depth, camera)
     lap("features")
     over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
+    net = None if pdfs is not None else resolve_labeler(labeler)
     lap("oversegment")
-    fits = SegmentFits(f.points, over, surfaces=False)
+    # The ConvNet's cues need the surface fits; the merging alone needs only the seam test.
+    fits = SegmentFits(f.points, over, surfaces=net is not None)
     lap("fits")
+    if net is not None:
+        pdfs, _ = class_pdfs(net, rgb, depth, camera, feats=f, over=over, fits=fits)
+        lap("semantic")
     normals = None if touching else square_normals(depth, camera, radius=ADJACENCY_NORMAL_RADIUS)
     merged = merge_regions(
         over, f.points, pdfs=pdfs, lab=f.lab, normals=normals, touching=touching, fits=fits
     )
     lap("merge")
     return Segmentation(
-        over=over, labels=merged.labels, merge=merged, features=f, fits=fits, seconds=seconds
+        over=over,
+        labels=merged.labels,
+        merge=merged,
+        features=f,
+        fits=fits,
+        seconds=seconds,
+        pdfs=None if merged.mode == "fit" else np.asarray(pdfs, np.float32),
     )
