@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import torch
 
+from rgbd_rs import _rgbd_rs
 from rgbd_rs.meshes import Mesh, cylinder, quad, sphere
 from rgbd_rs.shapes.curvature import curvature_maps, knot_spacing
 from rgbd_rs.shapes.views import depth_views
@@ -58,7 +59,7 @@ def test_sphere_k1_k2_within_5_percent_over_the_inner_80_percent(res: int) -> No
     for view in (0, 4):  # a side view and the top view (the UV sphere's pole)
         errs = _sphere_errors(maps[view], side, 1.0, RINGS)
         for (a, b), (median, p90) in zip(itertools.pairwise(RINGS), errs, strict=True):
-            assert median < 0.05 and p90 < 0.10, (res, view, a, b, median, p90)
+            assert median < 0.05 and p90 < 0.05, (res, view, a, b, median, p90)
 
 
 def test_without_the_rim_cut_the_sphere_fit_rings(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -120,16 +121,34 @@ def test_scale_and_unit_do_not_change_the_maps() -> None:
         assert np.allclose(a, b, rtol=1e-3, atol=1e-3 * np.abs(a).max())
 
 
+def _unit_sphere_points(n: int, seed: int = 0) -> np.ndarray:
+    p = np.random.default_rng(seed).normal(size=(n, 3))
+    return np.asarray(p / np.linalg.norm(p, axis=1, keepdims=True), np.float32)
+
+
 def test_point_cloud_sphere_of_1024_points() -> None:
-    rng = np.random.default_rng(0)
-    p = rng.normal(size=(1024, 3))
-    p = (p / np.linalg.norm(p, axis=1, keepdims=True)).astype(np.float32)
+    """Measured on 1024 random points (out/notes/curvature.md): median |k r - 1| about 3 % inside
+    half the radius and 8 / 13 / 20 % in the rings 0.5-0.6 / 0.6-0.7 / 0.7-0.8; the tests
+    allow about 1.5x that. Fitting the splatted views like a mesh's is off by a factor 3."""
+    import rgbd_rs.shapes.curvature as C
+
+    p = _unit_sphere_points(1024)
+    side = _cube_side(p)
+    rings = [0.0, 0.5, 0.8]
     maps = curvature_maps(p, 64)
-    k = maps[0] / _cube_side(p)  # k in 1/radius
-    inner = _radial(64, _cube_side(p), 1.0) < 0.5
-    # Measured accuracy (out/notes/curvature.md): stated, not the mesh target.
-    assert np.isfinite(k).all()
-    assert np.median(k[:, inner]) > 0  # bulges towards the viewer
+    for view in range(6):
+        (inner, _), (outer, _) = _sphere_errors(maps[view], side, 1.0, rings)
+        assert inner < 0.06 and outer < 0.30, (view, inner, outer)
+    # Splat depth is piecewise flat: a mesh-style fit of those views is useless.
+    depth = depth_views(p, 64, lcn=False, background=np.nan)
+    k = _rgbd_rs.depth_view_curvatures(depth, 64.0, C.knot_spacing(64), 1e-6, C.MAX_SLOPE)
+    (inner, _), _ = _sphere_errors(np.nan_to_num(k[0] * 64), side, 1.0, rings)
+    assert inner > 0.5, inner
+
+
+def test_a_single_point_and_a_tiny_cloud_give_zero_maps() -> None:
+    assert (curvature_maps(np.zeros((1, 3), np.float32), 16) == 0).all()
+    assert (curvature_maps(_unit_sphere_points(5), 16) == 0).all()
 
 
 # -- as inputs ---------------------------------------------------------------------------------
@@ -173,4 +192,5 @@ def test_tiny_shape_network_runs_on_curvature_inputs(shared_data: Path) -> None:
 
 
 def test_knot_spacing_follows_the_resolution() -> None:
-    assert knot_spacing(64) == 4 and knot_spacing(320) == 20 and knot_spacing(8) == 1
+    assert knot_spacing(64) == 64 / 24 and knot_spacing(320) == 320 / 24
+    assert knot_spacing(8) == 1 and knot_spacing(64, 16) == 4

@@ -39,15 +39,18 @@ __all__ = [
     "ShapeMismatchError",
     "UpsampleConfig",
     "check_metric_depth",
+    "cost_curve_stats",
     "density_profiles",
     "depth_disparity",
     "depth_to_points",
+    "depth_view_curvatures",
     "distort_pixels",
     "fit_surface",
     "hha_encode",
     "label_regions",
     "lc_fuse",
     "local_contrast_normalize",
+    "mean_shift_filter",
     "merge_regions",
     "mesh_depth_views",
     "mesh_depth_views_raycast",
@@ -68,6 +71,7 @@ __all__ = [
     "undistort_map",
     "undistort_pixels",
     "upsample_depth",
+    "view_curvatures",
     "voxelize_mesh",
     "voxelize_points",
 ]
@@ -226,6 +230,22 @@ def render_points(points: _F32, radius: float, v: _ViewArgs) -> tuple[_F32, _I32
 _U8 = npt.NDArray[np.uint8]
 
 def label_regions(image: _U8, tolerance: float) -> tuple[_I32, int]: ...
+def mean_shift_filter(
+    image: _U8,
+    spatial_radius: float,
+    color_radius: float,
+    max_level: int = 1,
+    max_iter: int = 5,
+    epsilon: float = 1.0,
+) -> _U8: ...
+def cost_curve_stats(
+    reference: _U8,
+    target: _U8,
+    disparity: _F32,
+    target_sign: int,
+    max_disparity: int,
+    block: int,
+) -> tuple[_F32, _F32, _F32]: ...
 
 @final
 class UpsampleConfig:
@@ -380,3 +400,17 @@ def point_depth_views_batch(
 ) -> tuple[_F32, _F32]: ...
 def point_splat_radii(points: _F32, resolution: int) -> _F32: ...
 def local_contrast_normalize(maps: _F32, window: int, eps: float) -> None: ...
+
+# -- curvature maps of depth views (crates/rgbd-py/src/spline.rs, rgbd-spline height.rs) ---------
+
+def depth_view_curvatures(
+    depth: _F32, scale: float, spacing: float, lam: float, max_slope: float
+) -> _F32: ...
+def view_curvatures(
+    samples: npt.NDArray[np.float64],
+    view_of: npt.NDArray[np.uint32],
+    eval: npt.NDArray[np.bool_],
+    spacing: float,
+    lam: float,
+    max_slope: float,
+) -> _F32: ...

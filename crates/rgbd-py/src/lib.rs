@@ -56,10 +56,14 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(geom::reproject_depth, m)?)?;
     m.add_function(wrap_pyfunction!(geom::normals_from_points, m)?)?;
     m.add_function(wrap_pyfunction!(spline::fit_surface, m)?)?;
+    m.add_function(wrap_pyfunction!(spline::view_curvatures, m)?)?;
+    m.add_function(wrap_pyfunction!(spline::depth_view_curvatures, m)?)?;
     m.add_class::<spline::PySegmentFits>()?;
     m.add_class::<render::PyScene>()?;
     m.add_function(wrap_pyfunction!(render::render_points, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::label_regions, m)?)?;
+    m.add_function(wrap_pyfunction!(fusion::mean_shift_filter, m)?)?;
+    m.add_function(wrap_pyfunction!(fusion::cost_curve_stats, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::lc_fuse, m)?)?;
     m.add_class::<fusion::PyLcConfig>()?;

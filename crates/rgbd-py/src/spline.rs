@@ -1,6 +1,9 @@
 //! Adapters for rgbd-spline: surface fits of organised point clouds and per-segment fits.
 
-use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use numpy::{
+    PyArray2, PyArray3, PyArray4, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
+    PyUntypedArrayMethods,
+};
 use std::sync::{PoisonError, RwLock, RwLockReadGuard};
 
 use pyo3::prelude::*;
@@ -296,4 +299,70 @@ impl PySegmentFits {
         let m = self.query(py, |s| s.maps(p))?;
         maps_out(py, h, w, m)
     }
+}
+
+/// Curvature maps of orthographic depth views from height samples (rgbd-spline `height`):
+/// `samples` `(N, 3)` `[u, v, z]` in pixels, `view_of` `(N,)` the view of each sample, `eval`
+/// `(V, H, W)` the pixels to report. Returns `(V, 2, H, W)` float32 k1, k2 in 1 / pixel, NaN
+/// where not reported.
+#[pyfunction]
+#[pyo3(signature = (samples, view_of, eval, spacing, lam, max_slope))]
+pub fn view_curvatures<'py>(
+    py: Python<'py>,
+    samples: PyReadonlyArray2<'py, f64>,
+    view_of: PyReadonlyArray1<'py, u32>,
+    eval: PyReadonlyArray3<'py, bool>,
+    spacing: f64,
+    lam: f64,
+    max_slope: f64,
+) -> PyResult<Bound<'py, PyArray4<f32>>> {
+    let n = match samples.shape() {
+        &[n, 3] => n,
+        s => {
+            return Err(shape_err(format!(
+                "samples: got shape {s:?}, expected (N, 3)"
+            )))
+        }
+    };
+    if view_of.shape() != [n] {
+        return Err(shape_err(format!(
+            "view_of: got shape {:?}, expected ({n},) like samples",
+            view_of.shape()
+        )));
+    }
+    let &[views, h, w] = eval.shape() else {
+        unreachable!("3-D array")
+    };
+    let (s, v, e) = (
+        borrow("samples", &samples)?,
+        borrow("view_of", &view_of)?,
+        borrow("eval", &eval)?,
+    );
+    let out = run(py, || {
+        rgbd_spline::view_curvatures(views, w, h, s, v, e, spacing, lam, max_slope)
+    })?;
+    to_numpy(py, (views, 2, h, w), out)
+}
+
+/// Curvature maps of orthographic depth views (rgbd-spline `height::depth_curvatures`): `depth`
+/// `(V, H, W)` (NaN where empty, times `scale` in pixels). Returns `(V, 2, H, W)` float32 k1, k2
+/// in 1 / pixel, NaN where not reported (empty, or steeper than `max_slope`).
+#[pyfunction]
+#[pyo3(signature = (depth, scale, spacing, lam, max_slope))]
+pub fn depth_view_curvatures<'py>(
+    py: Python<'py>,
+    depth: PyReadonlyArray3<'py, f32>,
+    scale: f64,
+    spacing: f64,
+    lam: f64,
+    max_slope: f64,
+) -> PyResult<Bound<'py, PyArray4<f32>>> {
+    let &[views, h, w] = depth.shape() else {
+        unreachable!("3-D array")
+    };
+    let d = borrow("depth", &depth)?;
+    let out = run(py, || {
+        rgbd_spline::depth_curvatures(d, views, w, h, scale, spacing, lam, max_slope)
+    })?;
+    to_numpy(py, (views, 2, h, w), out)
 }

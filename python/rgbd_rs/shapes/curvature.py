@@ -38,70 +38,131 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs import _validate
+from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.shapes import views as _views
-from rgbd_rs.surface import DEFAULT_DEGREE, DEFAULT_LAMBDA, fit_mask
 
 __all__ = [
     "KNOT_SPANS",
     "MAX_SLOPE",
+    "POINT_KNOT_SPANS",
     "curvature_maps",
     "knot_spacing",
 ]
 
-#: Knot spans across a view side: knots every ``R / KNOT_SPANS`` pixels (:func:`knot_spacing`).
-#: The thesis gives no knot rule (METHOD_NOTES §5 [NF]); 16 spans keep a sphere's k1, k2 within
-#: 5 % over the inner 80 % of its radius at 64 and at 320 pixels, 8 spans do not.
-KNOT_SPANS = 16
+#: Knot spans across a view side for meshes: knots every ``R / KNOT_SPANS`` pixels
+#: (:func:`knot_spacing`). The thesis gives no knot rule (METHOD_NOTES §5 [NF]).
+KNOT_SPANS = 24
+#: Knot spans for point clouds: their visible points are the data, a few hundred per view for
+#: ModelNet's 1024, so the grid is coarser.
+POINT_KNOT_SPANS = 16
 #: Largest depth slope (depth units per pixel width, ``tan`` of the angle between the surface
 #: normal and the view direction) of a pixel that enters the fit; steeper pixels get 0.
 MAX_SLOPE = 2.0
-#: Distance (cube sides) the fit's points are moved away from the viewer, so that the spline
-#: kernel's camera-facing normal (``n · S < 0``) is the viewer-facing one of an orthographic view.
-_Z_OFFSET = 8.0
+#: Second-difference smoothness relative to one sample (meshes: one pixel; points: one point).
+MESH_LAMBDA = 1e-6
+POINT_LAMBDA = 1e-3
+#: Neighbours of the principal-component normal of a point (point clouds).
+NORMAL_NEIGHBOURS = 10
+#: The view axes ``(right, up, forward)`` of :data:`rgbd_rs.shapes.views.VIEW_NAMES`.
+_AXES = np.array(
+    [
+        [(0, 1, 0), (0, 0, 1), (-1, 0, 0)],
+        [(-1, 0, 0), (0, 0, 1), (0, -1, 0)],
+        [(0, -1, 0), (0, 0, 1), (1, 0, 0)],
+        [(1, 0, 0), (0, 0, 1), (0, 1, 0)],
+        [(1, 0, 0), (0, 1, 0), (0, 0, -1)],
+        [(-1, 0, 0), (0, 1, 0), (0, 0, 1)],
+    ],
+    np.float64,
+)
 
 
-def knot_spacing(resolution: int) -> float:
-    """Knot spacing in pixels for ``resolution``-pixel views: ``resolution / KNOT_SPANS``, at
-    least 1 pixel (4 at 64, 20 at 320)."""
+def knot_spacing(resolution: int, spans: int = KNOT_SPANS) -> float:
+    """Knot spacing in pixels for ``resolution``-pixel views: ``resolution / spans``, at least
+    1 pixel (meshes: 2.67 at 64, 13.3 at 320)."""
     r = _validate.integer("resolution", resolution, minimum=1)
-    return max(1.0, r / KNOT_SPANS)
+    n = _validate.integer("spans", spans, minimum=1)
+    return max(1.0, r / n)
 
 
-def _slope(depth: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-    """Per-pixel depth slope in depth units per pixel (central differences; one-sided next to an
-    empty pixel; inf where both neighbours along an axis are empty)."""
-    z = np.pad(depth, 1, constant_values=np.nan)
-    mid = z[1:-1, 1:-1]
+def _fit(
+    samples: np.ndarray,
+    view_of: np.ndarray,
+    report: np.ndarray,
+    spans: int,
+    lam: float,
+    max_slope: float,
+) -> npt.NDArray[np.float32]:
+    res = report.shape[-1]
+    k = _rgbd_rs.view_curvatures(
+        np.ascontiguousarray(samples, np.float64),
+        np.ascontiguousarray(view_of, np.uint32),
+        np.ascontiguousarray(report),
+        knot_spacing(res, spans),
+        lam,
+        max_slope,
+    )
+    k *= np.float32(res)  # 1 / pixel -> 1 / cube side
+    return np.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)
 
-    def axis(fwd: np.ndarray, back: np.ndarray) -> np.ndarray:
-        central = (fwd - back) / 2
-        one = np.where(np.isnan(fwd), mid - back, fwd - mid)
-        d = np.where(np.isnan(central), one, central)
-        return np.nan_to_num(d, nan=np.inf)
 
-    gx = axis(z[1:-1, 2:], z[1:-1, :-2])
-    gy = axis(z[2:, 1:-1], z[:-2, 1:-1])
-    return np.asarray(np.hypot(gx, gy), np.float32)
+def _mesh_maps(mesh: Mesh, res: int) -> npt.NDArray[np.float32]:
+    depth = _views.depth_views(mesh, res, lcn=False, background=float("nan"))
+    k = _rgbd_rs.depth_view_curvatures(depth, float(res), knot_spacing(res), MESH_LAMBDA, MAX_SLOPE)
+    k *= np.float32(res)  # 1 / pixel -> 1 / cube side
+    return np.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)
 
 
-def _view_curvature(depth: npt.NDArray[np.float32], spacing: float) -> npt.NDArray[np.float32]:
-    """``(2, R, R)`` k1, k2 of one raw view (NaN = empty), in 1 / cube side."""
-    h, w = depth.shape
-    out = np.zeros((2, h, w), np.float32)
-    res = float(max(h, w))
-    keep = np.isfinite(depth) & (_slope(depth) * res <= MAX_SLOPE)
-    if keep.sum() < (DEFAULT_DEGREE + 1) ** 2:
-        return out
-    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
-    pts = np.stack([(u + 0.5) / res - 0.5, (v + 0.5) / res - 0.5, depth + _Z_OFFSET], axis=-1)
-    pts[~keep] = np.nan
-    fit = fit_mask(pts, keep, spacing=spacing, lam=DEFAULT_LAMBDA, with_dof=False)
-    out[0] = np.where(keep, fit.k1, 0)
-    out[1] = np.where(keep, fit.k2, 0)
-    return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+def _normals(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Unit normals (unoriented) by principal components of each point's neighbourhood."""
+    from scipy.spatial import cKDTree
+
+    k = min(NORMAL_NEIGHBOURS, len(points))
+    _, idx = cKDTree(points).query(points, k)
+    nb = points[np.asarray(idx).reshape(len(points), k)]
+    nb = nb - nb.mean(axis=1, keepdims=True)
+    _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
+    return np.asarray(vecs[:, :, 0])
+
+
+def _point_maps(points: npt.NDArray[np.float32], res: int) -> npt.NDArray[np.float32]:
+    from scipy.ndimage import minimum_filter
+
+    depth, median_radius = _rgbd_rs.point_depth_views(points, res, None)
+    # The nearest surface around each pixel: where the splats of the front surface leave a hole,
+    # a point of the back surface shows through the z-buffer but not through this.
+    reach = max(1, round(float(median_radius)))
+    near = minimum_filter(np.nan_to_num(depth, nan=np.inf), size=(1, 2 * reach + 1, 2 * reach + 1))
+    radii = np.asarray(_rgbd_rs.point_splat_radii(points, res), np.float64)
+    p = points.astype(np.float64)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    side = float((hi - lo).max()) or 1.0
+    q = (p - (lo + hi) / 2) / side
+    normals = _normals(p) if len(p) >= 3 else np.zeros_like(p)
+    grazing = 1 / np.sqrt(1 + MAX_SLOPE**2)
+    samples, view_of = [], []
+    for k, (right, up, fwd) in enumerate(_AXES):
+        u = (q @ right + 0.5) * res - 0.5
+        v = (0.5 - q @ up) * res - 0.5
+        z = (q @ fwd + 0.5) * res
+        iu = np.clip(np.rint(u), 0, res - 1).astype(np.int64)
+        iv = np.clip(np.rint(v), 0, res - 1).astype(np.int64)
+        front = near[k, iv, iu] * res
+        seen = z <= front + MAX_SLOPE * (radii + reach) + 1  # not hidden behind a surface
+        seen &= np.abs(normals @ fwd) >= grazing  # not grazing
+        samples.append(np.stack([u[seen], v[seen], z[seen]], axis=1))
+        view_of.append(np.full(int(seen.sum()), k))
+    report = np.isfinite(depth)
+    return _fit(
+        np.concatenate(samples),
+        np.concatenate(view_of),
+        report,
+        POINT_KNOT_SPANS,
+        POINT_LAMBDA,
+        MAX_SLOPE,
+    )
 
 
 def curvature_maps(
@@ -116,6 +177,9 @@ def curvature_maps(
             f"shape: got {type(shape).__name__}, expected a Mesh or an N x 3 point cloud"
         )
     r = _validate.integer("resolution", resolution, minimum=1, maximum=_views.MAX_RESOLUTION)
-    raw = _views.depth_views(shape, r, lcn=False, background=float("nan"))
-    spacing = knot_spacing(r)
-    return np.stack([_view_curvature(view, spacing) for view in raw])
+    if isinstance(shape, Mesh):
+        if shape.triangles.size == 0:
+            raise InvalidArgumentError("shape: got a mesh with no triangles, expected at least one")
+        return _mesh_maps(shape, r)
+    points = _validate.array("shape", shape, shape=(None, 3), finite=True)
+    return _point_maps(points, r)
