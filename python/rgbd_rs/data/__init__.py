@@ -1,7 +1,8 @@
 """Dataset readers and writers: the real Azure Kinect ToF frame (:mod:`.azure_kinect`), Middlebury
 pairs (:mod:`.middlebury`), NYU Depth v2 labeled frames (:mod:`.nyuv2`; the official
 ``nyu_depth_v2_labeled.mat`` through :mod:`.nyuv2_mat`), the synthetic
-SYNTH3-style dataset (:mod:`.synth`), SYNTH3's own MATLAB layout (:mod:`.synth3`) and rig
+SYNTH3-style dataset (:mod:`.synth`), synthetic labeled indoor frames (:mod:`.synth_indoor`),
+SYNTH3's own MATLAB layout (:mod:`.synth3`) and rig
 calibration JSON (:mod:`.calibration`)."""
 
 from rgbd_rs.data.azure_kinect import (
@@ -33,12 +34,20 @@ from rgbd_rs.data.nyuv2_mat import (
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.data.synth import SynthDataset, SynthSample, synth3_rig, write_dataset
 from rgbd_rs.data.synth3 import Synth3Dataset, Synth3Sample
+from rgbd_rs.data.synth_indoor import (
+    IndoorFrame,
+    IndoorFrames,
+    generate_indoor,
+    render_indoor_frame,
+)
 
 __all__ = [
     "LABEL13_NAMES",
     "NYUV2_CAMERA",
     "AzureKinectCalibration",
     "AzureKinectFrame",
+    "IndoorFrame",
+    "IndoorFrames",
     "MiddleburyPair",
     "NyuClassMapping",
     "NyuFrame",
@@ -50,6 +59,7 @@ __all__ = [
     "SynthDataset",
     "SynthSample",
     "data_root",
+    "generate_indoor",
     "instance_ground_truth",
     "load_azure_kinect_calibration",
     "load_azure_kinect_frame",
@@ -61,6 +71,7 @@ __all__ = [
     "load_rig",
     "nyuv2_frames",
     "region_ground_truth",
+    "render_indoor_frame",
     "reproject_to_color",
     "save_camera",
     "save_rig",
