@@ -108,7 +108,8 @@ impl HeightGrid {
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeightSpline {
     pub grid: HeightGrid,
-    /// Row-major `n_v x n_u` control values (relative to `offset`).
+    /// Row-major `n_v x n_u` control values (relative to `offset`); NaN for control points no
+    /// sample's cell touches.
     pub ctrl: Vec<f64>,
     pub offset: f64,
 }
@@ -162,8 +163,67 @@ pub fn fit_height(
         order[next[l.0]] = i;
         next[l.0] += 1;
     }
-    let n = nu * nv;
-    let bw = HEIGHT_DEGREE * nu + HEIGHT_DEGREE;
+    // The unknowns are the control points of cells holding samples; the others stay NaN, so no
+    // curvature is reported where they would matter. They are numbered along the shorter side
+    // of their bounding box (the band half-width is about 3 times that side).
+    let cell_id = |cell: usize, x: usize| {
+        let (cu, cv) = (cell % grid.cells_u, cell / grid.cells_u);
+        (cv + x / K1) * nu + cu + x % K1
+    };
+    let occupied: Vec<usize> = (0..n_cells).filter(|&c| start[c + 1] > start[c]).collect();
+    let mut compact = vec![usize::MAX; nu * nv];
+    let (mut lo, mut hi) = ((usize::MAX, usize::MAX), (0, 0));
+    for &cell in &occupied {
+        for x in 0..K {
+            let r = cell_id(cell, x);
+            compact[r] = 0;
+            lo = (lo.0.min(r % nu), lo.1.min(r / nu));
+            hi = (hi.0.max(r % nu), hi.1.max(r / nu));
+        }
+    }
+    let mut n = 0;
+    let mut number = |r: usize| {
+        if compact[r] == 0 {
+            compact[r] = n + 1; // 0 marks "touched, not numbered yet"
+            n += 1;
+        }
+    };
+    if hi.0 - lo.0 <= hi.1 - lo.1 {
+        for j in lo.1..=hi.1 {
+            for i in lo.0..=hi.0 {
+                number(j * nu + i);
+            }
+        }
+    } else {
+        for i in lo.0..=hi.0 {
+            for j in lo.1..=hi.1 {
+                number(j * nu + i);
+            }
+        }
+    }
+    let id = |r: usize| compact[r].wrapping_sub(1); // usize::MAX - 1 + 1 wraps: untouched stays huge
+    let stencils: Vec<[usize; 3]> = (0..nv)
+        .flat_map(|j| (0..nu).map(move |i| (i, j)))
+        .flat_map(|(i, j)| {
+            let r = j * nu + i;
+            [
+                (i + 2 < nu).then(|| [r, r + 1, r + 2]),
+                (j + 2 < nv).then(|| [r, r + nu, r + 2 * nu]),
+            ]
+        })
+        .flatten()
+        .filter(|s| s.iter().all(|&r| compact[r] != usize::MAX))
+        .map(|s| s.map(id))
+        .collect();
+    let mut bw = 0;
+    for &cell in &occupied {
+        let ids = (0..K).map(|x| id(cell_id(cell, x)));
+        let (min, max) = ids.fold((usize::MAX, 0), |(a, b), x| (a.min(x), b.max(x)));
+        bw = bw.max(max - min);
+    }
+    for s in &stencils {
+        bw = bw.max(s.iter().max().unwrap_or(&0) - s.iter().min().unwrap_or(&0));
+    }
     let mut a = BandMatrix::zeros(n, bw);
     let mut rhs = vec![0.0; n];
     let mut gram = [0.0; TRI];
@@ -205,13 +265,12 @@ pub fn fit_height(
                 }
             }
         }
-        let (cu, cv) = (cell % grid.cells_u, cell / grid.cells_u);
-        let id = |x: usize| (cv + x / K1) * nu + cu + x % K1;
+        let ids: [usize; K] = std::array::from_fn(|x| id(cell_id(cell, x)));
         let mut slot = 0;
         for x in 0..K {
-            rhs[id(x)] += brhs[x];
+            rhs[ids[x]] += brhs[x];
             for y in 0..=x {
-                a.add(id(x), id(y), gram[slot]);
+                a.add(ids[x], ids[y], gram[slot]);
                 slot += 1;
             }
         }
@@ -225,16 +284,8 @@ pub fn fit_height(
             }
         }
     };
-    for j in 0..nv {
-        for i in 0..nu {
-            let r = j * nu + i;
-            if i + 2 < nu {
-                penalise([r, r + 1, r + 2]);
-            }
-            if j + 2 < nv {
-                penalise([r, r + nu, r + 2 * nu]);
-            }
-        }
+    for s in &stencils {
+        penalise(*s);
     }
     // The ridge pulls towards the samples' least-squares plane, which the spline reproduces
     // (control point `k` of a uniform cubic sits at `(k - 1)·spacing - 0.5`): planes stay exact.
@@ -242,9 +293,11 @@ pub fn fit_height(
     let at = |k: usize| (k as f64 - 1.0) * grid.spacing - 0.5;
     for j in 0..nv {
         for i in 0..nu {
-            let r = j * nu + i;
-            a.add(r, r, HEIGHT_RIDGE);
-            rhs[r] += HEIGHT_RIDGE * (plane[0] + plane[1] * at(i) + plane[2] * at(j));
+            let r = id(j * nu + i);
+            if r < n {
+                a.add(r, r, HEIGHT_RIDGE);
+                rhs[r] += HEIGHT_RIDGE * (plane[0] + plane[1] * at(i) + plane[2] * at(j));
+            }
         }
     }
     let chol = a.cholesky().map_err(|i| {
@@ -255,9 +308,19 @@ pub fn fit_height(
         )
     })?;
     chol.solve(&mut rhs, 1);
+    let ctrl = compact
+        .iter()
+        .map(|&c| {
+            if c == usize::MAX {
+                f64::NAN
+            } else {
+                rhs[c - 1]
+            }
+        })
+        .collect();
     Ok(Some(HeightSpline {
         grid: *grid,
-        ctrl: rhs,
+        ctrl,
         offset,
     }))
 }

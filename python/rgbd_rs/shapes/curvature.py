@@ -135,7 +135,6 @@ def _point_maps(points: npt.NDArray[np.float32], res: int) -> npt.NDArray[np.flo
     # a point of the back surface shows through the z-buffer but not through this.
     reach = max(1, round(float(median_radius)))
     near = minimum_filter(np.nan_to_num(depth, nan=np.inf), size=(1, 2 * reach + 1, 2 * reach + 1))
-    radii = np.asarray(_rgbd_rs.point_splat_radii(points, res), np.float64)
     p = points.astype(np.float64)
     lo, hi = p.min(axis=0), p.max(axis=0)
     side = float((hi - lo).max()) or 1.0
@@ -150,7 +149,7 @@ def _point_maps(points: npt.NDArray[np.float32], res: int) -> npt.NDArray[np.flo
         iu = np.clip(np.rint(u), 0, res - 1).astype(np.int64)
         iv = np.clip(np.rint(v), 0, res - 1).astype(np.int64)
         front = near[k, iv, iu] * res
-        seen = z <= front + MAX_SLOPE * (radii + reach) + 1  # not hidden behind a surface
+        seen = z <= front + 2 * MAX_SLOPE * reach + 1  # not hidden behind a surface
         seen &= np.abs(normals @ fwd) >= grazing  # not grazing
         samples.append(np.stack([u[seen], v[seen], z[seen]], axis=1))
         view_of.append(np.full(int(seen.sum()), k))
