@@ -39,6 +39,7 @@ __all__ = [
     "ShapeMismatchError",
     "UpsampleConfig",
     "check_metric_depth",
+    "cost_curve_stats",
     "density_profiles",
     "depth_disparity",
     "depth_to_points",
@@ -49,6 +50,7 @@ __all__ = [
     "label_regions",
     "lc_fuse",
     "local_contrast_normalize",
+    "mean_shift_filter",
     "merge_regions",
     "mesh_depth_views",
     "mesh_depth_views_raycast",
@@ -228,6 +230,22 @@ def render_points(points: _F32, radius: float, v: _ViewArgs) -> tuple[_F32, _I32
 _U8 = npt.NDArray[np.uint8]
 
 def label_regions(image: _U8, tolerance: float) -> tuple[_I32, int]: ...
+def mean_shift_filter(
+    image: _U8,
+    spatial_radius: float,
+    color_radius: float,
+    max_level: int = 1,
+    max_iter: int = 5,
+    epsilon: float = 1.0,
+) -> _U8: ...
+def cost_curve_stats(
+    reference: _U8,
+    target: _U8,
+    disparity: _F32,
+    target_sign: int,
+    max_disparity: int,
+    block: int,
+) -> tuple[_F32, _F32, _F32]: ...
 
 @final
 class UpsampleConfig:

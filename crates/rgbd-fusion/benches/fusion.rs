@@ -1,10 +1,14 @@
 //! Criterion benches of the fusion kernels on a synthetic 480x270 textured slanted plane with two
 //! noisy disparity sources: LC fusion (radius 5, stride 1 and 2) and the extended cross
-//! bilateral upsampling of ToF-density samples (every 2nd pixel). The 960x540 comparison against
-//! the numpy reference lives in benches/bench_fusion.py.
+//! bilateral upsampling of ToF-density samples (every 2nd pixel), region labels, mean-shift
+//! filtering (half the 960 px radius) and the stereo cost-curve statistics (49 disparities).
+//! The 960x540 comparisons against numpy / OpenCV live in benches/bench_fusion.py.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rgbd_fusion::{label_regions, lc_fuse, upsample_depth, LcParams, Source, UpsampleParams};
+use rgbd_fusion::{
+    cost_curve_stats, label_regions, lc_fuse, mean_shift_filter, upsample_depth, LcParams,
+    MeanShiftParams, Source, UpsampleParams,
+};
 
 const W: usize = 480;
 const H: usize = 270;
@@ -75,6 +79,22 @@ fn bench(c: &mut Criterion) {
     });
     c.bench_function("label_regions 480x270", |b| {
         b.iter(|| label_regions(&r, W, H, 2.0).unwrap())
+    });
+    let ms = MeanShiftParams {
+        spatial_radius: 4.0,
+        ..MeanShiftParams::default()
+    };
+    c.bench_function("mean_shift_filter 480x270 sp4 sr16", |b| {
+        b.iter(|| mean_shift_filter(&r, W, H, &ms).unwrap())
+    });
+    let grey = |img: &[u8]| -> Vec<u8> {
+        img.chunks_exact(3)
+            .map(|p| ((u32::from(p[0]) + u32::from(p[1]) + u32::from(p[2])) / 3) as u8)
+            .collect()
+    };
+    let (gr, gt) = (grey(&r), grey(&t));
+    c.bench_function("cost_curve_stats 480x270 d0..48 7x7", |b| {
+        b.iter(|| cost_curve_stats(&gr, &gt, &d2, W, H, 1, 48, 7).unwrap())
     });
 }
 

@@ -5,6 +5,10 @@
 //!   segmentation terms);
 //! - [`label_regions`] (re-exported from rgbd-segment): connected regions of (mean-shift
 //!   filtered) colour, the segmentation the filter uses;
+//! - [`mean_shift_filter`]: OpenCV's `pyrMeanShiftFiltering`, bit-exact, in parallel rows (the
+//!   colour smoothing the segmentation is labelled on);
+//! - [`cost_curve_stats`]: minimum, second minimum and chosen value of the pointwise stereo
+//!   cost curve (the heuristic stereo confidence's input);
 //! - [`lc_fuse`]: the locally consistent accumulation of eq. 2.16–2.19, extended to several
 //!   confidence-weighted disparity sources (eq. 3.1); with one source it is Mattoccia's LC
 //!   refinement.
@@ -14,10 +18,14 @@
 
 mod check;
 pub mod color;
+pub mod costcurve;
 pub mod lc;
+pub mod meanshift;
 pub mod upsample;
 
 pub use check::MAX_RADIUS;
+pub use costcurve::{cost_curve_stats, CostCurveStats};
 pub use lc::{lc_fuse, LcOutput, LcParams, Source};
+pub use meanshift::{mean_shift_filter, MeanShiftParams};
 pub use rgbd_segment::label_regions;
 pub use upsample::{upsample_depth, UpsampleParams, Upsampled};

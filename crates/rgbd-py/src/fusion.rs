@@ -1,9 +1,9 @@
 //! Thin adapters for `rgbd-fusion`; `python/rgbd_rs/fusion/` validates and documents.
 
 use numpy::prelude::*;
-use numpy::{PyArray2, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
-use rgbd_fusion::{LcParams, Source, UpsampleParams};
+use rgbd_fusion::{LcParams, MeanShiftParams, Source, UpsampleParams};
 
 use crate::errors::{borrow, run, run_interruptible, shape_err, to_py};
 use crate::geom::to_numpy;
@@ -29,6 +29,69 @@ pub fn label_regions<'py>(
     let img = borrow("image", &image)?;
     let (labels, n) = run(py, || rgbd_fusion::label_regions(img, w, h, tolerance))?;
     Ok((to_numpy(py, (h, w), labels)?, n))
+}
+
+/// Mean-shift filtered copy of an RGB image (OpenCV `pyrMeanShiftFiltering`, bit-exact).
+#[pyfunction]
+#[pyo3(signature = (image, spatial_radius, color_radius, max_level=1, max_iter=5, epsilon=1.0))]
+pub fn mean_shift_filter<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArray3<'py, u8>,
+    spatial_radius: f64,
+    color_radius: f64,
+    max_level: usize,
+    max_iter: usize,
+    epsilon: f64,
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let (h, w) = rgb_shape("image", &image)?;
+    let img = borrow("image", &image)?;
+    let p = MeanShiftParams {
+        spatial_radius,
+        color_radius,
+        max_level,
+        max_iter,
+        epsilon,
+    };
+    let out = run_interruptible(py, || rgbd_fusion::mean_shift_filter(img, w, h, &p))?;
+    to_numpy(py, (h, w, 3), out)
+}
+
+/// Statistics of the pointwise stereo cost curve of grey images: `(c1, c2, c_at)`.
+#[pyfunction]
+#[pyo3(signature = (reference, target, disparity, target_sign, max_disparity, block))]
+#[allow(clippy::type_complexity)]
+pub fn cost_curve_stats<'py>(
+    py: Python<'py>,
+    reference: PyReadonlyArray2<'py, u8>,
+    target: PyReadonlyArray2<'py, u8>,
+    disparity: PyReadonlyArray2<'py, f32>,
+    target_sign: i8,
+    max_disparity: usize,
+    block: usize,
+) -> PyResult<(
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<f32>>,
+)> {
+    let (h, w) = match reference.shape() {
+        &[h, w] => (h, w),
+        s => {
+            return Err(shape_err(format!(
+                "reference: got shape {s:?}, expected (H, W)"
+            )))
+        }
+    };
+    let r = borrow("reference", &reference)?;
+    let t = borrow("target", &target)?;
+    let d = borrow("disparity", &disparity)?;
+    let out = run_interruptible(py, || {
+        rgbd_fusion::cost_curve_stats(r, t, d, w, h, target_sign, max_disparity, block)
+    })?;
+    Ok((
+        to_numpy(py, (h, w), out.best)?,
+        to_numpy(py, (h, w), out.second)?,
+        to_numpy(py, (h, w), out.at)?,
+    ))
 }
 
 /// Parameters of the extended cross bilateral upsampling, validated once when built.

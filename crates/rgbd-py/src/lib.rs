@@ -62,6 +62,8 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<render::PyScene>()?;
     m.add_function(wrap_pyfunction!(render::render_points, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::label_regions, m)?)?;
+    m.add_function(wrap_pyfunction!(fusion::mean_shift_filter, m)?)?;
+    m.add_function(wrap_pyfunction!(fusion::cost_curve_stats, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::lc_fuse, m)?)?;
     m.add_class::<fusion::PyLcConfig>()?;

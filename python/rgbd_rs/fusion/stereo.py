@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs import _validate
+from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._inputs import F32, rgb8
 
@@ -190,8 +190,10 @@ def cost_curve_stats(
     integer disparities ``0..max_disparity``) that SGBM keeps internal.
 
     Returns ``(c1, c2, c_at)``: the curve's minimum, its second minimum away from the first
-    (|d - argmin| > 1) and its value at ``disparity`` (rounded; NaN where that is NaN). Streams
-    the curve twice instead of storing the ``D x H x W`` volume.
+    (|d - argmin| > 1) and its value at ``disparity`` (rounded half to even; NaN where that is NaN
+    or outside ``0..max_disparity``). Computed natively (``crates/rgbd-fusion/src/costcurve.rs``,
+    parallel bands of rows, one box-sum pass per disparity) without storing the ``D x H x W``
+    volume; equal bit for bit to the numpy/OpenCV formulation ``_cost_curve_stats_numpy``.
     """
     ref = rgb8("reference_image", reference_image)
     tgt = rgb8("target_image", target_image, (ref.shape[1], ref.shape[0]))
@@ -201,20 +203,35 @@ def cost_curve_stats(
         raise InvalidArgumentError(f"target_sign: got {target_sign!r}, expected +1 or -1")
     dmax = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
     bs = _validate.integer("block_size", block_size, minimum=1, maximum=31)
-    r_img = cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    t_img = cv2.cvtColor(tgt, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    r_grey = np.asarray(cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY), np.uint8)
+    t_grey = np.asarray(cv2.cvtColor(tgt, cv2.COLOR_RGB2GRAY), np.uint8)
+    return _rgbd_rs.cost_curve_stats(r_grey, t_grey, disp, target_sign, dmax, bs)
+
+
+def _cost_curve_stats_numpy(
+    r_grey: npt.NDArray[np.uint8],
+    t_grey: npt.NDArray[np.uint8],
+    disp: F32,
+    sign: int,
+    dmax: int,
+    bs: int,
+) -> tuple[F32, F32, F32]:
+    """:func:`cost_curve_stats` in numpy/OpenCV (the reference the native kernel equals bit for
+    bit; kept for the tests and benches/bench_fusion.py)."""
+    r_img, t_img = r_grey.astype(np.float32), t_grey.astype(np.float32)
+    h, w = r_img.shape
     c1 = np.full((h, w), np.inf, np.float32)
     arg = np.zeros((h, w), np.int32)
     at = np.full((h, w), np.nan, np.float32)
     want = np.where(np.isfinite(disp), np.rint(disp), -1).astype(np.int32)
-    for d, cost in _cost_slices(r_img, t_img, target_sign, dmax, bs):
+    for d, cost in _cost_slices(r_img, t_img, sign, dmax, bs):
         better = cost < c1
         c1[better] = cost[better]
         arg[better] = d
         hit = want == d
         at[hit] = cost[hit]
     c2 = np.full((h, w), np.inf, np.float32)
-    for d, cost in _cost_slices(r_img, t_img, target_sign, dmax, bs):
+    for d, cost in _cost_slices(r_img, t_img, sign, dmax, bs):
         far = np.abs(arg - d) > 1
         np.minimum(c2, np.where(far, cost, np.inf), out=c2)
     return c1, c2, at
