@@ -127,22 +127,23 @@ def _unit_sphere_points(n: int, seed: int = 0) -> np.ndarray:
 
 
 def test_point_cloud_sphere_of_1024_points() -> None:
-    """Measured on 1024 random points (out/notes/curvature.md): median |k r - 1| about 3 % inside
-    half the radius and 8 / 13 / 20 % in the rings 0.5-0.6 / 0.6-0.7 / 0.7-0.8; the tests
-    allow about 1.5x that. Fitting the splatted views like a mesh's is off by a factor 3."""
+    """Measured on three clouds of 1024 random points, six views, 64 and 320 px (out/notes/
+    curvature.md): median |k r - 1| per view at most 4.2 % inside half the radius, 5.0 % in
+    0.5-0.7 and 7.8 % in 0.7-0.8 of it; the test allows 1.4x that. Fitting the splatted views
+    like a mesh's instead is off by more than 50 %."""
     import rgbd_rs.shapes.curvature as C
 
     p = _unit_sphere_points(1024)
     side = _cube_side(p)
-    rings = [0.0, 0.5, 0.8]
+    rings = [0.0, 0.5, 0.7, 0.8]
     maps = curvature_maps(p, 64)
     for view in range(6):
-        (inner, _), (outer, _) = _sphere_errors(maps[view], side, 1.0, rings)
-        assert inner < 0.06 and outer < 0.30, (view, inner, outer)
+        errs = [m for m, _ in _sphere_errors(maps[view], side, 1.0, rings)]
+        assert errs[0] < 0.06 and errs[1] < 0.07 and errs[2] < 0.11, (view, errs)
     # Splat depth is piecewise flat: a mesh-style fit of those views is useless.
     depth = depth_views(p, 64, lcn=False, background=np.nan)
     k = _rgbd_rs.depth_view_curvatures(depth, 64.0, C.knot_spacing(64), 1e-6, C.MAX_SLOPE)
-    (inner, _), _ = _sphere_errors(np.nan_to_num(k[0] * 64), side, 1.0, rings)
+    (inner, _), *_ = _sphere_errors(np.nan_to_num(k[0] * 64), side, 1.0, rings)
     assert inner > 0.5, inner
 
 

@@ -5,32 +5,47 @@ surface (a NURBS of degree 3 with unit weights, §5.3.3) whose ``(u, v)`` range 
 pixel grid, and the two principal curvatures ``k1 >= k2`` of that surface are sampled at every
 pixel: :func:`curvature_maps` returns ``(6, 2, R, R)`` float32, ``[:, 0]`` = k1, ``[:, 1]`` = k2.
 
-**Units and sign.** Curvatures are in units of 1 / (the shape's bounding-cube side), the unit the
-views are measured in, so a sphere of radius ``r`` in a cube of side ``a`` reads ``a / r``.
-Because the views normalise the shape into its bounding cube, the maps do not depend on the
-shape's unit or scale (a shape scaled by 1000 gives the same maps up to float rounding, before
-any normalisation). Positive where the surface bulges towards the viewer (a ball seen from
-outside: ``k1 = k2 > 0``), negative in a bowl or concave corner.
+**Units and sign.** Curvatures are in 1 / (the shape's bounding-cube side), the unit the views
+are measured in: a sphere of radius ``r`` in a cube of side ``a`` reads ``a / r``. Because the
+views normalise the shape into its bounding cube, the maps do not depend on the shape's unit,
+scale or position (a shape scaled by 1000 gives the same maps, before any normalisation, up to
+float rounding). Positive where the surface bulges towards the viewer (a ball seen from outside:
+``k1 = k2 > 0``), negative in a bowl or a concave corner.
 
-**Fit.** The surface is the graph ``(u, v, z(u, v))`` of the depth: in an orthographic view
-``x`` and ``y`` are exactly linear in ``(u, v)``, which a cubic spline reproduces, so fitting
-``z`` alone is the thesis' 3-D fit. Knots every :func:`knot_spacing` pixels (``R / 16``: the
-same 16 knot spans per view side at every resolution, so the maps describe the same geometry at
-64 and at 320 pixels), second-difference smoothing as in :mod:`rgbd_rs.surface`.
+**Fit** (Rust, ``rgbd-spline``'s ``height`` module, parallel over the views). The surface is the
+graph ``(u, v, z(u, v))`` of the depth: in an orthographic view ``x`` and ``y`` are exactly
+linear in ``(u, v)``, which a cubic spline reproduces, so fitting ``z`` alone is the thesis' 3-D
+fit at a third of the cost. Knots every ``R / KNOT_SPANS`` pixels (:func:`knot_spacing`; 24 spans
+whatever the resolution, so 64 and 320 pixel maps describe the same geometry), a
+second-difference penalty :data:`LAMBDA`, and only the control points of knot cells that hold
+data are solved for (the others leave their pixels unreported).
 
-**Rim.** Next to a silhouette a smooth closed surface turns away from the viewer: the depth's
-slope grows without bound, no spline follows it, and a fit that includes those pixels rings for
-2-3 knot spans inwards (a sphere: k1, k2 off by a median 25 % at 0.6-0.7 of its radius). We fit
-the object's pixels only (empty pixels are not data) and leave out the *grazing* ones: pixels
-whose depth slope (central differences of the view, in depth units per pixel width) exceeds
-:data:`MAX_SLOPE` = 2, i.e. where the surface normal is more than ``atan 2`` = 63.4° from the
-view direction. That cuts a sphere at 0.89 of its radius, and it also cuts the view at depth
-jumps (a step of more than 2 pixels between neighbours), so one smooth piece does not bend to
-meet another. Masking beat per-pixel weights ``1 / (1 + slope²)^k`` and larger thresholds on
-a sphere (see the tests and out/notes/curvature.md for the numbers).
+**Rim** (meshes). Next to a silhouette a smooth closed surface turns away from the viewer: the
+depth's slope grows without bound, no spline follows it, and a fit of every object pixel rings
+for 2-3 knot spans inwards (a sphere: k1, k2 off by a median 7-31 % between 0.5 and 0.8 of its
+radius at 16 spans). We fit the object's pixels only (empty pixels are not data) and leave out
+the *grazing* ones: pixels whose depth slope (central differences, one-sided next to an empty
+pixel, in depth units per pixel width) exceeds :data:`MAX_SLOPE` = 2, i.e. whose surface normal
+is more than ``atan 2`` = 63.4° from the view direction. That cuts a sphere at 0.89 of its
+radius, and it also cuts a view at depth steps of more than 2 pixels between neighbours, so one
+surface does not bend to meet another behind it. On a sphere this masking beat per-pixel weights
+``1 / (1 + slope²)^k`` (k = 1, 2) and thresholds of 3 and 4; 24 spans beat 16 and 20.
 
-**Empty and grazing pixels get 0** (no surface, or no reliable curvature): after the per-map
-normalisation of :mod:`rgbd_rs.shapes.dataset` they read like a flat surface would.
+**Point clouds** are not fitted through their splatted views: splats are flat disks, and a fit
+of that staircase is off by more than 50 % on a sphere. The data are the points themselves,
+projected into each view: a point counts for a view when it is not behind the nearest surface
+within one splat radius (``depth <= nearest + 2 · MAX_SLOPE · radius + 1`` px, which also lets
+holes between the front splats hide the back of the shape) and its normal (principal component
+of its :data:`NORMAL_NEIGHBOURS` nearest neighbours) is within ``atan MAX_SLOPE`` of the view
+direction. ModelNet's 1024 points give a few hundred per view, so the grid has
+:data:`POINT_KNOT_SPANS` = 16 spans; curvatures are reported on the splatted silhouette where the
+fitted slope is at most :data:`MAX_SLOPE`.
+
+**Empty, grazing and unsupported pixels get 0** (no surface, or no reliable curvature): after
+the per-map normalisation of :mod:`rgbd_rs.shapes.dataset` they read like a flat surface would.
+Values are clipped to ``±CLIP_PER_SPAN · spans`` (radius of curvature at least half a knot
+spacing): sharper bends at creases, depth steps and gaps between sparse points are beyond what
+the spline resolves and would otherwise dominate the normalisation.
 """
 
 from __future__ import annotations
@@ -42,9 +57,12 @@ from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.shapes import views as _views
+from rgbd_rs.surface import DEFAULT_LAMBDA
 
 __all__ = [
+    "CLIP_PER_SPAN",
     "KNOT_SPANS",
+    "LAMBDA",
     "MAX_SLOPE",
     "POINT_KNOT_SPANS",
     "curvature_maps",
@@ -60,9 +78,14 @@ POINT_KNOT_SPANS = 16
 #: Largest depth slope (depth units per pixel width, ``tan`` of the angle between the surface
 #: normal and the view direction) of a pixel that enters the fit; steeper pixels get 0.
 MAX_SLOPE = 2.0
-#: Second-difference smoothness relative to one sample (meshes: one pixel; points: one point).
-MESH_LAMBDA = 1e-6
-POINT_LAMBDA = 1e-3
+#: Second-difference smoothness relative to one sample (a pixel of a mesh view, a point of a
+#: cloud): :data:`rgbd_rs.surface.DEFAULT_LAMBDA`, small enough that a sphere's curvature is not
+#: flattened (1e-3 biases a 1024-point sphere by 10-18 % at 0.5-0.8 of its radius).
+LAMBDA = DEFAULT_LAMBDA
+#: Curvatures are clipped to ``±CLIP_PER_SPAN · spans`` (1 / cube side): a radius of curvature
+#: below half a knot spacing is beyond what the spline resolves (creases, depth steps, gaps
+#: between sparse points), and a few such values would dominate the per-map normalisation.
+CLIP_PER_SPAN = 2.0
 #: Neighbours of the principal-component normal of a point (point clouds).
 NORMAL_NEIGHBOURS = 10
 #: The view axes ``(right, up, forward)`` of :data:`rgbd_rs.shapes.views.VIEW_NAMES`.
@@ -87,32 +110,18 @@ def knot_spacing(resolution: int, spans: int = KNOT_SPANS) -> float:
     return max(1.0, r / n)
 
 
-def _fit(
-    samples: np.ndarray,
-    view_of: np.ndarray,
-    report: np.ndarray,
-    spans: int,
-    lam: float,
-    max_slope: float,
-) -> npt.NDArray[np.float32]:
-    res = report.shape[-1]
-    k = _rgbd_rs.view_curvatures(
-        np.ascontiguousarray(samples, np.float64),
-        np.ascontiguousarray(view_of, np.uint32),
-        np.ascontiguousarray(report),
-        knot_spacing(res, spans),
-        lam,
-        max_slope,
-    )
-    k *= np.float32(res)  # 1 / pixel -> 1 / cube side
-    return np.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)
+def _finish(k: np.ndarray, res: int, spans: int) -> npt.NDArray[np.float32]:
+    """1 / pixel -> 1 / cube side; unreported pixels (NaN) -> 0; clipped to the resolvable."""
+    limit = CLIP_PER_SPAN * spans
+    scaled = np.nan_to_num(np.asarray(k, np.float32) * np.float32(res), nan=0.0)
+    return np.asarray(np.clip(scaled, -limit, limit), np.float32)
 
 
 def _mesh_maps(mesh: Mesh, res: int) -> npt.NDArray[np.float32]:
     depth = _views.depth_views(mesh, res, lcn=False, background=float("nan"))
-    k = _rgbd_rs.depth_view_curvatures(depth, float(res), knot_spacing(res), MESH_LAMBDA, MAX_SLOPE)
-    k *= np.float32(res)  # 1 / pixel -> 1 / cube side
-    return np.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)
+    spacing = knot_spacing(res, KNOT_SPANS)
+    k = _rgbd_rs.depth_view_curvatures(depth, float(res), spacing, LAMBDA, MAX_SLOPE)
+    return _finish(k, res, KNOT_SPANS)
 
 
 def _normals(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
@@ -142,26 +151,26 @@ def _point_maps(points: npt.NDArray[np.float32], res: int) -> npt.NDArray[np.flo
     normals = _normals(p) if len(p) >= 3 else np.zeros_like(p)
     grazing = 1 / np.sqrt(1 + MAX_SLOPE**2)
     samples, view_of = [], []
-    for k, (right, up, fwd) in enumerate(_AXES):
+    for view, (right, up, fwd) in enumerate(_AXES):
         u = (q @ right + 0.5) * res - 0.5
         v = (0.5 - q @ up) * res - 0.5
         z = (q @ fwd + 0.5) * res
         iu = np.clip(np.rint(u), 0, res - 1).astype(np.int64)
         iv = np.clip(np.rint(v), 0, res - 1).astype(np.int64)
-        front = near[k, iv, iu] * res
+        front = near[view, iv, iu] * res
         seen = z <= front + 2 * MAX_SLOPE * reach + 1  # not hidden behind a surface
         seen &= np.abs(normals @ fwd) >= grazing  # not grazing
         samples.append(np.stack([u[seen], v[seen], z[seen]], axis=1))
-        view_of.append(np.full(int(seen.sum()), k))
-    report = np.isfinite(depth)
-    return _fit(
+        view_of.append(np.full(int(seen.sum()), view))
+    k = _rgbd_rs.view_curvatures(
         np.concatenate(samples),
-        np.concatenate(view_of),
-        report,
-        POINT_KNOT_SPANS,
-        POINT_LAMBDA,
+        np.concatenate(view_of).astype(np.uint32),
+        np.isfinite(depth),
+        knot_spacing(res, POINT_KNOT_SPANS),
+        LAMBDA,
         MAX_SLOPE,
     )
+    return _finish(k, res, POINT_KNOT_SPANS)
 
 
 def curvature_maps(
