@@ -62,7 +62,29 @@ CASES: list[Case] = [
         r"^resolution: got 1000000000",
         "huge",
     ),
+    Case(
+        "curvature_maps",
+        lambda: C.curvature_maps(P, 16, views=np.zeros((6, 8, 8), np.float32)),
+        SHAPE,
+        r"^views: got shape \(6, 8, 8\), expected \(6, 16, 16\)",
+        "views-size",
+    ),
+    Case(
+        "curvature_maps",
+        lambda: C.curvature_maps(P, 8, views=np.full((6, 8, 8), np.inf, np.float32)),
+        ARG,
+        r"^views: got infinite depths",
+        "views-inf",
+    ),
+    Case(
+        "curvature_maps",
+        lambda: C.curvature_maps(P, 8, views=np.full((6, 8, 8), "x")),
+        ARG,
+        r"^views: got dtype <U1",
+        "views-dtype",
+    ),
     Case("knot_spacing", lambda: C.knot_spacing(0), ARG, r"^resolution: got 0"),
+    Case("knot_spacing", lambda: C.knot_spacing(64, 0), ARG, r"^spans: got 0", "spans"),
     Case("knot_spacing", lambda: C.knot_spacing(True), ARG, r"^resolution: got True", "bool"),
 ]
 

@@ -152,6 +152,13 @@ def test_a_single_point_and_a_tiny_cloud_give_zero_maps() -> None:
     assert (curvature_maps(_unit_sphere_points(5), 16) == 0).all()
 
 
+def test_precomputed_views_give_the_same_maps() -> None:
+    cloud = _unit_sphere_points(1024, seed=3)
+    for shape in (BALL, cloud):
+        views = depth_views(shape, 64, lcn=False, background=np.nan)
+        assert np.array_equal(curvature_maps(shape, 64, views=views), curvature_maps(shape, 64))
+
+
 # -- as inputs ---------------------------------------------------------------------------------
 
 
