@@ -50,6 +50,7 @@ __all__ = [
     "label_regions",
     "lc_fuse",
     "local_contrast_normalize",
+    "majority_classes",
     "mean_shift_filter",
     "merge_regions",
     "mesh_depth_views",
@@ -57,6 +58,7 @@ __all__ = [
     "normals_from_points",
     "num_threads",
     "oversegment",
+    "pdf_stats",
     "pixel_features",
     "point_depth_views",
     "point_depth_views_batch",
@@ -323,6 +325,8 @@ def segment_boundaries(
 def merge_regions(
     fits: SegmentFits, pairs: _I32, pdfs: _F32 | None, t_sim: float
 ) -> tuple[_I32, _I32, _I32, npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def pdf_stats(pdfs: _F32) -> tuple[int, float, float]: ...
+def majority_classes(labels: _I32, pdfs: _F32) -> _I32: ...
 
 # -- HHA and square-window normals (crates/rgbd-py/src/hha.rs) ----------------------------------
 HHA_ANGLE_RADIUS: int

@@ -9,7 +9,9 @@ use pyo3::prelude::*;
 use rgbd_error::invalid;
 use rgbd_segment::adjacency::{boundaries, BoundaryTest, Cues};
 use rgbd_segment::compact::Compact;
-use rgbd_segment::merge::{merge_regions as merge_core, Descriptors, LabelledFits, Priority};
+use rgbd_segment::merge::{
+    majority, merge_regions as merge_core, pdf_stats, Descriptors, LabelledFits, Priority,
+};
 
 use crate::errors::{borrow, run, run_interruptible, shape_err};
 use crate::geom::to_numpy;
@@ -188,10 +190,52 @@ pub fn merge_regions<'py>(
     ))
 }
 
+/// Checks of `H x W x C` class PDFs in one pass: `(non-finite values, smallest finite value,
+/// largest |sum - 1| over the pixels whose values are finite)`.
+#[pyfunction]
+#[pyo3(name = "pdf_stats")]
+pub fn pdf_stats_native(
+    py: Python<'_>,
+    pdfs: PyReadonlyArray3<'_, f32>,
+) -> PyResult<(u64, f64, f64)> {
+    let classes = pdfs.shape()[2];
+    let p = borrow("pdfs", &pdfs)?;
+    let st = run(py, || pdf_stats(p, classes))?;
+    Ok((st.non_finite as u64, st.min, st.worst_sum))
+}
+
+/// Majority class (argmax of `pdfs`, `H x W x C`) of each segment of `labels` (`H x W`, -1 =
+/// none), painted on its pixels; -1 outside segments.
+#[pyfunction]
+pub fn majority_classes<'py>(
+    py: Python<'py>,
+    labels: PyReadonlyArray2<'py, i32>,
+    pdfs: PyReadonlyArray3<'py, f32>,
+) -> PyResult<Arr2<'py, i32>> {
+    let &[h, w] = labels.shape() else {
+        unreachable!("2-D array")
+    };
+    same("pdfs", &pdfs.shape()[..2], &[h, w])?;
+    let classes = pdfs.shape()[2];
+    let (l, p) = (borrow("labels", &labels)?, borrow("pdfs", &pdfs)?);
+    let out = run(py, || {
+        let compact = Compact::new(l);
+        let cls = majority(&compact.slots, compact.len(), p, classes)?;
+        Ok(compact
+            .slots
+            .iter()
+            .map(|&s| if s < 0 { -1 } else { cls[s as usize] })
+            .collect::<Vec<i32>>())
+    })?;
+    to_numpy(py, (h, w), out)
+}
+
 /// Adds this module's functions and constants to the native module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(segment_boundaries, m)?)?;
     m.add_function(wrap_pyfunction!(merge_regions, m)?)?;
+    m.add_function(wrap_pyfunction!(pdf_stats_native, m)?)?;
+    m.add_function(wrap_pyfunction!(majority_classes, m)?)?;
     m.add("T_SIM", rgbd_segment::merge::T_SIM)?;
     m.add("T_D", rgbd_segment::adjacency::T_D)?;
     m.add("T_C", rgbd_segment::adjacency::T_C)?;

@@ -157,6 +157,120 @@ impl Descriptors {
     }
 }
 
+/// What the checks of per-pixel class PDFs need, from one parallel pass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PdfStats {
+    /// Values that are NaN or infinite.
+    pub non_finite: usize,
+    /// The smallest finite value (`+inf` when there is none).
+    pub min: f64,
+    /// The largest `|Σ_c p_c - 1|` over the pixels whose values are all finite (f64 sums).
+    pub worst_sum: f64,
+}
+
+/// [`PdfStats`] of `H x W x classes` PDFs.
+pub fn pdf_stats(pdfs: &[f32], classes: usize) -> Result<PdfStats> {
+    if classes == 0 || !pdfs.len().is_multiple_of(classes) {
+        return Err(invalid(
+            "pdfs",
+            format!("{} values in rows of {classes}", pdfs.len()),
+            "H x W x classes values, classes >= 1",
+        ));
+    }
+    let chunk = 4096 * classes;
+    let zero = || PdfStats {
+        non_finite: 0,
+        min: f64::INFINITY,
+        worst_sum: 0.0,
+    };
+    Ok(pdfs
+        .par_chunks(chunk)
+        .map(|block| {
+            let mut st = zero();
+            for px in block.chunks_exact(classes) {
+                // Branch-free for the usual all-finite pixel; the rare other one is recounted.
+                let (mut sum, mut low, mut finite) = (0.0f64, f32::INFINITY, true);
+                for &v in px {
+                    sum += f64::from(v);
+                    low = low.min(v);
+                    finite &= v.is_finite();
+                }
+                if finite {
+                    st.min = st.min.min(f64::from(low));
+                    st.worst_sum = st.worst_sum.max((sum - 1.0).abs());
+                } else {
+                    for &v in px {
+                        if v.is_finite() {
+                            st.min = st.min.min(f64::from(v));
+                        } else {
+                            st.non_finite += 1;
+                        }
+                    }
+                }
+            }
+            st
+        })
+        .reduce(zero, |a, b| PdfStats {
+            non_finite: a.non_finite + b.non_finite,
+            min: a.min.min(b.min),
+            worst_sum: a.worst_sum.max(b.worst_sum),
+        }))
+}
+
+/// §4.7's final labelling: per slot of `slots` (`0..n`, `-1` = none), the most common per-pixel
+/// class (argmax of its PDF, the first on ties) among its pixels, the smaller class on ties;
+/// `-1` for a slot without pixels.
+pub fn majority(slots: &[i32], n: usize, pdfs: &[f32], classes: usize) -> Result<Vec<i32>> {
+    if classes == 0 {
+        return Err(invalid("pdfs", "0 classes", "at least one class"));
+    }
+    rgbd_error::check_len("pdfs", pdfs, slots.len() * classes, "H x W x classes")?;
+    let chunk = 4096;
+    let votes = slots
+        .par_chunks(chunk)
+        .zip(pdfs.par_chunks(chunk * classes))
+        .fold(
+            || vec![0u32; n * classes],
+            |mut votes, (ls, ps)| {
+                for (&s, p) in ls.iter().zip(ps.chunks_exact(classes)) {
+                    if s >= 0 && (s as usize) < n {
+                        let mut best = 0;
+                        for c in 1..classes {
+                            if p[c] > p[best] {
+                                best = c;
+                            }
+                        }
+                        votes[s as usize * classes + best] += 1;
+                    }
+                }
+                votes
+            },
+        )
+        .reduce(
+            || vec![0u32; n * classes],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    Ok(votes
+        .chunks_exact(classes)
+        .map(|v| {
+            let mut best = 0;
+            for c in 1..classes {
+                if v[c] > v[best] {
+                    best = c;
+                }
+            }
+            if v[best] == 0 {
+                -1
+            } else {
+                best as i32
+            }
+        })
+        .collect())
+}
+
 /// How couples are chosen and ordered.
 #[derive(Debug, Clone)]
 pub enum Priority {
@@ -532,6 +646,34 @@ mod tests {
             assert_eq!(accept, expected[k], "couple ({a}, {b})");
             assert_eq!(accept, g > 0.0);
         }
+    }
+
+    #[test]
+    fn pdf_stats_and_majority() {
+        let pdfs = [
+            0.2,
+            0.8, //
+            f32::NAN,
+            1.0, //
+            0.7,
+            0.4, //
+            0.5,
+            0.5, //
+            -0.1,
+            1.1,
+        ];
+        let st = pdf_stats(&pdfs, 2).unwrap();
+        assert_eq!(st.non_finite, 1);
+        assert_eq!(st.min, f64::from(-0.1f32));
+        assert!((st.worst_sum - 0.1).abs() < 1e-6, "{}", st.worst_sum);
+        assert!(pdf_stats(&pdfs, 3).is_err());
+        // Slot 0: pixels of class 1 and 1; slot 1: class 0, then a tie (the first class wins: 0);
+        // slot 2 has no pixel.
+        let m = majority(&[0, -1, 1, 1, 0], 3, &pdfs, 2).unwrap();
+        assert_eq!(m, vec![1, 0, -1]);
+        // One vote each for classes 1 and 0: the smaller class wins.
+        let m = majority(&[0, -1, 0, -1, -1], 1, &pdfs, 2).unwrap();
+        assert_eq!(m, vec![0]);
     }
 
     #[test]

@@ -202,19 +202,15 @@ pub fn solve(
     // ||A c - x̃||² = x̃ᵀx̃ - 2 cᵀ Aᵀx̃ + cᵀ G c, with x̃ = x - mean.
     let n = m.n as f64;
     let mut sse = 0.0;
+    let mut col = vec![0.0; n_ids];
     for ch in 0..c {
         let xx = m.sq[ch] - n * mean[ch] * mean[ch];
         let mut cr = 0.0;
-        let mut cgc = 0.0;
-        for i in 0..n_ids {
-            cr += sol[i * c + ch] * rhs[i * c + ch];
-            for j in i.saturating_sub(gram_band.bw)..=i {
-                let g = gram_band.get(i, j);
-                let w = if i == j { 1.0 } else { 2.0 };
-                cgc += w * g * sol[i * c + ch] * sol[j * c + ch];
-            }
+        for (i, x) in col.iter_mut().enumerate() {
+            *x = sol[i * c + ch];
+            cr += *x * rhs[i * c + ch];
         }
-        sse += xx - 2.0 * cr + cgc;
+        sse += xx - 2.0 * cr + gram_band.quadratic_form(&col);
     }
     let dof = with_dof.then(|| {
         let z = chol.inverse_band();

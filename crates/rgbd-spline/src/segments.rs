@@ -320,9 +320,8 @@ impl SegmentFits {
         }
     }
 
-    /// The seam test's numbers for live segments `i` and `j`: the union's test normal equations
-    /// and fit, its χ² and its seam pixel count.
-    fn test_union(&self, i: usize, j: usize) -> Result<Option<(Normal, Fit, usize)>, RgbdError> {
+    /// The seam test's union of live segments `i` and `j`: its test normal equations and fit.
+    fn test_union(&self, i: usize, j: usize) -> Result<Option<(Normal, Fit)>, RgbdError> {
         let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
         if i == j {
             return Err(invalid("j", j, "a segment other than i"));
@@ -331,8 +330,7 @@ impl SegmentFits {
         let (a, b) = (&t.normals[si], &t.normals[sj]);
         let u = a.union(b);
         let fit = solve(&u, &t.grid, self.lambda, &t.offset, false)?;
-        let seam = seam_pixels(a, b, &t.grid);
-        Ok(Some((u, fit, seam)))
+        Ok(Some((u, fit)))
     }
 
     /// Pixels of the union of live segments `i` and `j` whose test fit the union couples (the
@@ -439,7 +437,7 @@ impl SegmentFits {
         let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
         let n = (self.count(si) + self.count(sj)) as f64;
         let mut e = f64::NAN;
-        if let (Some((tu, tfit, _)), Some(t)) = (tested, self.test.as_mut()) {
+        if let (Some((tu, tfit)), Some(t)) = (tested, self.test.as_mut()) {
             e = tfit.sse / n;
             let k = tu.k;
             t.normals[si] = tu;

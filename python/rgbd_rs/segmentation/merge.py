@@ -171,13 +171,15 @@ def adjacency(
 
 
 def _pdfs(pdfs: npt.ArrayLike, shape: tuple[int, int]) -> np.ndarray:
-    p = _validate.array("pdfs", pdfs, shape=(*shape, None), finite=True)
+    p = _validate.array("pdfs", pdfs, shape=(*shape, None))
+    # One native pass: non-finite count, minimum, worst per-pixel sum (float64).
+    bad, low, worst = _rgbd_rs.pdf_stats(p)
+    if bad:
+        raise InvalidArgumentError(f"pdfs: got {bad} non-finite values, expected finite values")
     if p.shape[2] < 2:
         raise ShapeMismatchError(f"pdfs: got {p.shape[2]} class(es), expected at least 2")
-    if p.min() < 0:
+    if low < 0:
         raise InvalidArgumentError(f"pdfs: got a negative value {p.min()}, expected PDFs >= 0")
-    total = p.sum(axis=2, dtype=np.float64)
-    worst = float(np.abs(total - 1.0).max())
     if worst > PDF_SUM_TOLERANCE:
         raise InvalidArgumentError(
             f"pdfs: got per-pixel sums off 1 by up to {worst:.3g}, expected class PDFs that sum "
@@ -195,14 +197,10 @@ def majority_classes(labels: npt.ArrayLike, pdfs: npt.ArrayLike) -> np.ndarray:
 
 
 def _majority(labels: np.ndarray, pdfs: np.ndarray) -> np.ndarray:
-    k = pdfs.shape[2]
-    cls = pdfs.argmax(axis=2)
-    keep = labels >= 0
-    ids, seg = np.unique(labels[keep], return_inverse=True)
-    votes = np.bincount(seg * k + cls[keep], minlength=ids.size * k).reshape(ids.size, k)
-    out = np.full(labels.shape, -1, np.int32)
-    out[keep] = votes.argmax(axis=1)[seg]
-    return out
+    # Native: per-pixel argmax (first maximum), per-segment vote (smaller class on ties).
+    return _rgbd_rs.majority_classes(
+        np.ascontiguousarray(labels, dtype=np.int32), np.ascontiguousarray(pdfs, np.float32)
+    )
 
 
 def merge_regions(
