@@ -189,6 +189,8 @@ def test_tiny_shape_network_runs_on_curvature_inputs(shared_data: Path) -> None:
     src = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz")
     spec = InputSpec(representations=("depth", "volume", "curvature"), view_resolution=32)
     x = batch_inputs([src.load(i) for i in range(3)], spec, workers=1)
+    threaded = batch_inputs([src.load(i) for i in range(3)], spec, workers=3)
+    assert np.array_equal(threaded["curvature"], x["curvature"])  # thread-safe, deterministic
     torch.manual_seed(0)
     net = ShapeNet(10, representations="combined", view_resolution=32, width=4).eval()
     with torch.no_grad():
