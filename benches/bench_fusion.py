@@ -9,10 +9,12 @@
   same filter; mean-shift segmentation (OpenCV) timed separately.
 - The confidence ConvNet's tiled inference (shipped width and the thesis' 128 filters) against
   one whole-image torch forward.
-- The stages of ``fuse()`` and its total.
+- The stages of ``fuse()`` and its total, wall and CPU (process) time, each native stage beside
+  the OpenCV / numpy path it replaced (mean shift, the stereo cost curve) in the same run.
 
     python benches/bench_fusion.py             # tables on stdout
     python benches/bench_fusion.py --markdown  # README tables
+    python benches/bench_fusion.py --stages    # only the fuse() stage table (quicker)
 """
 
 from __future__ import annotations
@@ -94,6 +96,7 @@ def numpy_lc(ref, tgt, sources, radius, gs, gc, gt, trunc, bw, stride, sign, row
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--markdown", action="store_true")
+    ap.add_argument("--stages", action="store_true", help="only the fuse() stage table")
     args = ap.parse_args()
     from rgbd_rs import _rgbd_rs
     from rgbd_rs.data.synth import generate, synth3_rig
@@ -123,130 +126,228 @@ def main() -> None:
         p = LcParams(radius=radius, stride=stride)
         return lambda: lc_fuse(ref, tgt, ds, cs_, params=p)
 
-    rows = []
-    # rgbd_rs vs numpy, 39x39-equivalent window at 960x540 (radius 10), stride 1 and 2.
-    y0 = 270 - STRIP_ROWS // 2
-    strip = slice(y0, y0 + STRIP_ROWS)
-    for stride in (1, 2):
-        ms = timeit(lc(s.right, s.left, disps, confs, 10, stride), REPEATS)
-        fused, _ = lc_fuse(s.right, s.left, disps, confs, params=LcParams(radius=10, stride=stride))
-        gs = LcParams(radius=10).resolved(960)[1]
+    rows: list[tuple[str, float, float | None, str]] = []
+    scale_rows: list[tuple[str, float]] = []
+    if not args.stages:
+        # rgbd_rs vs numpy, 39x39-equivalent window at 960x540 (radius 10), stride 1 and 2.
+        y0 = 270 - STRIP_ROWS // 2
+        strip = slice(y0, y0 + STRIP_ROWS)
+        for stride in (1, 2):
+            ms = timeit(lc(s.right, s.left, disps, confs, 10, stride), REPEATS)
+            fused, _ = lc_fuse(
+                s.right, s.left, disps, confs, params=LcParams(radius=10, stride=stride)
+            )
+            gs = LcParams(radius=10).resolved(960)[1]
+            t = time.perf_counter()
+            ref_out = numpy_lc(
+                s.right,
+                s.left,
+                list(zip(disps, confs, strict=True)),
+                10,
+                gs,
+                30.0,
+                25.0,
+                69.0,
+                0.25,
+                stride,
+                1,
+                strip,
+            )
+            np_strip = time.perf_counter() - t
+            np_ms = np_strip * 1e3 * 540 / STRIP_ROWS
+            a, b = fused[strip], ref_out
+            both = np.isfinite(a) & np.isfinite(b)
+            agree = float(np.mean(np.abs(a[both] - b[both]) < 1e-3))
+            rows.append(
+                (
+                    f"LC fusion 960x540, 21x21 window (= 39x39 at full res), stride {stride}",
+                    ms,
+                    np_ms,
+                    f"numpy strip {np_strip:.1f} s x {540 // STRIP_ROWS}; "
+                    f"outputs agree on {agree:.1%} of the strip",
+                )
+            )
+        # Scaling with the window.
+        for radius, stride in ((5, 1), (10, 1), (19, 1), (10, 2), (19, 2), (19, 3)):
+            ms = timeit(lc(s.right, s.left, disps, confs, radius, stride), 1)
+            scale_rows.append(
+                (f"960x540, radius {radius} ({2 * radius + 1}^2), stride {stride}", ms)
+            )
+        # Scaling with the image size (the same scene resized; window scaled with it).
+        for f in (0.5, 2.0):
+            size = (round(960 * f), round(540 * f))
+            rr, ll = (
+                cv2.resize(im, size, interpolation=cv2.INTER_AREA) for im in (s.right, s.left)
+            )
+            ds = [cv2.resize(d, size, interpolation=cv2.INTER_NEAREST) * f for d in disps]
+            cc = [cv2.resize(c, size, interpolation=cv2.INTER_NEAREST) for c in confs]
+            radius = max(1, round(10 * f))
+            ms = timeit(lc(rr, ll, ds, cc, radius, 2), 1)
+            scale_rows.append((f"{size[0]}x{size[1]}, radius {radius}, stride 2", ms))
+        # Upsampling.
+        labels = segment_mean_shift(s.right)
+        rep = reproject_depth(s.tof_depth, rig.tof, rig.reference_camera, rig.tof_to_reference)
+        up_ms = timeit(lambda: upsample_depth(rep.depth, s.right, labels), REPEATS)
+        plain_ms = timeit(lambda: upsample_depth(rep.depth, s.right), REPEATS)
+        ms_ms = timeit(lambda: segment_mean_shift(s.right), REPEATS)
         t = time.perf_counter()
-        ref_out = numpy_lc(
-            s.right,
-            s.left,
-            list(zip(disps, confs, strict=True)),
-            10,
-            gs,
-            30.0,
-            25.0,
-            69.0,
-            0.25,
-            stride,
-            1,
-            strip,
-        )
-        np_strip = time.perf_counter() - t
-        np_ms = np_strip * 1e3 * 540 / STRIP_ROWS
-        a, b = fused[strip], ref_out
-        both = np.isfinite(a) & np.isfinite(b)
-        agree = float(np.mean(np.abs(a[both] - b[both]) < 1e-3))
+        np_up = numpy_upsample(rep.depth, s.right, labels)
+        np_up_ms = (time.perf_counter() - t) * 1e3
+        ours = upsample_depth(rep.depth, s.right, labels)
+        both = np.isfinite(ours) & np.isfinite(np_up)
+        dev = np.abs(ours[both] - np_up[both]) / np_up[both]
         rows.append(
             (
-                f"LC fusion 960x540, 21x21 window (= 39x39 at full res), stride {stride}",
-                ms,
-                np_ms,
-                f"numpy strip {np_strip:.1f} s x {540 // STRIP_ROWS}; "
-                f"outputs agree on {agree:.1%} of the strip",
+                "Upsampling 960x540 (radius 5, segmentation term)",
+                up_ms,
+                np_up_ms,
+                f"{np.mean(dev < 1e-4):.2%} of pixels within 1e-4 relative (f32 vs f64)",
             )
         )
-    # Scaling with the window.
-    scale_rows = []
-    for radius, stride in ((5, 1), (10, 1), (19, 1), (10, 2), (19, 2), (19, 3)):
-        ms = timeit(lc(s.right, s.left, disps, confs, radius, stride), 1)
-        scale_rows.append((f"960x540, radius {radius} ({2 * radius + 1}^2), stride {stride}", ms))
-    # Scaling with the image size (the same scene resized; window scaled with it).
-    for f in (0.5, 2.0):
-        size = (round(960 * f), round(540 * f))
-        rr, ll = (cv2.resize(im, size, interpolation=cv2.INTER_AREA) for im in (s.right, s.left))
-        ds = [cv2.resize(d, size, interpolation=cv2.INTER_NEAREST) * f for d in disps]
-        cc = [cv2.resize(c, size, interpolation=cv2.INTER_NEAREST) for c in confs]
-        radius = max(1, round(10 * f))
-        ms = timeit(lc(rr, ll, ds, cc, radius, 2), 1)
-        scale_rows.append((f"{size[0]}x{size[1]}, radius {radius}, stride 2", ms))
-    # Upsampling.
+        rows.append(("Upsampling 960x540 without labels (joint bilateral)", plain_ms, None, ""))
+        rows.append(
+            ("Mean-shift segmentation (native pyrMeanShiftFiltering + labels)", ms_ms, None, "")
+        )
+        # The confidence ConvNet: our tiled inference vs one whole-image torch forward, at the
+        # shipped width and at the thesis' 128 filters (random weights: the speed does not depend
+        # on them).
+        import torch
+
+        from rgbd_rs.fusion.clues import compute_clues, normalise
+        from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
+
+        clues = normalise(
+            compute_clues(s.right, s.left, tof.disparity, tof.amplitude, st), np.ones(4, np.float32)
+        )
+        shipped = ConfidenceEstimator.load().net.width
+        for width in sorted({shipped, 128}):
+            net = ConfidenceNet(width)
+            ours = timeit(lambda net=net: predict(net, clues), 1)  # type: ignore[misc]
+
+            def whole(net: ConfidenceNet = net) -> None:
+                with torch.inference_mode():
+                    net(torch.from_numpy(clues)[None])
+
+            rows.append(
+                (
+                    f"Confidence ConvNet 960x540, width {width}"
+                    + (" (shipped)" if width == shipped else " (thesis)"),
+                    ours,
+                    timeit(whole, 1),
+                    "reference column: one whole-image torch forward (no tiling)",
+                )
+            )
+    # The stages of fuse() on this scene: wall and CPU (process) time of each, the native stage
+    # beside the OpenCV / numpy path it replaced (same run; the best of REPEATS after a warm-up).
+    import rgbd_rs.fusion.confidence as conf_mod
+    import rgbd_rs.fusion.upsample as up_mod
+    from rgbd_rs.fusion.fuse import shipped_estimator
+    from rgbd_rs.fusion.stereo import _cost_curve_stats_numpy
+
+    def old_segmentation(image, **_: object):  # type: ignore[no-untyped-def]
+        filtered = cv2.pyrMeanShiftFiltering(image, 8, 16)
+        return _rgbd_rs.label_regions(np.ascontiguousarray(filtered), 2.0)[0]
+
+    def old_cost_curve(ref, tgt, disp, *, target_sign=1, max_disparity=128):  # type: ignore[no-untyped-def]
+        g = [cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in (ref, tgt)]
+        return _cost_curve_stats_numpy(g[0], g[1], disp, target_sign, max_disparity, 7)
+
+    def old_path(fn):  # type: ignore[no-untyped-def]
+        """``fn`` run with OpenCV mean shift and the numpy cost curve patched back in."""
+
+        def run():  # type: ignore[no-untyped-def]
+            seg, cc = up_mod.segment_mean_shift, conf_mod.cost_curve_stats
+            up_mod.segment_mean_shift, conf_mod.cost_curve_stats = old_segmentation, old_cost_curve
+            try:
+                return fn()
+            finally:
+                up_mod.segment_mean_shift, conf_mod.cost_curve_stats = seg, cc
+
+        return run
+
+    grey_r, grey_l = (cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in (s.right, s.left))
+    np.testing.assert_array_equal(
+        _rgbd_rs.mean_shift_filter(s.right, 8, 16), cv2.pyrMeanShiftFiltering(s.right, 8, 16)
+    )
+    estimator = shipped_estimator()
+    ct_n, cs_n = estimator(s.right, s.left, tof.disparity, tof.amplitude, st, reference="right")
     labels = segment_mean_shift(s.right)
-    rep = reproject_depth(s.tof_depth, rig.tof, rig.reference_camera, rig.tof_to_reference)
-    up_ms = timeit(lambda: upsample_depth(rep.depth, s.right, labels), REPEATS)
-    plain_ms = timeit(lambda: upsample_depth(rep.depth, s.right), REPEATS)
-    ms_ms = timeit(lambda: segment_mean_shift(s.right), REPEATS)
-    t = time.perf_counter()
-    np_up = numpy_upsample(rep.depth, s.right, labels)
-    np_up_ms = (time.perf_counter() - t) * 1e3
-    ours = upsample_depth(rep.depth, s.right, labels)
-    both = np.isfinite(ours) & np.isfinite(np_up)
-    dev = np.abs(ours[both] - np_up[both]) / np_up[both]
-    rows.append(
-        (
-            "Upsampling 960x540 (radius 5, segmentation term)",
-            up_ms,
-            np_up_ms,
-            f"{np.mean(dev < 1e-4):.2%} of pixels within 1e-4 relative (f32 vs f64)",
-        )
+    rep_amp = reproject_depth(
+        s.tof_depth, rig.tof, rig.reference_camera, rig.tof_to_reference, channels=s.tof_amplitude
     )
-    rows.append(("Upsampling 960x540 without labels (joint bilateral)", plain_ms, None, ""))
-    rows.append(
-        ("Mean-shift segmentation (OpenCV pyrMeanShiftFiltering + labels)", ms_ms, None, "")
-    )
-    # The confidence ConvNet: our tiled inference vs one whole-image torch forward, at the
-    # shipped width and at the thesis' 128 filters (random weights: the speed does not depend
-    # on them).
-    import torch
-
-    from rgbd_rs.fusion.clues import compute_clues, normalise
-    from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
-
-    clues = normalise(
-        compute_clues(s.right, s.left, tof.disparity, tof.amplitude, st), np.ones(4, np.float32)
-    )
-    shipped = ConfidenceEstimator.load().net.width
-    for width in sorted({shipped, 128}):
-        net = ConfidenceNet(width)
-        ours = timeit(lambda net=net: predict(net, clues), 1)  # type: ignore[misc]
-
-        def whole(net: ConfidenceNet = net) -> None:
-            with torch.inference_mode():
-                net(torch.from_numpy(clues)[None])
-
-        rows.append(
-            (
-                f"Confidence ConvNet 960x540, width {width}"
-                + (" (shipped)" if width == shipped else " (thesis)"),
-                ours,
-                timeit(whole, 1),
-                "reference column: one whole-image torch forward (no tiling)",
-            )
-        )
-    # The stages of fuse() on this scene (one run each).
+    assert rep_amp.channels is not None
+    sparse = rep_amp.depth
+    fuse_args = (s.left, s.right, s.tof_depth, s.tof_amplitude, rig)
     stages = [
-        ("mean-shift segmentation", lambda: segment_mean_shift(s.right)),
         (
-            "reprojection + mean shift + upsampling (depth, amplitude carried)",
+            "mean-shift filter (pyrMeanShiftFiltering, sp 8, sr 16)",
+            lambda: _rgbd_rs.mean_shift_filter(s.right, 8, 16),
+            lambda: cv2.pyrMeanShiftFiltering(s.right, 8, 16),
+        ),
+        ("segment_mean_shift (filter + region labels)", lambda: segment_mean_shift(s.right), None),
+        (
+            "reprojection (ToF -> colour, amplitude carried)",
+            lambda: reproject_depth(
+                s.tof_depth,
+                rig.tof,
+                rig.reference_camera,
+                rig.tof_to_reference,
+                channels=s.tof_amplitude,
+            ),
+            None,
+        ),
+        (
+            "upsampling (depth + amplitude, segmentation term)",
+            lambda: upsample_depth(sparse, s.right, labels, channel=rep_amp.channels),
+            None,
+        ),
+        (
+            "tof_to_reference (reprojection + mean shift + upsampling)",
             lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right),
+            old_path(lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right)),
         ),
-        ("SGBM (8 paths, 7x7, LR check)", lambda: sgm(s.left, s.right, max_disparity=96)),
+        ("SGBM (8 paths, 7x7, LR check)", lambda: sgm(s.left, s.right, max_disparity=96), None),
         (
-            "stereo confidence (cost curve)",
+            "confidence ConvNet (default; shipped width)",
+            lambda: estimator(s.right, s.left, tof.disparity, tof.amplitude, st, reference="right"),
+            None,
+        ),
+        (
+            "LC fusion (defaults, ConvNet confidences)",
+            lambda: lc_fuse(s.right, s.left, disps, [ct_n, cs_n]),
+            None,
+        ),
+        (
+            "fuse() total (default: ConvNet)",
+            lambda: fuse(*fuse_args),
+            old_path(lambda: fuse(*fuse_args)),
+        ),
+        (
+            "stereo cost curve (heuristic confidence only)",
+            lambda: _rgbd_rs.cost_curve_stats(grey_r, grey_l, st, 1, 96, 7),
+            lambda: _cost_curve_stats_numpy(grey_r, grey_l, st, 1, 96, 7),
+        ),
+        (
+            "stereo confidence (cost curve + ratios)",
             lambda: stereo_confidence(s.right, s.left, st, max_disparity=96),
+            old_path(lambda: conf_mod.stereo_confidence(s.right, s.left, st, max_disparity=96)),
+        ),
+        ("ToF confidence", lambda: tof_confidence(tof.disparity, tof.amplitude), None),
+        (
+            "LC fusion (defaults, heuristic confidences)",
+            lambda: lc_fuse(s.right, s.left, disps, confs),
+            None,
         ),
         (
-            "ToF confidence",
-            lambda: tof_confidence(tof.disparity, tof.amplitude),
+            "fuse() total (confidence='heuristic')",
+            lambda: fuse(*fuse_args, confidence="heuristic"),
+            old_path(lambda: fuse(*fuse_args, confidence="heuristic")),
         ),
-        ("LC fusion (defaults)", lambda: lc_fuse(s.right, s.left, disps, confs)),
-        ("fuse() total", lambda: fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, rig)),
     ]
-    stage_rows = [(name, timeit(fn, 1)) for name, fn in stages]
+    stage_rows = [
+        (name, timed(fn, REPEATS), None if old is None else timed(old, REPEATS))
+        for name, fn, old in stages
+    ]
     if args.markdown:
         print("| stage | rgbd_rs (ms) | reference (ms) | vs reference | note |")
         print("|---|---:|---:|---:|---|")
@@ -257,17 +358,39 @@ def main() -> None:
         print("\n| LC scaling | ms |\n|---|---:|")
         for name, ms in scale_rows:
             print(f"| {name} | {ms:.0f} |")
-        print("\n| fuse() stage, 960x540 | ms |\n|---|---:|")
-        for name, ms in stage_rows:
-            print(f"| {name} | {ms:.0f} |")
+        print(
+            "\n| fuse() stage, 960x540 | wall ms | CPU ms | OpenCV/numpy path wall ms | CPU ms |"
+            "\n|---|---:|---:|---:|---:|"
+        )
+        for name, (w, c), old in stage_rows:
+            o = "- | -" if old is None else f"{old[0]:.0f} | {old[1]:.0f}"
+            print(f"| {name} | {w:.0f} | {c:.0f} | {o} |")
     else:
         for name, ms, ref, note in rows:
             x = f"  numpy {ref:.0f} ms ({ref / ms:.0f}x)" if ref else ""
             print(f"{name:70s} {ms:8.0f} ms{x}  {note}")
         for name, ms in scale_rows:
             print(f"  scaling: {name:48s} {ms:8.0f} ms")
-        for name, ms in stage_rows:
-            print(f"  fuse() stage: {name:48s} {ms:8.0f} ms")
+        for name, (w, c), old in stage_rows:
+            o = (
+                ""
+                if old is None
+                else f"   (OpenCV/numpy path: wall {old[0]:6.0f}, CPU {old[1]:6.0f})"
+            )
+            print(f"  fuse() stage: {name:58s} wall {w:6.0f} ms, CPU {c:6.0f} ms{o}")
+
+
+def timed(fn, repeats):  # type: ignore[no-untyped-def]
+    """``(wall ms, CPU ms)`` of ``fn``: the run with the least wall time of ``repeats`` after one
+    warm-up. CPU is the process time of all threads (rayon, OpenCV, torch) during that run."""
+    fn()
+    best = (float("inf"), float("inf"))
+    for _ in range(repeats):
+        w0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        run = ((time.perf_counter() - w0) * 1e3, (time.process_time() - c0) * 1e3)
+        best = min(best, run)
+    return best
 
 
 def numpy_upsample(sparse, image, labels, radius=5, ss=3.0, sc=10.0, sr=0.02):  # type: ignore[no-untyped-def]
