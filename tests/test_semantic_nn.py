@@ -275,6 +275,7 @@ def test_tiny_model_overfits_two_frames(
     ckpt = load_checkpoint(best)
     assert ckpt.arch == ARCH and ckpt.normalisation["input_size"] == [64, 48]
     assert ckpt.config["lr_plateau"] == 10 and ckpt.config["weight_decay"] == 1e-3
+    assert ckpt.config["grad_clip"] == 1.0 and ckpt.config["momentum"] == 0.0
 
 
 def test_untrained_network_is_worse(tiny_run: tuple[Path, Path, list[dict[str, float]]]) -> None:

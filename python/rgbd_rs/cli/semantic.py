@@ -195,6 +195,13 @@ def _train(commands: Commands) -> None:
         metavar="N",
         help="multiply lr by 0.7 after N epochs without validation gain (10)",
     )
+    p.add_argument(
+        "--grad-clip",
+        type=real(0, 1e6, low_open=False),
+        default=1.0,
+        metavar="X",
+        help="clip the gradients' global L2 norm to X (1; 0 = no clipping)",
+    )
     p.add_argument("--no-augment", action="store_true", help="no random left-right mirroring")
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="N", help="seed (0)")
     p.add_argument(
@@ -254,6 +261,7 @@ def run_train(args: argparse.Namespace) -> int:
         momentum=args.momentum,
         weight_decay=args.weight_decay,
         lr_plateau=args.plateau,
+        grad_clip=args.grad_clip or None,
         seed=args.seed,
         num_workers=args.workers,
         checkpoint_steps=args.checkpoint_steps,
