@@ -724,11 +724,18 @@ pub fn hha(
         lowest
     };
     let mut image = vec![0u8; width * height * 3];
+    // The normals handed back (toward the camera, f32) are written in the same pass.
+    let mut normals = vec![0.0f32; width * height * 3];
     image
         .par_chunks_mut(width * 3)
+        .zip(normals.par_chunks_mut(width * 3))
         .enumerate()
-        .for_each(|(y, row)| {
-            for (x, px) in row.chunks_exact_mut(3).enumerate() {
+        .for_each(|(y, (row, nrow))| {
+            for ((x, px), out) in row
+                .chunks_exact_mut(3)
+                .enumerate()
+                .zip(nrow.chunks_exact_mut(3))
+            {
                 let i = y * width + x;
                 let z = depth[i];
                 if is_valid(z) {
@@ -737,6 +744,9 @@ pub fn hha(
                     px[1] = to_u8(height_of(x, y, z) - floor_cm);
                 }
                 let n = angle_normals[i];
+                for (o, v) in out.iter_mut().zip(n) {
+                    *o = -v as f32;
+                }
                 let angle = if n[0].is_nan() {
                     NO_NORMAL_ANGLE
                 } else {
@@ -748,10 +758,6 @@ pub fn hha(
                 px[2] = to_u8(angle + ANGLE_OFFSET);
             }
         });
-    let normals = angle_normals
-        .par_iter()
-        .flat_map_iter(|n| n.map(|v| -v as f32))
-        .collect();
     Ok(Hha {
         image,
         gravity: g,
@@ -802,12 +808,14 @@ pub fn features(
     let mut vectors = vec![f32::NAN; D * n];
     let mut points = vec![f32::NAN; 3 * n];
     let mut valid = vec![false; n];
-    vectors
+    // Pass 1 also sums each row's valid vectors (for the means).
+    let row_totals: Vec<[f64; D]> = vectors
         .par_chunks_mut(D * width)
         .zip(points.par_chunks_mut(3 * width))
         .zip(valid.par_chunks_mut(width))
         .enumerate()
-        .for_each(|(y, ((vrow, prow), ok))| {
+        .map(|(y, ((vrow, prow), ok))| {
+            let mut s = [0.0f64; D];
             let b = rays.b[y];
             for x in 0..width {
                 let i = y * width + x;
@@ -825,9 +833,14 @@ pub fn features(
                     v[0..3].copy_from_slice(&lab[3 * i..3 * i + 3]);
                     v[3..6].copy_from_slice(&p);
                     v[6..9].copy_from_slice(nrm);
+                    for k in 0..D {
+                        s[k] += f64::from(v[k]);
+                    }
                 }
             }
-        });
+            s
+        })
+        .collect();
     let count = valid.iter().filter(|&&v| v).count();
     if count == 0 {
         return Err(invalid(
@@ -858,11 +871,12 @@ pub fn features(
         s
     };
     // Two passes (means, then centred squares) for the population standard deviations.
-    let sums = row_sums(&|v, s| {
+    let mut sums = [0.0f64; D];
+    for r in &row_totals {
         for k in 0..D {
-            s[k] += f64::from(v[k]);
+            sums[k] += r[k];
         }
-    });
+    }
     let mean = sums.map(|s| s / count as f64);
     let sq = row_sums(&|v, s| {
         for k in 0..D {
