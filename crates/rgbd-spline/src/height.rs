@@ -20,6 +20,7 @@
 use rayon::prelude::*;
 
 use crate::band::BandMatrix;
+use crate::normal::Region;
 use rgbd_error::{check_interrupt, invalid, mismatch, RgbdError};
 
 /// Spline degree (thesis §5.3.3: 3 in u and v).
@@ -367,13 +368,29 @@ impl HeightSpline {
         eval: impl Fn(usize) -> bool,
         max_slope: f64,
     ) -> (Vec<f32>, Vec<f32>) {
-        let g = &self.grid;
-        let (w, h) = (g.width, g.height);
-        let (nu, _) = g.ctrl_shape();
-        let inv = 1.0 / g.spacing;
+        let (w, h) = (self.grid.width, self.grid.height);
         let mut k1 = vec![f32::NAN; w * h];
         let mut k2 = vec![f32::NAN; w * h];
-        let cols: Vec<(usize, [[f64; K1]; 3])> = (0..w)
+        let all = Region::full(w, h);
+        self.curvatures_into(eval, max_slope, all, &mut k1, &mut k2);
+        (k1, k2)
+    }
+
+    /// [`Self::curvature_maps`] written into `k1`, `k2` (`height x width`) inside `region`
+    /// only (other pixels untouched).
+    pub fn curvatures_into(
+        &self,
+        eval: impl Fn(usize) -> bool,
+        max_slope: f64,
+        region: Region,
+        k1: &mut [f32],
+        k2: &mut [f32],
+    ) {
+        let g = &self.grid;
+        let w = g.width;
+        let (nu, _) = g.ctrl_shape();
+        let inv = 1.0 / g.spacing;
+        let cols: Vec<(usize, [[f64; K1]; 3])> = (region.u0..region.u1)
             .map(|u| {
                 let (c, t) = g.locate(u as f64, g.cells_u);
                 (c, cubic(t))
@@ -382,9 +399,9 @@ impl HeightSpline {
         let max2 = max_slope * max_slope;
         // Per row: the control grid contracted with the row's v-basis (value, ∂v, ∂²v).
         let mut contracted = vec![[0.0f64; 3]; nu];
-        for v in 0..h {
+        for v in region.v0..region.v1 {
             let row = v * w;
-            if !(0..w).any(|u| eval(row + u)) {
+            if !(region.u0..region.u1).any(|u| eval(row + u)) {
                 continue;
             }
             let (cv, bv) = g.locate(v as f64, g.cells_v);
@@ -399,7 +416,7 @@ impl HeightSpline {
                 }
                 *out = [acc[0], acc[1] * inv, acc[2] * inv * inv];
             }
-            for (u, (cu, bu)) in cols.iter().enumerate() {
+            for (u, (cu, bu)) in (region.u0..region.u1).zip(&cols) {
                 if !eval(row + u) {
                     continue;
                 }
@@ -421,7 +438,6 @@ impl HeightSpline {
                 k2[row + u] = b as f32;
             }
         }
-        (k1, k2)
     }
 
     /// The fitted depth at pixel `(u, v)` (for tests and diagnostics).
@@ -533,10 +549,42 @@ fn slope(z: &[f64], w: usize, h: usize, u: usize, v: usize) -> f64 {
     gx.hypot(gy)
 }
 
+/// 4-connected components of the `true` pixels of a `w x h` mask: per-pixel label
+/// (`u32::MAX` outside the mask) and the number of components.
+fn components(mask: &[bool], w: usize, h: usize) -> (Vec<u32>, usize) {
+    let mut labels = vec![u32::MAX; mask.len()];
+    let mut n = 0u32;
+    let mut stack = Vec::new();
+    for start in 0..mask.len() {
+        if !mask[start] || labels[start] != u32::MAX {
+            continue;
+        }
+        labels[start] = n;
+        stack.push(start);
+        while let Some(i) = stack.pop() {
+            let (u, v) = (i % w, i / w);
+            let near = [
+                (u > 0).then(|| i - 1),
+                (u + 1 < w).then(|| i + 1),
+                (v > 0).then(|| i - w),
+                (v + 1 < h).then(|| i + w),
+            ];
+            for j in near.into_iter().flatten() {
+                if mask[j] && labels[j] == u32::MAX {
+                    labels[j] = n;
+                    stack.push(j);
+                }
+            }
+        }
+        n += 1;
+    }
+    (labels, n as usize)
+}
+
 /// Curvature maps of `views` orthographic depth images (`views x height x width`, NaN where
-/// empty; `scale` converts a depth to pixels), parallel over the views. Each view is fitted on
-/// its pixels whose depth slope ([`slope`], in depth pixels per pixel) is at most `max_slope`
-/// and reported there; `views x 2 x height x width` k1, k2 in 1 / pixel, NaN elsewhere (and in a
+/// empty; `scale` converts a depth to pixels), parallel over the views. Each 4-connected piece
+/// of a view's pixels whose depth slope ([`slope`], in depth pixels per pixel) is at most
+/// `max_slope` is fitted on its own and reported there (pieces of fewer than 16 pixels: NaN); `views x 2 x height x width` k1, k2 in 1 / pixel, NaN elsewhere (and in a
 /// view with fewer than 16 such pixels).
 #[allow(clippy::too_many_arguments)]
 pub fn depth_curvatures(
@@ -578,22 +626,39 @@ pub fn depth_curvatures(
             check_interrupt()?;
             let z: Vec<f64> = view.iter().map(|&d| d as f64 * scale).collect();
             let mut keep = vec![false; px];
-            let mut samples = Vec::new();
             for v in 0..height {
                 for u in 0..width {
                     let i = v * width + u;
-                    if !z[i].is_nan() && slope(&z, width, height, u, v) <= max_slope {
-                        keep[i] = true;
-                        samples.push([u as f64, v as f64, z[i]]);
-                    }
+                    keep[i] = !z[i].is_nan() && slope(&z, width, height, u, v) <= max_slope;
                 }
             }
-            let Some(fit) = fit_height(&samples, &grid, lambda)? else {
-                return Ok(());
+            // Each 4-connected piece of kept pixels is fitted on its own: the cut separates
+            // surfaces at depth steps, and one spline across a step would ring on both sides.
+            let (labels, n) = components(&keep, width, height);
+            let mut samples: Vec<Vec<[f64; 3]>> = vec![Vec::new(); n];
+            let empty = Region {
+                u0: usize::MAX,
+                u1: 0,
+                v0: usize::MAX,
+                v1: 0,
             };
-            let (k1, k2) = fit.curvature_maps(|i| keep[i], f64::INFINITY);
-            dst[..px].copy_from_slice(&k1);
-            dst[px..].copy_from_slice(&k2);
+            let mut boxes = vec![empty; n];
+            for (i, &l) in labels.iter().enumerate() {
+                if l != u32::MAX {
+                    let (u, v) = (i % width, i / width);
+                    samples[l as usize].push([u as f64, v as f64, z[i]]);
+                    let b = &mut boxes[l as usize];
+                    (b.u0, b.u1) = (b.u0.min(u), b.u1.max(u + 1));
+                    (b.v0, b.v1) = (b.v0.min(v), b.v1.max(v + 1));
+                }
+            }
+            let (k1, k2) = dst.split_at_mut(px);
+            for (l, (pts, region)) in samples.iter().zip(boxes).enumerate() {
+                if let Some(fit) = fit_height(pts, &grid, lambda)? {
+                    let mine = |i: usize| labels[i] == l as u32;
+                    fit.curvatures_into(mine, f64::INFINITY, region, k1, k2);
+                }
+            }
             Ok::<(), RgbdError>(())
         })?;
     Ok(out)
@@ -738,5 +803,29 @@ mod tests {
         inf[5] = f32::INFINITY;
         assert!(depth_curvatures(&inf, 2, w, w, 2.0, 2.0, 1e-6, 2.0).is_err());
         assert!(depth_curvatures(&depth[1..], 2, w, w, 2.0, 2.0, 1e-6, 2.0).is_err());
+    }
+
+    #[test]
+    fn pieces_separated_by_a_depth_step_are_fitted_apart() {
+        // Two flat pieces 20 px apart in depth: the step pixels are cut, each piece is a plane
+        // (zero curvature up to the step); one spline over both would ring next to the step.
+        let (w, h) = (40usize, 24usize);
+        let depth: Vec<f32> = (0..w * h)
+            .map(|i| {
+                if i % w < 20 {
+                    5.0
+                } else {
+                    25.0 + 0.1 * (i / w) as f32
+                }
+            })
+            .collect();
+        let out = depth_curvatures(&depth, 1, w, h, 1.0, 4.0, 1e-6, 2.0).unwrap();
+        let px = w * h;
+        let reported: Vec<f32> = out.iter().copied().filter(|k| !k.is_nan()).collect();
+        assert!(reported.len() >= 2 * (px - 2 * h)); // all but the two cut columns
+        let worst = reported.iter().fold(0.0f32, |m, k| m.max(k.abs()));
+        assert!(worst < 1e-5, "{worst}");
+        let (labels, n) = components(&[true, false, false, true], 2, 2); // diagonal: apart
+        assert_eq!((n, labels), (2, vec![0, u32::MAX, u32::MAX, 1]));
     }
 }
