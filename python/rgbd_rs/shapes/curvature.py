@@ -27,16 +27,18 @@ radius, 90th percentile up to 34 %; 1 % with the cut). We fit the object's pixel
 pixels are not data) and leave out the *grazing* ones: pixels whose depth slope (central
 differences, one-sided next to an empty pixel, in depth units per pixel width) exceeds
 :data:`MAX_SLOPE` = 2, i.e. whose surface normal is more than ``atan 2`` = 63.4° from the view
-direction. That cuts a sphere at 0.89 of its
-radius, and it also cuts a view at depth steps of more than 2 pixels between neighbours, so one
-surface does not bend to meet another behind it. On a sphere this masking beat per-pixel weights
+direction. That cuts a sphere at 0.89 of its radius, and it also cuts a view along depth steps
+of more than about 4 pixels (a step of d pixels gives its two border pixels a central-difference
+slope of about d / 2); each 4-connected piece of the remaining pixels is fitted with its own
+spline (pieces under 16 pixels get 0), so a surface does not bend to meet another one behind it
+(a seat in front of a backrest). On a sphere this masking beat per-pixel weights
 ``1 / (1 + slope²)^k`` (k = 1, 2) and thresholds of 3 and 4; 24 spans beat 16 and 20.
 
 **Point clouds** are not fitted through their splatted views: splats are flat disks, and a fit
 of that staircase is off by more than 50 % on a sphere. The data are the points themselves,
 projected into each view: a point counts for a view when it is not behind the nearest surface
-within one splat radius (``depth <= nearest + 2 · MAX_SLOPE · radius + 1`` px, which also lets
-holes between the front splats hide the back of the shape) and its normal (principal component
+within one splat radius (``depth <= nearest + 2 · MAX_SLOPE · radius + 1`` px, which also
+keeps out back-surface points that show through holes between the front splats) and its normal (principal component
 of its :data:`NORMAL_NEIGHBOURS` nearest neighbours) is within ``atan MAX_SLOPE`` of the view
 direction. ModelNet's 1024 points give a few hundred per view, so the grid has
 :data:`POINT_KNOT_SPANS` = 16 spans; curvatures are reported on the splatted silhouette where the
