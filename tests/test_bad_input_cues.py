@@ -23,7 +23,7 @@ CASES: list[Case] = [
     Case("semantic_cues", lambda: semantic_cues(RGB, DEPTH * np.nan, CAM), ARG, r"^depth", "none"),
     Case(
         "semantic_cues",
-        lambda: semantic_cues(RGB, DEPTH, CAM, n_segments=1),
+        lambda: semantic_cues(RGB, DEPTH, CAM, n_segments=10**6),
         ARG,
         r"n_segments",
         "k",
