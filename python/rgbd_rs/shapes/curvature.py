@@ -38,11 +38,11 @@ spline (pieces under 16 pixels get 0), so a surface does not bend to meet anothe
 of that staircase is off by more than 50 % on a sphere. The data are the points themselves,
 projected into each view: a point counts for a view when it is not behind the nearest surface
 within one splat radius (``depth <= nearest + 2 · MAX_SLOPE · radius + 1`` px, which also
-keeps out back-surface points that show through holes between the front splats) and its normal (principal component
-of its :data:`NORMAL_NEIGHBOURS` nearest neighbours) is within ``atan MAX_SLOPE`` of the view
-direction. ModelNet's 1024 points give a few hundred per view, so the grid has
-:data:`POINT_KNOT_SPANS` = 16 spans; curvatures are reported on the splatted silhouette where the
-fitted slope is at most :data:`MAX_SLOPE`.
+keeps out back-surface points that show through holes between the front splats) and its
+normal (principal component of its :data:`NORMAL_NEIGHBOURS` nearest neighbours) is within
+``atan MAX_SLOPE`` of the view direction. ModelNet's 1024 points give a few hundred per view,
+so the grid has :data:`POINT_KNOT_SPANS` = 16 spans; curvatures are reported on the splatted
+silhouette where the fitted slope is at most :data:`MAX_SLOPE`.
 
 **Empty, grazing and unsupported pixels get 0** (no surface, or no reliable curvature): after
 the per-map normalisation of :mod:`rgbd_rs.shapes.dataset` they read like a flat surface would.
