@@ -7,12 +7,16 @@ fits of every segment, eq. 4.8 queue) and with class PDFs (Algorithm 1; PDFs mad
 ground-truth labels, blurred, so the similarity gate has realistic work). The peer:
 `skimage.graph.rag_mean_color` + `merge_hierarchical` (mean-colour merging, the skimage example's
 threshold 35). They do different things; the timing is the point (what a user pays per frame for
-a region-merging stage). Medians after a warm-up.
+a region-merging stage). Wall: medians after a warm-up; CPU: process time (all threads) per call,
+mean over the same runs (on a shared machine the wall time also counts other processes).
 
     python benches/bench_merge.py
 """
 
 from __future__ import annotations
+
+import time
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -39,6 +43,20 @@ def _weight_mean_color(graph, src, dst, n):  # type: ignore[no-untyped-def]
     return {"weight": diff}
 
 
+def cpu_ms(fn: Callable[[], object], repeats: int) -> float:
+    """Mean CPU time of ``fn`` (all threads of this process), ms."""
+    fn()
+    t = time.process_time()
+    for _ in range(repeats):
+        fn()
+    return (time.process_time() - t) / repeats * 1e3
+
+
+def both(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
+    """(median wall ms, mean CPU ms) of ``fn``."""
+    return timeit(fn, repeats), cpu_ms(fn, repeats)
+
+
 def row(idx: str, cam: object) -> str:
     """One frame's table row."""
     from skimage import graph as skgraph
@@ -55,10 +73,10 @@ def row(idx: str, cam: object) -> str:
     onehot = np.eye(14, dtype=np.float32)[gt]
     pdfs = cv2.GaussianBlur(onehot, (31, 31), 0) * 0.9 + 0.1 / 14
     pdfs /= pdfs.sum(axis=2, keepdims=True)
-    fit_only = timeit(lambda: merge_regions(labels, pts, lab=lab), REPEATS)
-    with_pdf = timeit(lambda: merge_regions(labels, pts, lab=lab, pdfs=pdfs), REPEATS)
-    fits = timeit(lambda: SegmentFits(pts, labels, surfaces=False), REPEATS)
-    adj = timeit(lambda: adjacency(labels, points=pts, lab=lab), REPEATS)
+    fit_only, fit_cpu = both(lambda: merge_regions(labels, pts, lab=lab), REPEATS)
+    with_pdf, pdf_cpu = both(lambda: merge_regions(labels, pts, lab=lab, pdfs=pdfs), REPEATS)
+    fits, fits_cpu = both(lambda: SegmentFits(pts, labels, surfaces=False), REPEATS)
+    adj, adj_cpu = both(lambda: adjacency(labels, points=pts, lab=lab), REPEATS)
 
     def peer() -> object:
         g = skgraph.rag_mean_color(rgb, labels)
@@ -75,8 +93,9 @@ def row(idx: str, cam: object) -> str:
     sk = timeit(peer, 2)
     n = int(labels.max()) + 1
     return (
-        f"| {idx} | {n} | {fit_only:.0f} ms | {with_pdf:.0f} ms | {fits:.0f} ms "
-        f"(adjacency {adj:.0f} ms) | {sk:.0f} ms | {sk / fit_only:.1f}x / {sk / with_pdf:.1f}x |"
+        f"| {idx} | {n} | {fit_only:.0f} / {fit_cpu:.0f} ms | {with_pdf:.0f} / {pdf_cpu:.0f} ms "
+        f"| {fits:.0f} / {fits_cpu:.0f} ms (adjacency {adj:.0f} / {adj_cpu:.0f} ms) | {sk:.0f} ms "
+        f"| {sk / fit_only:.1f}x / {sk / with_pdf:.1f}x |"
     )
 
 
@@ -84,8 +103,9 @@ def main() -> None:
     from rgbd_rs.data import NYUV2_CAMERA as cam
 
     print(
-        "| frame | segments | rgbd_rs fit-only | rgbd_rs with PDFs | seam-test fits "
-        "| skimage RAG+merge_hierarchical | speed-up (fit-only / PDFs) |"
+        "| frame | segments | rgbd_rs fit-only (wall / CPU) | rgbd_rs with PDFs (wall / CPU) "
+        "| seam-test fits (wall / CPU) | skimage RAG+merge_hierarchical (wall) "
+        "| speed-up, wall (fit-only / PDFs) |"
     )
     print("|---|---|---|---|---|---|---|")
     for idx in FRAMES:
