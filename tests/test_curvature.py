@@ -147,6 +147,20 @@ def test_point_cloud_sphere_of_1024_points() -> None:
     assert inner > 0.5, inner
 
 
+def test_closed_form_normals_match_eigh(shared_data: Path) -> None:
+    from scipy.spatial import cKDTree
+
+    import rgbd_rs.shapes.curvature as C
+    from rgbd_rs.shapes.dataset import PointCloudSet
+
+    p = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz").load(7).astype(np.float64)
+    _, idx = cKDTree(p).query(p, C.NORMAL_NEIGHBOURS)
+    nb = p[idx] - p[idx].mean(axis=1, keepdims=True)
+    ref = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))[1][:, :, 0]
+    cos = np.abs((C._normals(p) * ref).sum(axis=1))
+    assert cos.min() > 1 - 1e-9
+
+
 def test_a_single_point_and_a_tiny_cloud_give_zero_maps() -> None:
     assert (curvature_maps(np.zeros((1, 3), np.float32), 16) == 0).all()
     assert (curvature_maps(_unit_sphere_points(5), 16) == 0).all()
