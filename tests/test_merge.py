@@ -108,6 +108,26 @@ def test_normals_test_uses_the_angle_threshold() -> None:
     assert len(adjacency(labels, normals=n, max_normal_angle=2.0)) == 0
 
 
+def test_semantic_is_the_majority_of_the_final_segments() -> None:
+    # Mixed per-pixel classes: the native votes (counted per initial segment, added over each
+    # final segment) must equal majority_classes on the final labels.
+    pts, labels, _ = wall_and_floor()
+    labels = labels.copy()
+    labels[:3] = -1
+    rng = np.random.default_rng(3)
+    p = _pdfs({}, labels)
+    flip = rng.random(labels.shape) < 0.45
+    other = rng.integers(1, 4, labels.shape)
+    q = np.full_like(p, 0.02 / 3)
+    np.put_along_axis(q, other[..., None], 0.98, axis=2)
+    p = np.where(flip[..., None], q, p)
+    r = merge_regions(labels, pts, pdfs=p)
+    assert r.history, "the scene merges"
+    assert r.semantic is not None
+    np.testing.assert_array_equal(r.semantic, majority_classes(r.labels, p))
+    assert (r.semantic[:3] == -1).all()
+
+
 def test_majority_classes() -> None:
     labels = np.array([[0, 0, 0, 1], [0, 0, 1, 1]], np.int32)
     pdfs = np.zeros((2, 4, 3), np.float32)

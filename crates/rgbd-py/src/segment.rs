@@ -10,7 +10,8 @@ use rgbd_error::invalid;
 use rgbd_segment::adjacency::{boundaries, BoundaryTest, Cues};
 use rgbd_segment::compact::Compact;
 use rgbd_segment::merge::{
-    majority, merge_regions as merge_core, pdf_stats, Descriptors, LabelledFits, Priority,
+    majority, majority_of_votes, merge_regions as merge_core, pdf_stats, Descriptors, LabelledFits,
+    Priority,
 };
 
 use crate::errors::{borrow, run, run_interruptible, shape_err};
@@ -97,7 +98,9 @@ pub fn segment_boundaries<'py>(
 }
 
 /// Algorithm 1 on the live segments of `fits` (merged in place): `(labels, kept, absorbed,
-/// score, errors (M, 3) = kept, absorbed, union)`. Without `pdfs`, the fit-only baseline.
+/// score, errors (M, 3) = kept, absorbed, union, semantic)`, `semantic` the majority class of
+/// each final segment (argmax votes of its pixels, counted in the descriptors' pass), `None`
+/// without `pdfs` (the fit-only baseline).
 #[pyfunction]
 #[pyo3(signature = (fits, pairs, pdfs, t_sim))]
 #[allow(clippy::type_complexity)]
@@ -113,6 +116,7 @@ pub fn merge_regions<'py>(
     Arr1<'py, i32>,
     Arr1<'py, f64>,
     Arr2<'py, f64>,
+    Option<Arr2<'py, i32>>,
 )> {
     let p = pairs.shape();
     if p[1] != 2 {
@@ -154,6 +158,12 @@ pub fn merge_regions<'py>(
             }
             None => Priority::FitGain,
         };
+        let votes = match &priority {
+            Priority::Similarity { descriptors, .. } => {
+                Some((descriptors.votes.clone(), descriptors.classes))
+            }
+            Priority::FitGain => None,
+        };
         let mut model = LabelledFits {
             fits: &mut guard,
             ids: &compact.ids,
@@ -170,9 +180,30 @@ pub fn merge_regions<'py>(
                 }
             })
             .collect();
-        Ok((w, h, compact.ids, merged, labels))
+        // Each final segment's votes are the sum of its initial segments'.
+        let semantic = votes.map(|(initial, classes)| {
+            let mut total = vec![0u32; initial.len()];
+            for (s, &r) in merged.root.iter().enumerate() {
+                for c in 0..classes {
+                    total[r * classes + c] += initial[s * classes + c];
+                }
+            }
+            let cls = majority_of_votes(&total, classes);
+            compact
+                .slots
+                .iter()
+                .map(|&s| {
+                    if s < 0 {
+                        -1
+                    } else {
+                        cls[merged.root[s as usize]]
+                    }
+                })
+                .collect::<Vec<i32>>()
+        });
+        Ok((w, h, compact.ids, merged, labels, semantic))
     })?;
-    let (w, h, ids, merged, labels) = out;
+    let (w, h, ids, merged, labels, semantic) = out;
     let steps = &merged.history;
     let kept: Vec<i32> = steps.iter().map(|s| ids[s.kept]).collect();
     let absorbed: Vec<i32> = steps.iter().map(|s| ids[s.absorbed]).collect();
@@ -187,6 +218,7 @@ pub fn merge_regions<'py>(
         absorbed.into_pyarray(py),
         score.into_pyarray(py),
         to_numpy(py, (steps.len(), 3), errors)?,
+        semantic.map(|v| to_numpy(py, (h, w), v)).transpose()?,
     ))
 }
 

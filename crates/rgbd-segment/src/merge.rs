@@ -97,7 +97,38 @@ pub struct Descriptors {
     pub sums: Vec<f64>,
     /// Pixels summed per segment.
     pub counts: Vec<f64>,
+    /// `n x classes`: per segment, how many pixels have each class as their argmax (the first
+    /// maximum), for [`majority`]'s labelling.
+    pub votes: Vec<u32>,
     pub classes: usize,
+}
+
+/// The argmax of `p` (the first maximum).
+#[inline]
+fn argmax<T: PartialOrd + Copy>(p: &[T]) -> usize {
+    let mut best = 0;
+    for c in 1..p.len() {
+        if p[c] > p[best] {
+            best = c;
+        }
+    }
+    best
+}
+
+/// Per segment of `votes` (`n x classes`), the class with the most votes (the smaller on
+/// ties), `-1` for a segment without votes.
+pub fn majority_of_votes(votes: &[u32], classes: usize) -> Vec<i32> {
+    votes
+        .chunks_exact(classes)
+        .map(|v| {
+            let best = argmax(v);
+            if v[best] == 0 {
+                -1
+            } else {
+                best as i32
+            }
+        })
+        .collect()
 }
 
 impl Descriptors {
@@ -108,28 +139,37 @@ impl Descriptors {
         }
         rgbd_error::check_len("pdfs", pdfs, slots.len() * classes, "H x W x classes")?;
         let chunk = 4096;
-        let zero = || (vec![0.0f64; n * classes], vec![0.0f64; n]);
-        let (sums, counts) = slots
+        let zero = || {
+            (
+                vec![0.0f64; n * classes],
+                vec![0.0f64; n],
+                vec![0u32; n * classes],
+            )
+        };
+        let (sums, counts, votes) = slots
             .par_chunks(chunk)
             .zip(pdfs.par_chunks(chunk * classes))
-            .fold(zero, |(mut sums, mut counts), (ls, ps)| {
+            .fold(zero, |(mut sums, mut counts, mut votes), (ls, ps)| {
                 for (&s, p) in ls.iter().zip(ps.chunks_exact(classes)) {
                     if s >= 0 {
                         let row = &mut sums[s as usize * classes..][..classes];
                         row.iter_mut().zip(p).for_each(|(a, &b)| *a += f64::from(b));
                         counts[s as usize] += 1.0;
+                        votes[s as usize * classes + argmax(p)] += 1;
                     }
                 }
-                (sums, counts)
+                (sums, counts, votes)
             })
-            .reduce(zero, |(mut s1, mut c1), (s2, c2)| {
+            .reduce(zero, |(mut s1, mut c1, mut v1), (s2, c2, v2)| {
                 s1.iter_mut().zip(&s2).for_each(|(a, b)| *a += b);
                 c1.iter_mut().zip(&c2).for_each(|(a, b)| *a += b);
-                (s1, c1)
+                v1.iter_mut().zip(&v2).for_each(|(a, b)| *a += b);
+                (s1, c1, v1)
             });
         Ok(Self {
             sums,
             counts,
+            votes,
             classes,
         })
     }
@@ -154,6 +194,9 @@ impl Descriptors {
             self.sums[a * k + t] += self.sums[b * k + t];
         }
         self.counts[a] += self.counts[b];
+        for t in 0..k {
+            self.votes[a * k + t] += self.votes[b * k + t];
+        }
     }
 }
 
@@ -234,13 +277,7 @@ pub fn majority(slots: &[i32], n: usize, pdfs: &[f32], classes: usize) -> Result
             |mut votes, (ls, ps)| {
                 for (&s, p) in ls.iter().zip(ps.chunks_exact(classes)) {
                     if s >= 0 && (s as usize) < n {
-                        let mut best = 0;
-                        for c in 1..classes {
-                            if p[c] > p[best] {
-                                best = c;
-                            }
-                        }
-                        votes[s as usize * classes + best] += 1;
+                        votes[s as usize * classes + argmax(p)] += 1;
                     }
                 }
                 votes
@@ -253,22 +290,7 @@ pub fn majority(slots: &[i32], n: usize, pdfs: &[f32], classes: usize) -> Result
                 a
             },
         );
-    Ok(votes
-        .chunks_exact(classes)
-        .map(|v| {
-            let mut best = 0;
-            for c in 1..classes {
-                if v[c] > v[best] {
-                    best = c;
-                }
-            }
-            if v[best] == 0 {
-                -1
-            } else {
-                best as i32
-            }
-        })
-        .collect())
+    Ok(majority_of_votes(&votes, classes))
 }
 
 /// How couples are chosen and ordered.
@@ -674,6 +696,11 @@ mod tests {
         // One vote each for classes 1 and 0: the smaller class wins.
         let m = majority(&[0, -1, 0, -1, -1], 1, &pdfs, 2).unwrap();
         assert_eq!(m, vec![0]);
+        // The descriptors count the same votes; joined segments add them.
+        let mut d = Descriptors::new(&[0, -1, 1, 1, 0], 3, &pdfs, 2).unwrap();
+        assert_eq!(majority_of_votes(&d.votes, 2), vec![1, 0, -1]);
+        d.join(1, 0);
+        assert_eq!(d.votes[2..4], [2, 2]);
     }
 
     #[test]

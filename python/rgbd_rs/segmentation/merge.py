@@ -260,7 +260,9 @@ def merge_regions(
         max_color_distance=max_color_distance,
         max_normal_angle=max_normal_angle,
     )
-    out, kept, absorbed, score, errors = _rgbd_rs.merge_regions(fits._native, pairs, p, t)
+    # semantic: each final segment's majority class, from votes counted in the native
+    # descriptors' pass (None without PDFs).
+    out, kept, absorbed, score, errors, semantic = _rgbd_rs.merge_regions(fits._native, pairs, p, t)
     history = tuple(
         MergeStep(int(k), int(a), float(s), float(e[0]), float(e[1]), float(e[2]))
         for k, a, s, e in zip(kept, absorbed, score, errors, strict=True)
@@ -270,5 +272,5 @@ def merge_regions(
         initial=lab32,
         history=history,
         mode="fit" if p is None else "similarity",
-        semantic=None if p is None else _majority(out, p),
+        semantic=semantic,
     )
