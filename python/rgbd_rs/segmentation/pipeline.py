@@ -109,13 +109,15 @@ def segment(
     f = features(rgb, depth, camera)
     lap("features")
     over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
-    net = None if pdfs is not None else resolve_labeler(labeler)
     lap("oversegment")
+    net = None if pdfs is not None else resolve_labeler(labeler)  # loaded once per process
     # The ConvNet's cues need the surface fits; the merging alone needs only the seam test.
     fits = SegmentFits(f.points, over, surfaces=net is not None)
     lap("fits")
     if net is not None:
-        pdfs, _ = class_pdfs(net, rgb, depth, camera, feats=f, over=over, fits=fits)
+        pdfs, _ = class_pdfs(
+            net, rgb, depth, camera, feats=f, over=over, fits=fits, n_segments=n, seed=seed
+        )
         lap("semantic")
     normals = None if touching else square_normals(depth, camera, radius=ADJACENCY_NORMAL_RADIUS)
     merged = merge_regions(

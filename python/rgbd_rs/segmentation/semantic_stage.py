@@ -23,6 +23,7 @@ from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.segmentation.cues import SemanticCues, cue_maps
 from rgbd_rs.segmentation.features import Features
 from rgbd_rs.segmentation.labeling import CUE_FUNCTION, SemanticLabeler, weights_path
+from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
 from rgbd_rs.surface import SegmentFits
 
 __all__ = ["AUTO", "LabelerArg", "class_pdfs", "resolve_labeler"]
@@ -78,13 +79,23 @@ def class_pdfs(
     feats: Features,
     over: npt.NDArray[np.int32],
     fits: SegmentFits,
+    n_segments: int,
+    seed: int,
 ) -> tuple[npt.NDArray[np.float32], SemanticCues]:
     """``H x W x C`` PDFs of the frame and the cues they came from; ``fits`` must hold the
-    surface fits of ``over`` (``surfaces=True``) and must not have merged yet."""
+    surface fits of ``over`` (``surfaces=True``) and must not have merged yet.
+
+    ``over`` (made with ``n_segments`` clusters and ``seed``) is reused for the cues only when
+    those are the settings the network's training cues used (the cue function's default cluster
+    count and the labeler's seed); otherwise the cues get their own over-segmentation and fits,
+    so the network always sees the kind of input it was trained on."""
     if labeler.cues not in (None, CUE_FUNCTION):
         raise RgbdError(
             f"{labeler.source}: a network trained on the cues of {labeler.cues}, not "
             f"{CUE_FUNCTION}; segment() can only run networks trained on the latter"
         )
-    cues = cue_maps(rgb, depth, camera, feats=feats, over=over, fits=fits, seed=labeler.seed)
+    if n_segments == DEFAULT_N_SEGMENTS and seed == labeler.seed:
+        cues = cue_maps(rgb, depth, camera, feats=feats, over=over, fits=fits)
+    else:
+        cues = cue_maps(rgb, depth, camera, feats=feats, seed=labeler.seed)
     return labeler.pdfs_from_full_cues(cues.stack()), cues
