@@ -80,6 +80,11 @@ def test_resume_skips_complete_frames_and_refuses_another_seed(tmp_path: Path) -
 
     with pytest.raises(InvalidArgumentError, match=r"^out: got a folder holding"):
         generate_indoor(tmp_path, 3, seed=1, width=32, height=24, quiet=True)
+    # Shards of two seeds never mix: the first shard to run writes the manifest, whichever.
+    mixed = tmp_path / "mixed"
+    generate_indoor(mixed, 2, seed=1, shard=(1, 2), width=32, height=24, quiet=True)
+    with pytest.raises(InvalidArgumentError, match=r"^out: got a folder holding"):
+        generate_indoor(mixed, 2, seed=2, shard=(0, 2), width=32, height=24, quiet=True)
 
 
 def test_labels_follow_the_geometry_and_walls_dominate() -> None:

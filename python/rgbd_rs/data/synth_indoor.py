@@ -25,6 +25,7 @@ On disk (:func:`generate_indoor`, read by :class:`IndoorFrames`): ``NNNNNN_rgb.p
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -183,7 +184,9 @@ def _shard(shard: object) -> tuple[int, int]:
     return shard  # type: ignore[return-value]
 
 
-def _check_manifest(out: Path, seed: int, width: int, height: int, write: bool) -> None:
+def _check_manifest(out: Path, seed: int, width: int, height: int) -> None:
+    """Create the folder's manifest once (whichever shard comes first: a hard link cannot
+    overwrite), then refuse a folder whose manifest differs from this run's."""
     want = {
         "generator": __name__,
         "version": VERSION,
@@ -192,15 +195,21 @@ def _check_manifest(out: Path, seed: int, width: int, height: int, write: bool) 
         "height": height,
     }
     path = out / MANIFEST
-    if path.is_file():
-        have = read_json(path)
-        if have != want:
-            raise InvalidArgumentError(
-                f"out: got a folder holding frames made with {have}, expected {want} "
-                "(use another folder)"
-            )
-    elif write:
-        write_json(path, want)
+    if not path.is_file():
+        tmp = out / f".{MANIFEST}.{os.getpid()}.tmp"
+        write_json(tmp, want)
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            pass
+        finally:
+            tmp.unlink(missing_ok=True)
+    have = read_json(path)
+    if have != want:
+        raise InvalidArgumentError(
+            f"out: got a folder holding frames made with {have}, expected {want} "
+            "(use another folder)"
+        )
 
 
 def generate_indoor(
@@ -232,7 +241,7 @@ def generate_indoor(
     from tqdm import tqdm
 
     folder.mkdir(parents=True, exist_ok=True)
-    _check_manifest(folder, s, w, h, write=i == 0)
+    _check_manifest(folder, s, w, h)
     mine = list(range(i, n_frames, n))
     todo = [k for k in mine if not _complete(folder, k)]
     for k in tqdm(todo, desc="synth-indoor", unit="frame", disable=True if quiet else None):
