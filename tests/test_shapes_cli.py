@@ -145,7 +145,24 @@ def test_shipped_modelnet10_weights_classify_test_shapes(
     prob = clf.probabilities([src.load(int(i)) for i in idx])
     assert np.allclose(prob.sum(axis=1), 1, atol=1e-5)
     assert (prob.argmax(axis=1) == src.labels[idx]).mean() >= 0.75
-    best, probs = classify(src.load(int(idx[5])))  # a bed
+    best, probs = classify(src.load(int(idx[5])), dataset="modelnet10")  # a bed
     assert best == "bed" and next(iter(probs)) == "bed" and len(probs) == 10
-    assert main(["classify", str(shared_data / "meshes" / "modelnet10_bathtub_0005.off")]) == 0
+    mesh = str(shared_data / "meshes" / "modelnet10_bathtub_0005.off")
+    assert main(["classify", mesh, "--dataset", "modelnet10"]) == 0
     assert capsys.readouterr().out.splitlines()[0].endswith(": bathtub")
+
+
+def test_shipped_modelnet40_weights_classify_test_shapes(shared_data: Path) -> None:
+    """The shipped ModelNet40 checkpoint (the default of classify()) on the first 2 official test
+    shapes of each class (81.6 % on all 2468 test shapes)."""
+    from rgbd_rs.shapes.classify import ShapeClassifier, classify, shipped_weights
+
+    if "modelnet40" not in shipped_weights():
+        pytest.skip("no shipped ModelNet40 weights")
+    src = PointCloudSet(shared_data / "modelnet" / "modelnet40_1024.npz")
+    idx = [i for c in range(40) for i in np.flatnonzero((src.labels == c) & (src.splits == 1))[:2]]
+    clf = ShapeClassifier.load(dataset="modelnet40")
+    prob = clf.probabilities([src.load(int(i)) for i in idx])
+    assert (prob.argmax(axis=1) == src.labels[idx]).mean() >= 0.65
+    _, probs = classify(src.load(int(idx[0])))
+    assert len(probs) == 40, "classify() defaults to the ModelNet40 weights when they ship"
