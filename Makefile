@@ -69,6 +69,7 @@ wheel: env ## build the wheel, install it into a fresh venv, smoke-test it there
 	  assert (p.parent / 'nn' / 'weights' / 'confidence.pt').stat().st_size > 1000; \
 	  assert (p.parent / 'nn' / 'weights' / 'shapes_modelnet10.pt').stat().st_size > 1000; \
 	  assert (p.parent / 'nn' / 'weights' / 'shapes_modelnet40.pt').stat().st_size > 1000; \
+	  assert (p.parent / 'nn' / 'weights' / 'semantic_nyuv2.pt').stat().st_size > 1000; \
 	  from rgbd_rs.meshes import box; from rgbd_rs.shapes import classify; \
 	  print('classify a box:', classify(box((1.0, 0.6, 0.4)))[0]); \
 	  import numpy as np; cam = rgbd_rs.PinholeCamera(100., 100., 10., 10., 20, 20); \
