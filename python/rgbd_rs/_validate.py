@@ -128,3 +128,18 @@ def image(name: str, value: object) -> tuple[np.ndarray, bool]:
     raise ShapeMismatchError(
         f"{name}: got shape {tuple(value.shape)}, expected (H, W) or (H, W, C)"
     )
+
+
+def shard(name: str, value: object) -> tuple[int, int]:
+    """A shard ``(i, n)`` of a long job: integers with ``0 <= i < n`` (``--shard i/n``)."""
+    ok = (
+        isinstance(value, tuple)
+        and len(value) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+        and value[1] >= 1
+        and 0 <= value[0] < value[1]
+    )
+    if not ok:
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected (i, n) with 0 <= i < n")
+    assert isinstance(value, tuple)
+    return int(value[0]), int(value[1])

@@ -172,16 +172,7 @@ def _write_frame(folder: Path, frame: IndoorFrame) -> None:
 
 
 def _shard(shard: object) -> tuple[int, int]:
-    ok = (
-        isinstance(shard, tuple)
-        and len(shard) == 2
-        and all(isinstance(v, int) and not isinstance(v, bool) for v in shard)
-        and shard[1] >= 1
-        and 0 <= shard[0] < shard[1]
-    )
-    if not ok:
-        raise InvalidArgumentError(f"shard: got {shard!r}, expected (i, n) with 0 <= i < n")
-    return shard  # type: ignore[return-value]
+    return _validate.shard("shard", shard)
 
 
 def _check_manifest(out: Path, seed: int, width: int, height: int) -> None:

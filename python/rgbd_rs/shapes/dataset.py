@@ -651,17 +651,7 @@ def _parallel(
 
 
 def _shard(shard: object) -> tuple[int, int]:
-    ok = (
-        isinstance(shard, tuple)
-        and len(shard) == 2
-        and all(isinstance(v, int) and not isinstance(v, bool) for v in shard)
-        and shard[1] >= 1
-        and 0 <= shard[0] < shard[1]
-    )
-    if not ok:
-        raise InvalidArgumentError(f"shard: got {shard!r}, expected (i, n) with 0 <= i < n")
-    assert isinstance(shard, tuple)
-    return int(shard[0]), int(shard[1])
+    return _validate.shard("shard", shard)
 
 
 def _create_once(path: Path, write: Callable[[Path], None]) -> None:
