@@ -187,7 +187,7 @@ def test_tiny_network_learns_its_training_shapes(tiny_cache: Path) -> None:
     best = train_shapes(
         tiny_cache / "cache",
         out,
-        recipe=ShapeRecipe(width=8, val_fraction=0, rotate=False),  # memorise, fixed poses
+        recipe=ShapeRecipe(width=8, val_fraction=0),
         config=_config(),
         quiet=True,
     )
@@ -230,3 +230,21 @@ def test_ablation_trains_one_network_per_row(tiny_cache: Path) -> None:
     )
     assert list(rows) == ["volume"] and rows["volume"].is_file()
     assert default_config().optimizer == "sgd"
+
+
+def test_rotate_turns_the_training_shapes(tiny_cache: Path) -> None:
+    """rotate=True trains on turned inputs (other weights than the same run without), with
+    the same seed giving the same weights twice."""
+    runs = {}
+    for name, rotate in (("plain", False), ("turned", True), ("turned_again", True)):
+        best = train_shapes(
+            tiny_cache / "cache",
+            tiny_cache / f"rot_{name}",
+            recipe=ShapeRecipe(width=4, val_fraction=0, rotate=rotate),
+            config=_config(epochs=1),
+            quiet=True,
+        )
+        runs[name] = load_checkpoint(best).model_state
+    key = next(k for k in runs["plain"] if k.endswith("weight"))
+    assert not torch.equal(runs["plain"][key], runs["turned"][key])
+    assert all(torch.equal(runs["turned"][k], runs["turned_again"][k]) for k in runs["turned"])

@@ -225,9 +225,10 @@ def _train(commands: Commands) -> None:
         "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
     )
     p.add_argument(
-        "--no-rotate",
+        "--rotate",
         action="store_true",
-        help="no random quarter turns about z of the training shapes (default: on)",
+        help="random quarter turns about z of the training shapes (for data in arbitrary "
+        "orientation; off by default: ModelNet is aligned)",
     )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
@@ -263,7 +264,7 @@ def run_train(args: argparse.Namespace) -> int:
         representations=args.representations,
         width=args.width,
         val_fraction=args.val_fraction,
-        rotate=not args.no_rotate,
+        rotate=args.rotate,
     )
     t0 = time.perf_counter()
     if args.ablation:

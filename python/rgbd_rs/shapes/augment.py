@@ -10,7 +10,8 @@ transposed) and the Z map turns by +90°. Curvature maps move like the depth vie
 Local contrast normalisation and per-map standardisation commute with these moves, so they apply
 to cached, normalised inputs.
 
-Training draws a random number of quarter turns per shape and step (:class:`RotatedShapes`);
+Training can draw a random number of quarter turns per shape and step (:class:`RotatedShapes`,
+``ShapeRecipe(rotate=True)``, ``rgbd train shapes --rotate``);
 evaluation can average the class probabilities over the four turns (:func:`quarter_turns`), a
 cheap test-time augmentation.
 """
