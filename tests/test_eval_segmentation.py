@@ -178,7 +178,7 @@ def test_peers_take_depth_into_account() -> None:
 def test_cli_writes_the_table(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from rgbd_rs.cli import _args, segmentation_eval
 
-    monkeypatch.setattr(E, "default_methods", lambda: [SLIC])
+    monkeypatch.setattr(E, "default_methods", lambda labeler="auto": [SLIC])
     monkeypatch.setattr(E, "nyuv2_frames", lambda split: [46])
     parser = _args.Parser(prog="rgbd")
     segmentation_eval.register(_args.Commands(parser.add_subparsers(dest="command")))
