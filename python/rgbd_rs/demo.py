@@ -195,6 +195,9 @@ def main(out: Path | None, seed: int = 0) -> int:
     from rgbd_rs.demo_fusion import report, run_fusion
 
     report(run_fusion(out, seed))
+    from rgbd_rs import demo_scene
+
+    demo_scene.report(demo_scene.run_segmentation(out), demo_scene.run_shapes())
     if out is not None:
         print(f"Pictures in {out}/")
     return 0
