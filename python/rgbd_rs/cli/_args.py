@@ -135,3 +135,35 @@ class Commands:
         p = self._groups[group].add_parser(what, help=help, description=description)
         p.set_defaults(run=run)
         return p
+
+
+def training_run_options(p: argparse.ArgumentParser) -> None:
+    """The options every ``rgbd train WHAT`` of the shared trainer takes after its own: seed,
+    checkpoint period, data-loader workers, device, ``--init``, ``--ship``, ``--no-resume`` and
+    ``--quiet`` (one wording for all)."""
+    from pathlib import Path
+
+    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="N", help="seed (0)")
+    p.add_argument(
+        "--checkpoint-steps",
+        type=integer(0),
+        default=50,
+        metavar="N",
+        help="also save every N steps (50)",
+    )
+    p.add_argument(
+        "--workers", type=integer(0, 64), default=0, metavar="N", help="data-loader processes (0)"
+    )
+    p.add_argument(
+        "--device", default="auto", metavar="DEV", help="auto, cpu, cuda or cuda:N (auto)"
+    )
+    p.add_argument(
+        "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
+    )
+    p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
+    p.add_argument(
+        "--no-resume",
+        action="store_true",
+        help="start afresh, overwriting --out's checkpoints (default: resume from its last.pt)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bars")

@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, Parser, integer, named, real, shard
+from rgbd_rs.cli._args import Commands, Parser, integer, named, real, shard, training_run_options
 
 
 def register(commands: Commands) -> None:
@@ -204,36 +204,13 @@ def _train(commands: Commands) -> None:
         help="clip the gradients' global L2 norm to X (1; 0 = no clipping)",
     )
     p.add_argument("--no-augment", action="store_true", help="no random left-right mirroring")
-    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="N", help="seed (0)")
-    p.add_argument(
-        "--checkpoint-steps",
-        type=integer(0),
-        default=50,
-        metavar="N",
-        help="also save every N steps (50)",
-    )
-    p.add_argument(
-        "--workers", type=integer(0, 64), default=0, metavar="N", help="data-loader processes (0)"
-    )
-    p.add_argument(
-        "--device", default="auto", metavar="DEV", help="auto, cpu, cuda or cuda:N (auto)"
-    )
     p.add_argument(
         "--threads",
         type=integer(1, 1024),
         metavar="N",
         help="torch CPU threads (default: torch's; 1 is fastest on a machine other jobs share)",
     )
-    p.add_argument(
-        "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
-    )
-    p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
-    p.add_argument(
-        "--no-resume",
-        action="store_true",
-        help="start afresh, overwriting --out's checkpoints (default: resume from its last.pt)",
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    training_run_options(p)
 
 
 def run_train(args: argparse.Namespace) -> int:

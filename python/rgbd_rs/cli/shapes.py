@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, Parser, integer, named, real, shard
+from rgbd_rs.cli._args import Commands, Parser, integer, named, real, shard, training_run_options
 
 
 def register(commands: Commands) -> None:
@@ -207,23 +207,6 @@ def _train(commands: Commands) -> None:
         metavar="X",
         help="fraction of the training split held out for validation (0.1; 0 = none)",
     )
-    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="N", help="seed (0)")
-    p.add_argument(
-        "--checkpoint-steps",
-        type=integer(0),
-        default=50,
-        metavar="N",
-        help="also save every N steps (50)",
-    )
-    p.add_argument(
-        "--workers", type=integer(0, 64), default=0, metavar="N", help="data-loader processes (0)"
-    )
-    p.add_argument(
-        "--device", default="auto", metavar="DEV", help="auto, cpu, cuda or cuda:N (auto)"
-    )
-    p.add_argument(
-        "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
-    )
     p.add_argument(
         "--rotate",
         action="store_true",
@@ -231,13 +214,7 @@ def _train(commands: Commands) -> None:
         "orientation; off by default: ModelNet is aligned)",
     )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
-    p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
-    p.add_argument(
-        "--no-resume",
-        action="store_true",
-        help="start afresh, overwriting --out's checkpoints (default: resume from its last.pt)",
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    training_run_options(p)
 
 
 def run_train(args: argparse.Namespace) -> int:
