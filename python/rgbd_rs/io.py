@@ -5,12 +5,14 @@ wrong kind or lacks a key. :mod:`rgbd_rs.viz` and :mod:`rgbd_rs.data` both write
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
 import os
+import tempfile
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -198,3 +200,50 @@ def sha256(path: str | Path) -> str:
     if not path.is_file():
         raise RgbdError(f"{path}: file not found")
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+# -- create-once files (package-internal: shared by the resumable, sharded dataset jobs) --------
+
+
+def create_once(path: Path, write: Callable[[Path], None]) -> None:
+    """Write ``path`` through ``write(tmp)`` unless it exists; concurrent callers (the shards of
+    one job) race safely: a hard link cannot overwrite, so the first one wins."""
+    if path.exists():
+        return
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+        os.chmod(tmp, 0o644)
+        with contextlib.suppress(FileExistsError):  # another shard made it first
+            os.link(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def npy_writer(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path], None]:
+    """A :func:`create_once` writer of a zero-filled ``.npy`` of ``shape`` (memory-mappable)."""
+
+    def write(tmp: Path) -> None:
+        arr = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
+        arr.flush()
+        del arr
+
+    return write
+
+
+def bytes_writer(data: bytes) -> Callable[[Path], None]:
+    """A :func:`create_once` writer of ``data``."""
+
+    def write(tmp: Path) -> None:
+        tmp.write_bytes(data)
+
+    return write
+
+
+def npy_bytes(arr: np.ndarray) -> bytes:
+    """``arr`` as the bytes of a ``.npy`` file."""
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, arr, allow_pickle=False)
+    return buf.getvalue()

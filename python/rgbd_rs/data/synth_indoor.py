@@ -25,7 +25,7 @@ On disk (:func:`generate_indoor`, read by :class:`IndoorFrames`): ``NNNNNN_rgb.p
 
 from __future__ import annotations
 
-import os
+import json
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +40,7 @@ from rgbd_rs.data.nyuv2 import DEPTH_PNG_PER_METRE, LABEL13_NAMES
 from rgbd_rs.data.synth_indoor_scene import IndoorScene, random_indoor_scene
 from rgbd_rs.data.synth_indoor_sensor import kinect_color, kinect_depth
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.io import read_json, read_png, write_json, write_png
+from rgbd_rs.io import bytes_writer, create_once, read_json, read_png, write_png
 from rgbd_rs.viz import colorize, save_png, tile
 
 __all__ = [
@@ -186,15 +186,7 @@ def _check_manifest(out: Path, seed: int, width: int, height: int) -> None:
         "height": height,
     }
     path = out / MANIFEST
-    if not path.is_file():
-        tmp = out / f".{MANIFEST}.{os.getpid()}.tmp"
-        write_json(tmp, want)
-        try:
-            os.link(tmp, path)
-        except FileExistsError:
-            pass
-        finally:
-            tmp.unlink(missing_ok=True)
+    create_once(path, bytes_writer((json.dumps(want, indent=1, sort_keys=True) + "\n").encode()))
     have = read_json(path)
     if have != want:
         raise InvalidArgumentError(

@@ -432,7 +432,7 @@ def build_semantic_cache(
     src = source if source is not None else type(frames).__name__
     if not isinstance(src, str):
         raise InvalidArgumentError(f"source: got {src!r}, expected a str")
-    from rgbd_rs.shapes.dataset import _create_once, _write_bytes, _write_npy
+    from rgbd_rs.io import bytes_writer, create_once, npy_writer
 
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
@@ -450,11 +450,11 @@ def build_semantic_cache(
     }
     if (root / "meta.json").is_file():
         _check_meta(root, meta, names)
-    _create_once(root / "names.json", _write_bytes(json.dumps(names).encode()))
-    _create_once(root / "cues.npy", _write_npy((n, N_CUES, h, w), np.float16))
-    _create_once(root / "labels.npy", _write_npy((n, h, w), np.uint8))
-    _create_once(root / "done.npy", _write_npy((n,), np.uint8))
-    _create_once(root / "meta.json", _write_bytes(json.dumps(meta, indent=1).encode()))
+    create_once(root / "names.json", bytes_writer(json.dumps(names).encode()))
+    create_once(root / "cues.npy", npy_writer((n, N_CUES, h, w), np.float16))
+    create_once(root / "labels.npy", npy_writer((n, h, w), np.uint8))
+    create_once(root / "done.npy", npy_writer((n,), np.uint8))
+    create_once(root / "meta.json", bytes_writer(json.dumps(meta, indent=1).encode()))
     _check_meta(root, meta, names)
     x_all = np.load(root / "cues.npy", mmap_mode="r+", allow_pickle=False)
     y_all = np.load(root / "labels.npy", mmap_mode="r+", allow_pickle=False)

@@ -26,13 +26,11 @@ with coherent shared writes; not NFS). :meth:`ShapeCache.dataset` serves a split
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
 import dataclasses
 import functools
 import json
 import math
 import os
-import tempfile
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -46,6 +44,7 @@ from torch.utils.data import Dataset
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
+from rgbd_rs.io import bytes_writer, create_once, npy_bytes, npy_writer, read_npy, read_npz
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.nn.shapes import (
     DEFAULT_REPRESENTATIONS,
@@ -144,8 +143,6 @@ def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.f
 
 
 def _read_array(p: Path, suffix: str) -> np.ndarray:
-    from rgbd_rs.io import read_npy, read_npz
-
     if suffix == ".npy":
         return read_npy(p)
     arrays = read_npz(p)
@@ -286,8 +283,6 @@ class PointCloudSet(ShapeSource):
     kind = "points"
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
-        from rgbd_rs.io import read_npz
-
         self.path = Path(path)
         d = read_npz(self.path, ["points", "label", "split", "classes", "name"])
         pts = d["points"]
@@ -654,47 +649,6 @@ def _shard(shard: object) -> tuple[int, int]:
     return _validate.shard("shard", shard)
 
 
-def _create_once(path: Path, write: Callable[[Path], None]) -> None:
-    """Write ``path`` through ``write(tmp)`` unless it exists; concurrent callers race safely
-    (hard link: the first one wins, nobody overwrites)."""
-    if path.exists():
-        return
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        write(tmp)
-        os.chmod(tmp, 0o644)
-        with contextlib.suppress(FileExistsError):  # another shard made it first
-            os.link(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def _write_npy(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path], None]:
-    def write(tmp: Path) -> None:
-        arr = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
-        arr.flush()
-        del arr
-
-    return write
-
-
-def _write_bytes(data: bytes) -> Callable[[Path], None]:
-    def write(tmp: Path) -> None:
-        tmp.write_bytes(data)
-
-    return write
-
-
-def _npy_bytes(arr: np.ndarray) -> bytes:
-    import io
-
-    buf = io.BytesIO()
-    np.lib.format.write_array(buf, arr, allow_pickle=False)
-    return buf.getvalue()
-
-
 def build_cache(
     source: ShapeSource | str | os.PathLike[str],
     out: str | os.PathLike[str],
@@ -737,13 +691,13 @@ def build_cache(
     }
     if (root / "meta.json").is_file():
         _check_meta(root, meta)
-    _create_once(root / "labels.npy", _write_bytes(_npy_bytes(src.labels.astype(np.int16))))
-    _create_once(root / "splits.npy", _write_bytes(_npy_bytes(src.splits)))
-    _create_once(root / "names.json", _write_bytes(json.dumps(list(src.names)).encode()))
+    create_once(root / "labels.npy", bytes_writer(npy_bytes(src.labels.astype(np.int16))))
+    create_once(root / "splits.npy", bytes_writer(npy_bytes(src.splits)))
+    create_once(root / "names.json", bytes_writer(json.dumps(list(src.names)).encode()))
     for name, shape in s.shapes.items():
-        _create_once(root / f"{name}.npy", _write_npy((n, *shape), np.float16))
-    _create_once(root / "done.npy", _write_npy((n,), np.uint8))
-    _create_once(root / "meta.json", _write_bytes(json.dumps(meta, indent=1).encode()))
+        create_once(root / f"{name}.npy", npy_writer((n, *shape), np.float16))
+    create_once(root / "done.npy", npy_writer((n,), np.uint8))
+    create_once(root / "meta.json", bytes_writer(json.dumps(meta, indent=1).encode()))
     _check_meta(root, meta)
     arrays = {
         name: np.load(root / f"{name}.npy", mmap_mode="r+", allow_pickle=False) for name in s.shapes
@@ -834,8 +788,6 @@ class ShapeCache:
             n = int(meta["count"])
         except (KeyError, TypeError, ValueError, RgbdError) as exc:
             raise RgbdError(f"{meta_path}: incomplete or invalid cache metadata ({exc})") from None
-        from rgbd_rs.io import read_npy
-
         self.labels = read_npy(self.path / "labels.npy").astype(np.int64)
         self.splits = read_npy(self.path / "splits.npy").astype(np.uint8)
         names = json.loads((self.path / "names.json").read_text())
@@ -849,8 +801,6 @@ class ShapeCache:
     @property
     def done(self) -> npt.NDArray[np.uint8]:
         """Per shape: 0 to do, 1 done, 2 failed (a fresh read of ``done.npy``)."""
-        from rgbd_rs.io import read_npy
-
         return read_npy(self.path / "done.npy")
 
     @property
