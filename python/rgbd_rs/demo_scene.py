@@ -37,10 +37,9 @@ def run_segmentation(out: Path | None) -> dict[str, float] | None:
         "voi": metrics.variation_of_information(r.labels, gt),
         "ri": metrics.rand_index(r.labels, gt),
     }
-    if r.network_labels is not None and r.semantic is not None:
-        refined = np.where(r.semantic >= 0, r.semantic, r.network_labels)
+    if r.network_labels is not None and r.refined_labels is not None:
         res["net_acc"] = metrics.pixel_accuracy(r.network_labels, f.label13)
-        res["refined_acc"] = metrics.pixel_accuracy(refined, f.label13)
+        res["refined_acc"] = metrics.pixel_accuracy(r.refined_labels, f.label13)
     if out is not None:
         from rgbd_rs.viz import outline_segments, save_png, tile
 

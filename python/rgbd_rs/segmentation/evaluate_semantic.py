@@ -33,15 +33,6 @@ U8 = npt.NDArray[np.uint8]
 F32 = npt.NDArray[np.float32]
 
 
-def refined_labels(result: Segmentation) -> npt.NDArray[np.int32]:
-    """Per-pixel class after the segment refinement; the network's class where no segment is."""
-    net = result.network_labels
-    sem = result.semantic
-    if net is None or sem is None:
-        raise ValueError("refined_labels: a segmentation without class PDFs")
-    return np.where(sem >= 0, sem, net).astype(np.int32)
-
-
 @dataclass
 class LabelingScores:
     """Confusion matrices (rows truth, columns prediction, NYUv2 label13) accumulated over the
@@ -58,12 +49,12 @@ class LabelingScores:
 
     def add(self, result: Segmentation, truth: npt.ArrayLike) -> None:
         """Count one frame's labels against its ``label13`` ground truth."""
-        net = result.network_labels
-        if net is None:
+        net, refined = result.network_labels, result.refined_labels
+        if net is None or refined is None:
             return
         kw: dict[str, Any] = {"n_classes": N_CLASSES, "ignore": UNLABELED}
         self.network += metrics.confusion_matrix(net, truth, **kw)
-        self.refined += metrics.confusion_matrix(refined_labels(result), truth, **kw)
+        self.refined += metrics.confusion_matrix(refined, truth, **kw)
         self.frames += 1
 
     @staticmethod

@@ -19,7 +19,7 @@ from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.segmentation.features import Features, features
-from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, square_normals
+from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
 from rgbd_rs.segmentation.merge import MergeResult, merge_regions
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
 from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, class_pdfs, resolve_labeler
@@ -66,6 +66,15 @@ class Segmentation:
         the segment refinement of §4.7), else None."""
         return None if self.pdfs is None else self.pdfs.argmax(axis=-1).astype(np.int32)
 
+    @property
+    def refined_labels(self) -> np.ndarray | None:
+        """``H x W`` int32 class per pixel after the segment refinement of §4.7 (:attr:`semantic`),
+        the network's own class where no segment is (no depth), else None."""
+        net, sem = self.network_labels, self.semantic
+        if net is None or sem is None:
+            return None
+        return np.where(sem >= 0, sem, net).astype(np.int32)
+
 
 def segment(
     rgb: npt.ArrayLike,
@@ -106,17 +115,19 @@ def segment(
         seconds[stage] = now - t
         t = now
 
-    f = features(rgb, depth, camera)
+    net = None if pdfs is not None else resolve_labeler(labeler)  # loaded once per process
+    # With the ConvNet, HHA is a cue; its 7x7 normals are the features' normals (computed once).
+    hh = None if net is None else hha_details(depth, camera)
+    f = features(rgb, depth, camera, normals=None if hh is None else hh.normals)
     lap("features")
     over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
     lap("oversegment")
-    net = None if pdfs is not None else resolve_labeler(labeler)  # loaded once per process
     # The ConvNet's cues need the surface fits; the merging alone needs only the seam test.
     fits = SegmentFits(f.points, over, surfaces=net is not None)
     lap("fits")
-    if net is not None:
+    if net is not None and hh is not None:
         pdfs, _ = class_pdfs(
-            net, rgb, depth, camera, feats=f, over=over, fits=fits, n_segments=n, seed=seed
+            net, rgb, depth, camera, feats=f, hha=hh, over=over, fits=fits, n_segments=n, seed=seed
         )
         lap("semantic")
     normals = None if touching else square_normals(depth, camera, radius=ADJACENCY_NORMAL_RADIUS)

@@ -22,6 +22,7 @@ from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.segmentation.cues import SemanticCues, cue_maps
 from rgbd_rs.segmentation.features import Features
+from rgbd_rs.segmentation.hha import HhaResult
 from rgbd_rs.segmentation.labeling import CUE_FUNCTION, SemanticLabeler, weights_path
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
 from rgbd_rs.surface import SegmentFits
@@ -77,13 +78,15 @@ def class_pdfs(
     camera: PinholeCamera,
     *,
     feats: Features,
+    hha: HhaResult,
     over: npt.NDArray[np.int32],
     fits: SegmentFits,
     n_segments: int,
     seed: int,
 ) -> tuple[npt.NDArray[np.float32], SemanticCues]:
-    """``H x W x C`` PDFs of the frame and the cues they came from; ``fits`` must hold the
-    surface fits of ``over`` (``surfaces=True``) and must not have merged yet.
+    """``H x W x C`` PDFs of the frame and the cues they came from; ``hha`` is the frame's
+    :func:`~rgbd_rs.segmentation.hha.hha_details`, ``fits`` must hold the surface fits of
+    ``over`` (``surfaces=True``) and must not have merged yet.
 
     ``over`` (made with ``n_segments`` clusters and ``seed``) is reused for the cues only when
     those are the settings the network's training cues used (the cue function's default cluster
@@ -95,7 +98,7 @@ def class_pdfs(
             f"{CUE_FUNCTION}; segment() can only run networks trained on the latter"
         )
     if n_segments == DEFAULT_N_SEGMENTS and seed == labeler.seed:
-        cues = cue_maps(rgb, depth, camera, feats=feats, over=over, fits=fits)
+        cues = cue_maps(rgb, depth, camera, feats=feats, over=over, fits=fits, hha_image=hha.image)
     else:
-        cues = cue_maps(rgb, depth, camera, feats=feats, seed=labeler.seed)
+        cues = cue_maps(rgb, depth, camera, feats=feats, hha_image=hha.image, seed=labeler.seed)
     return labeler.pdfs_from_full_cues(cues.stack()), cues
