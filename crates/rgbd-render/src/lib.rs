@@ -15,10 +15,12 @@ pub mod math;
 pub mod rng;
 pub mod scene;
 pub mod shade;
+mod simd4;
 pub mod splat;
 pub mod tof;
 pub mod view;
 pub mod views;
+mod wide;
 
 pub use bvh::{Bvh, Hit};
 pub use gbuffer::{render_depth, render_gbuffer, GBuffer};
