@@ -1,11 +1,11 @@
 //! Bounding-volume hierarchy over triangles: a binary binned-SAH build (16 bins per axis),
-//! collapsed into the 4-wide tree of [`crate::wide`] that closest-hit / any-hit queries traverse
+//! collapsed into the 8-wide tree of [`crate::wide`] that closest-hit / any-hit queries traverse
 //! (SIMD box and triangle tests, nearest child first). Triangles are stored in BVH order in
 //! packets of four with precomputed edges (Moller-Trumbore), so a leaf test touches one
 //! contiguous block.
 
 use crate::math::{add, scale, sub, vmax, vmin, V3};
-use crate::wide::{self, Node4, Tri4};
+use crate::wide::{self, Node8, Tri4};
 
 /// Bins per axis of the SAH sweep; 16 is within a few % of a full sweep at a fraction of the cost.
 const BINS: usize = 16;
@@ -55,7 +55,7 @@ pub struct Hit {
 /// The acceleration structure. Build once per scene, cast from many threads.
 #[derive(Debug, Clone)]
 pub struct Bvh {
-    nodes: Vec<Node4>,
+    nodes: Vec<Node8>,
     packets: Vec<Tri4>,
     /// Reference of the root (a node, or a single packet).
     root: u32,
@@ -177,8 +177,8 @@ impl Bvh {
         self.query::<true>(o, d, t_min, t_max).is_some()
     }
 
-    /// Runs the traversal compiled for AVX2 + FMA when the CPU has them (wider encodings of the
-    /// same lane arithmetic: results are identical), else the baseline build.
+    /// Runs the traversal compiled for AVX2 + FMA when the CPU has them (eight boxes per
+    /// register; the same lane arithmetic, so results are identical), else the baseline build.
     #[inline]
     fn query<const ANY: bool>(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<Hit> {
         if self.len == 0 {
@@ -189,13 +189,29 @@ impl Bvh {
             // SAFETY: the running CPU supports AVX2 and FMA, checked just above.
             return unsafe { self.query_avx2::<ANY>(o, d, t_min, t_max) };
         }
-        wide::traverse::<ANY>(&self.nodes, &self.packets, self.root, o, d, t_min, t_max)
+        let (nodes, packets) = (&self.nodes, &self.packets);
+        // SAFETY: `Narrow` needs nothing beyond the baseline instruction set.
+        unsafe {
+            wide::traverse::<wide::Narrow, ANY>(nodes, packets, self.root, o, d, t_min, t_max)
+        }
+    }
+
+    /// The baseline build of the traversal whatever the CPU (tests compare it to the AVX2 one).
+    #[cfg(test)]
+    fn closest_baseline(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<Hit> {
+        let (nodes, packets) = (&self.nodes, &self.packets);
+        // SAFETY: `Narrow` needs nothing beyond the baseline instruction set.
+        unsafe {
+            wide::traverse::<wide::Narrow, false>(nodes, packets, self.root, o, d, t_min, t_max)
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn query_avx2<const ANY: bool>(&self, o: V3, d: V3, t_min: f32, t_max: f32) -> Option<Hit> {
-        wide::traverse::<ANY>(&self.nodes, &self.packets, self.root, o, d, t_min, t_max)
+        let (nodes, packets) = (&self.nodes, &self.packets);
+        // SAFETY: this function only runs where AVX2 (and so AVX) is available.
+        unsafe { wide::traverse::<wide::Avx, ANY>(nodes, packets, self.root, o, d, t_min, t_max) }
     }
 }
 
@@ -381,6 +397,11 @@ mod tests {
             assert_eq!(
                 bvh.occluded([0.0; 3], d, 0.0, f32::INFINITY),
                 want.is_some()
+            );
+            // Both instruction-set builds give the same hit, bit for bit.
+            assert_eq!(
+                bvh.closest_baseline([0.0; 3], d, 0.0, f32::INFINITY),
+                bvh.closest([0.0; 3], d, 0.0, f32::INFINITY)
             );
         }
     }

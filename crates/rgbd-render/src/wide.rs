@@ -1,8 +1,9 @@
-//! The 4-wide BVH the ray caster traverses. The binary SAH tree of [`crate::bvh`] is collapsed
-//! into nodes of up to four children whose boxes are stored lane-wise (structure of arrays), so
-//! one ray tests all four boxes with a handful of SIMD operations; leaves are packets of up to
-//! four triangles tested together the same way (Moller-Trumbore, lane for lane the scalar
-//! arithmetic, so hits are bit-identical to a one-triangle-at-a-time test).
+//! The 8-wide BVH the ray caster traverses. The binary SAH tree of [`crate::bvh`] is collapsed
+//! into nodes of up to eight children whose boxes are stored lane-wise (structure of arrays), so
+//! one ray tests all eight boxes with a handful of SIMD operations (one AVX register per bound,
+//! or two SSE ones on CPUs without AVX2); leaves are packets of up to four triangles tested
+//! together the same way (Moller-Trumbore, lane for lane the scalar arithmetic, so hits are
+//! bit-identical to a one-triangle-at-a-time test).
 //!
 //! Traversal is single-ray, front to back: the hit children are visited nearest first, the
 //! others are pushed with their entry distance and skipped on pop once the best hit is nearer.
@@ -15,19 +16,21 @@ use crate::simd4::{F4, M4};
 
 /// Marks a child reference as a leaf (the rest is the packet index).
 pub(crate) const LEAF: u32 = 1 << 31;
-/// Traversal stack entries: at most 3 per level, and the build caps the depth at
-/// [`crate::bvh::MAX_DEPTH`] (< STACK / 3) levels.
-const STACK: usize = 256;
+/// Children per node.
+const W: usize = 8;
+/// Traversal stack entries: at most `W - 1` pushes per level, and the build caps the depth at
+/// [`crate::bvh::MAX_DEPTH`] + 32 levels.
+const STACK: usize = (W - 1) * (crate::bvh::MAX_DEPTH + 32) + 1;
 
-/// Up to four child boxes, one lane per child: `b[2k]` / `b[2k + 1]` are the low / high bounds
+/// Up to eight child boxes, one lane per child: `b[2k]` / `b[2k + 1]` are the low / high bounds
 /// along axis `k`. Unused lanes hold empty boxes and are masked off by `n`.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
-pub(crate) struct Node4 {
-    b: [[f32; 4]; 6],
+pub(crate) struct Node8 {
+    b: [[f32; W]; 6],
     /// A node index, or [`LEAF`] | packet index.
-    child: [u32; 4],
-    /// Lanes in use (2..=4).
+    child: [u32; W],
+    /// Lanes in use (2..=8).
     n: u32,
 }
 
@@ -42,13 +45,13 @@ pub(crate) struct Tri4 {
     id: [u32; 4],
 }
 
-/// Builds the 4-wide tree from the binary one (`bin[0]` is the root; leaves hold at most four
+/// Builds the 8-wide tree from the binary one (`bin[0]` is the root; leaves hold at most four
 /// triangles of `tris` in `order`). Returns the nodes, the packets and the root reference.
 pub(crate) fn collapse(
     bin: &[BinNode],
     tris: &[[V3; 3]],
     order: &[u32],
-) -> (Vec<Node4>, Vec<Tri4>, u32) {
+) -> (Vec<Node8>, Vec<Tri4>, u32) {
     let mut c = Collapse {
         bin,
         tris,
@@ -64,7 +67,7 @@ struct Collapse<'a> {
     bin: &'a [BinNode],
     tris: &'a [[V3; 3]],
     order: &'a [u32],
-    nodes: Vec<Node4>,
+    nodes: Vec<Node8>,
     packets: Vec<Tri4>,
 }
 
@@ -75,11 +78,12 @@ impl Collapse<'_> {
         if b.count > 0 {
             return LEAF | self.packet(b.first as usize, b.count as usize);
         }
-        // Open the interior child of largest surface area until there are four children: the
+        // Open the interior child of largest surface area until there are eight children: the
         // children most rays enter are the ones worth testing together.
-        let mut kids = [b.first as usize, b.first as usize + 1, 0, 0];
+        let mut kids = [0usize; W];
+        kids[..2].copy_from_slice(&[b.first as usize, b.first as usize + 1]);
         let mut len = 2;
-        while len < 4 {
+        while len < W {
             let Some(j) = (0..len)
                 .filter(|&j| self.bin[kids[j]].count == 0)
                 .max_by(|&x, &y| {
@@ -96,16 +100,16 @@ impl Collapse<'_> {
             len += 1;
         }
         let slot = self.nodes.len();
-        self.nodes.push(Node4 {
+        self.nodes.push(Node8 {
             b: [
-                [f32::INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
+                [f32::INFINITY; W],
+                [f32::NEG_INFINITY; W],
+                [f32::INFINITY; W],
+                [f32::NEG_INFINITY; W],
+                [f32::INFINITY; W],
+                [f32::NEG_INFINITY; W],
             ],
-            child: [0; 4],
+            child: [0; W],
             n: len as u32,
         });
         for (lane, &k) in kids[..len].iter().enumerate() {
@@ -147,10 +151,11 @@ impl Collapse<'_> {
 
 /// A ray broadcast to four lanes, with its reciprocal direction and, per axis, which bound
 /// (low or high) it meets first.
-struct Ray4 {
+pub(crate) struct Ray4 {
     o: [F4; 3],
     d: [F4; 3],
-    inv: [F4; 3],
+    so: V3,
+    sinv: V3,
     near: [usize; 3],
 }
 
@@ -161,26 +166,84 @@ impl Ray4 {
         Self {
             o: o.map(F4::splat),
             d: d.map(F4::splat),
-            inv: inv.map(F4::splat),
+            so: o,
+            sinv: inv,
             near: [0, 1, 2].map(|k| 2 * k + inv[k].is_sign_negative() as usize),
         }
     }
 }
 
-/// Entry distances into the four child boxes and the mask of those entered within
-/// `[t_min, t_max]`.
-#[inline(always)]
-fn boxes(n: &Node4, r: &Ray4, t_min: F4, t_max: F4) -> (u32, F4) {
-    let mut t0 = t_min;
-    let mut t1 = t_max;
-    for k in 0..3 {
-        let near = F4::load(&n.b[r.near[k]]).sub(r.o[k]).mul(r.inv[k]);
-        let far = F4::load(&n.b[r.near[k] ^ 1]).sub(r.o[k]).mul(r.inv[k]);
-        // The candidate goes first: a NaN from 0 * inf (ray in a slab plane) leaves the bound.
-        t0 = near.max(t0);
-        t1 = far.min(t1);
+/// The eight-box slab test, compiled per instruction set.
+///
+/// # Safety
+/// Implementations may use instructions beyond the x86-64 baseline: [`BoxTest::boxes`] must
+/// only run on a CPU that has them (see each implementation).
+pub(crate) unsafe trait BoxTest {
+    /// The mask of children entered within `[t_min, t_max]` and the entry distances.
+    ///
+    /// # Safety
+    /// The running CPU supports the implementation's instruction set.
+    unsafe fn boxes(n: &Node8, r: &Ray4, t_min: f32, t_max: f32) -> (u32, [f32; W]);
+}
+
+/// Two 4-lane halves: the x86-64 baseline (SSE) or plain lanes elsewhere.
+pub(crate) struct Narrow;
+
+// SAFETY: uses only F4, which needs nothing beyond the baseline.
+unsafe impl BoxTest for Narrow {
+    #[inline(always)]
+    unsafe fn boxes(n: &Node8, r: &Ray4, t_min: f32, t_max: f32) -> (u32, [f32; W]) {
+        let mut mask = 0;
+        let mut dist = [0.0; W];
+        for h in 0..2 {
+            let mut t0 = F4::splat(t_min);
+            let mut t1 = F4::splat(t_max);
+            for k in 0..3 {
+                let (o, inv) = (F4::splat(r.so[k]), F4::splat(r.sinv[k]));
+                let half = |b: &[f32; W]| F4::load(b[4 * h..4 * h + 4].try_into().unwrap());
+                let near = half(&n.b[r.near[k]]).sub(o).mul(inv);
+                let far = half(&n.b[r.near[k] ^ 1]).sub(o).mul(inv);
+                // The candidate goes first: a NaN from 0 * inf (ray in a slab plane) leaves the
+                // bound as it was.
+                t0 = near.max(t0);
+                t1 = far.min(t1);
+            }
+            mask |= t0.le(t1).bits() << (4 * h);
+            dist[4 * h..4 * h + 4].copy_from_slice(&t0.to_array());
+        }
+        (mask & ((1 << n.n) - 1), dist)
     }
-    (t0.le(t1).bits() & ((1 << n.n) - 1), t0)
+}
+
+/// One AVX register per bound.
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct Avx;
+
+// SAFETY: needs AVX, which the contract of `boxes` requires of the caller.
+#[cfg(target_arch = "x86_64")]
+unsafe impl BoxTest for Avx {
+    #[inline(always)]
+    unsafe fn boxes(n: &Node8, r: &Ray4, t_min: f32, t_max: f32) -> (u32, [f32; W]) {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller guarantees AVX; loads and stores touch exactly 8-float arrays.
+        unsafe {
+            let mut t0 = _mm256_set1_ps(t_min);
+            let mut t1 = _mm256_set1_ps(t_max);
+            for k in 0..3 {
+                let (o, inv) = (_mm256_set1_ps(r.so[k]), _mm256_set1_ps(r.sinv[k]));
+                let lo = _mm256_loadu_ps(n.b[r.near[k]].as_ptr());
+                let hi = _mm256_loadu_ps(n.b[r.near[k] ^ 1].as_ptr());
+                let near = _mm256_mul_ps(_mm256_sub_ps(lo, o), inv);
+                let far = _mm256_mul_ps(_mm256_sub_ps(hi, o), inv);
+                t0 = _mm256_max_ps(near, t0);
+                t1 = _mm256_min_ps(far, t1);
+            }
+            let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32;
+            let mut dist = [0.0; W];
+            _mm256_storeu_ps(dist.as_mut_ptr(), t0);
+            (hit & ((1 << n.n) - 1), dist)
+        }
+    }
 }
 
 /// Moller-Trumbore on four triangles: the mask of hits with `t_min < t < t_max` and their
@@ -219,9 +282,12 @@ fn triangles(p: &Tri4, r: &Ray4, t_min: F4, t_max: F4) -> (u32, F4, F4, F4) {
 
 /// Closest hit with `t_min < t < t_max` (`ANY = false`), or the first hit found (`ANY = true`,
 /// shadow rays). `root` is the reference [`collapse`] returned; the tree must not be empty.
+///
+/// # Safety
+/// The running CPU supports `B`'s instruction set.
 #[inline(always)]
-pub(crate) fn traverse<const ANY: bool>(
-    nodes: &[Node4],
+pub(crate) unsafe fn traverse<B: BoxTest, const ANY: bool>(
+    nodes: &[Node8],
     packets: &[Tri4],
     root: u32,
     o: V3,
@@ -239,9 +305,9 @@ pub(crate) fn traverse<const ANY: bool>(
     loop {
         if cur & LEAF == 0 {
             let n = &nodes[cur as usize];
-            let (mut mask, t0) = boxes(n, &r, t_lo, F4::splat(t_best));
+            // SAFETY: passed on from this function's contract.
+            let (mut mask, dist) = unsafe { B::boxes(n, &r, t_min, t_best) };
             if mask != 0 {
-                let dist = t0.to_array();
                 let a = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
                 if mask == 0 {
@@ -257,8 +323,10 @@ pub(crate) fn traverse<const ANY: bool>(
                     cur = n.child[near];
                     continue;
                 }
-                // Three or four children: push all but the nearest, farthest first.
-                let mut k = [(dist[a], a), (dist[b], b), (0.0, 0), (0.0, 0)];
+                // More children: push all but the nearest, farthest first.
+                let mut k = [(0.0, 0); W];
+                k[0] = (dist[a], a);
+                k[1] = (dist[b], b);
                 let mut c = 2;
                 while mask != 0 {
                     let i = mask.trailing_zeros() as usize;
