@@ -1,14 +1,24 @@
 """Ray-casting speed: rgbd_rs.render against trimesh (Embree backend via embreex) and Open3D's
-RaycastingScene (Embree 4), for the same first-hit rays on the same ~100k-triangle scene, in the
-same run; plus seconds per synthetic dataset scene (960x540 stereo pair with 2x2 supersampling +
-512x424 ToF frame with 2x2 sub-samples and 8 multipath rays).
+RaycastingScene (Embree 4), for the same first-hit rays (960x540, one per pixel) in the same run,
+on two cases:
+
+- scene: the synthetic dataset's cluttered room (shared meshes + a tessellated sphere, ~100k
+  triangles), seen by the rig's right camera;
+- dense mesh: the Stanford bunny of ../shared/data/meshes (3674 triangles) midpoint-subdivided
+  three times (235,136 triangles; flat subdivision, the shape is unchanged), 1 m across at 1.4 m,
+  filling the image height (about a third of the rays hit it).
+
+Plus seconds per synthetic dataset scene (960x540 stereo pair with 2x2 supersampling + 512x424
+ToF frame with 2x2 sub-samples and 8 multipath rays).
 
 The peers get precomputed ray arrays (their ray generation is not timed); rgbd_rs generates its
 rays inside the call. "vs X" = X's time / rgbd_rs's time (> 1: rgbd_rs is faster). Peers that
-cannot be imported are reported as unavailable.
+cannot be imported are reported as unavailable. Threads: RAYON_NUM_THREADS if set (Open3D gets
+the same count), else all cores.
 
     python benches/bench_render.py             # table on stdout
     python benches/bench_render.py --markdown  # the README table
+    RAYON_NUM_THREADS=1 python benches/bench_render.py --no-scene  # one thread, casting only
 """
 
 from __future__ import annotations
@@ -47,23 +57,50 @@ def scene_and_rays():  # type: ignore[no-untyped-def]
     return sc, built, rig, d, verts, faces
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    ap.add_argument("--markdown", action="store_true")
-    args = ap.parse_args()
+def subdivide(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Midpoint subdivision: every triangle into four (shared edge midpoints)."""
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    uniq, inv = np.unique(e, axis=0, return_inverse=True)
+    mid = (v[uniq[:, 0]] + v[uniq[:, 1]]) / 2
+    ab, bc, ca = inv.reshape(3, -1) + len(v)
+    a, b, c = f.T
+    quads = ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))
+    return np.concatenate([v, mid]), np.concatenate([np.stack(t, 1) for t in quads])
 
+
+def dense_mesh() -> tuple[np.ndarray, np.ndarray]:
+    """The bunny subdivided to 235k triangles, 1 m across, 1.4 m in front of the camera."""
+    from rgbd_rs.data.paths import data_root
+    from rgbd_rs.meshes import load_mesh
+
+    m = load_mesh(data_root() / "meshes" / "stanford_bunny.off").normalized(1.0)
+    v, f = m.vertices.astype(np.float64), m.triangles.astype(np.int64)
+    for _ in range(3):
+        v, f = subdivide(v, f)
+    # y up -> y down (camera frame), facing the camera.
+    return v * [1.0, -1.0, -1.0] + [0.0, 0.0, 1.4], f
+
+
+def cast_all(
+    built,  # type: ignore[no-untyped-def]
+    cam,  # type: ignore[no-untyped-def]
+    d: np.ndarray,
+    verts: np.ndarray,
+    faces: np.ndarray,
+    threads: int,
+) -> list[tuple[str, float, float]]:
+    """(name, ms, median |z - ours|) for rgbd_rs and each peer on the same rays."""
     from rgbd_rs import Pose
-    from rgbd_rs.data.synth import rig_poses
-    from rgbd_rs.render import ToFModel
 
-    _, built, rig, d, verts, faces = scene_and_rays()
-    cam = rig.stereo.right
-    n_rays = len(d)
     ours_depth = built.depth(cam, Pose.identity())
-    t_ours = timeit(lambda: built.depth(cam, Pose.identity()), REPEATS)
-    rows = [("rgbd_rs (BVH, rayon)", t_ours, 0.0)]
+    rows = [
+        (
+            "rgbd_rs (8-wide BVH, rayon)",
+            timeit(lambda: built.depth(cam, Pose.identity()), REPEATS),
+            0.0,
+        )
+    ]
+    n_rays = len(d)
 
     try:
         import trimesh
@@ -95,7 +132,7 @@ def main() -> None:
         rays = o3d.core.Tensor(np.concatenate([np.zeros_like(d), d], 1).astype(np.float32))
 
         def o3d_cast() -> np.ndarray:
-            return rs.cast_rays(rays, nthreads=os.cpu_count() or 0)["t_hit"].numpy()
+            return rs.cast_rays(rays, nthreads=threads)["t_hit"].numpy()
 
         z = o3d_cast()  # t along the z=1 direction = depth
         z = np.where(np.isfinite(z), z, np.nan)
@@ -103,7 +140,64 @@ def main() -> None:
         rows.append((f"Open3D {o3d.__version__} RaycastingScene", timeit(o3d_cast, REPEATS), diff))
     except ImportError as exc:
         rows.append((f"Open3D unavailable ({exc})", float("nan"), float("nan")))
+    return rows
 
+
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--markdown", action="store_true")
+    ap.add_argument(
+        "--no-scene", action="store_true", help="skip the synthetic-scene (stereo + ToF) timing"
+    )
+    args = ap.parse_args()
+
+    from rgbd_rs.data.synth import rig_poses
+    from rgbd_rs.render import Scene, ToFModel
+
+    threads = int(os.environ.get("RAYON_NUM_THREADS", os.cpu_count() or 1))
+    _, built, rig, d, verts, faces = scene_and_rays()
+    cam = rig.stereo.right
+    dv, df = dense_mesh()
+    from rgbd_rs.meshes import Mesh
+
+    dense = Scene().add(Mesh(dv.astype(np.float32), df.astype(np.uint32))).build()
+    cases = [
+        (
+            f"scene: {built.triangle_count} triangles",
+            cast_all(built, cam, d, verts, faces, threads),
+        ),
+        (
+            f"dense mesh (bunny subdivided): {dense.triangle_count} triangles",
+            cast_all(dense, cam, d, dv, df, threads),
+        ),
+    ]
+    n_rays = len(d)
+    head = f"first-hit depth, {cam.width}x{cam.height} rays, {threads} threads"
+    if args.markdown:
+        print(f"| {head} | ms | Mrays/s | vs it | median abs z diff |")
+        print("|---|---|---|---|---|")
+        for case, rows in cases:
+            print(f"| **{case}** | | | | |")
+            t_ours = rows[0][1]
+            for name, t, diff in rows:
+                print(
+                    f"| {name} | {t:.1f} | {n_rays / t / 1e3:.2f} | {t / t_ours:.2f}x "
+                    f"| {diff:.1e} m |"
+                )
+    else:
+        print(head)
+        for case, rows in cases:
+            print(f" {case}")
+            t_ours = rows[0][1]
+            for name, t, diff in rows:
+                print(
+                    f"  {name:45s} {t:8.1f} ms  {n_rays / t / 1e3:6.2f} Mrays/s  "
+                    f"vs it {t / t_ours:5.2f}x  |dz| {diff:.1e}"
+                )
+    if args.no_scene:
+        return
     to_left, to_right, to_tof = rig_poses(rig)
     model = ToFModel(subsamples=2, multipath_rays=8)
 
@@ -114,30 +208,10 @@ def main() -> None:
 
     t_scene = timeit(full_scene, 3)
     t_tof = timeit(lambda: built.tof(rig.tof, to_tof, model), 3)
-    threads = os.environ.get("RAYON_NUM_THREADS", str(os.cpu_count()))
-    head = (
-        f"{built.triangle_count} triangles, {cam.width}x{cam.height} first-hit depth rays, "
-        f"{threads} threads"
+    print(
+        f"\nSynthetic scene (stereo pair 2x2 SS + ToF 2x2 sub-samples, 8 multipath rays): "
+        f"{t_scene / 1e3:.2f} s, of which ToF {t_tof / 1e3:.2f} s"
     )
-    if args.markdown:
-        print(f"| first-hit depth ({head}) | ms | Mrays/s | vs it | median abs z diff |")
-        print("|---|---|---|---|---|")
-        for name, t, diff in rows:
-            print(
-                f"| {name} | {t:.1f} | {n_rays / t / 1e3:.2f} | {t / t_ours:.2f}x | {diff:.1e} m |"
-            )
-        print(
-            f"\nSynthetic scene (stereo pair 2x2 SS + ToF 2x2 sub-samples, 8 multipath rays): "
-            f"{t_scene / 1e3:.2f} s, of which ToF {t_tof / 1e3:.2f} s"
-        )
-    else:
-        print(head)
-        for name, t, diff in rows:
-            print(
-                f"  {name:45s} {t:8.1f} ms  {n_rays / t / 1e3:6.2f} Mrays/s  "
-                f"vs it {t / t_ours:5.2f}x  |dz| {diff:.1e}"
-            )
-        print(f"  synthetic scene: {t_scene / 1e3:.2f} s (ToF alone {t_tof / 1e3:.2f} s)")
 
 
 if __name__ == "__main__":

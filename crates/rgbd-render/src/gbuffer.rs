@@ -27,13 +27,15 @@ pub struct GBuffer {
 /// Every rendering loop checks for an interrupt once per row.
 pub fn render_depth(scene: &Scene, view: &View) -> Result<Vec<f32>> {
     let w = view.width;
+    let xs: Vec<f32> = (0..w).map(|u| view.plane_x(u as f64)).collect();
     let mut out = vec![f32::NAN; view.len()];
     out.par_chunks_mut(w)
         .enumerate()
         .try_for_each(|(row, line)| {
             check_interrupt()?;
-            for (col, px) in line.iter_mut().enumerate() {
-                let ray = view.ray(col as f64, row as f64);
+            let y = view.plane_y(row as f64);
+            for (px, &x) in line.iter_mut().zip(&xs) {
+                let ray = view.ray_at(x, y);
                 if let Some(h) = scene.cast(&ray, 0.0) {
                     *px = h.t;
                 }

@@ -116,16 +116,38 @@ impl View {
     /// The ray through the continuous pixel position `(u, v)` (column, row).
     #[inline]
     pub fn ray(&self, u: f64, v: f64) -> Ray {
+        self.ray_at(self.plane_x(u), self.plane_y(v))
+    }
+
+    /// The camera-frame x of column `u` on the image plane (z = 1) or, orthographic, on the
+    /// z = 0 plane: what [`View::ray`] computes per pixel, hoisted out of pixel loops.
+    #[inline]
+    pub fn plane_x(&self, u: f64) -> f32 {
         match self.projection {
-            Projection::Perspective { fx, fy, cx, cy } => Ray {
+            Projection::Perspective { fx, cx, .. } => ((u - cx) / fx) as f32,
+            Projection::Orthographic { sx, cx, .. } => ((u - cx) / sx) as f32,
+        }
+    }
+
+    /// The camera-frame y of row `v` (see [`View::plane_x`]).
+    #[inline]
+    pub fn plane_y(&self, v: f64) -> f32 {
+        match self.projection {
+            Projection::Perspective { fy, cy, .. } => ((v - cy) / fy) as f32,
+            Projection::Orthographic { sy, cy, .. } => ((v - cy) / sy) as f32,
+        }
+    }
+
+    /// The ray through the plane point `(x, y)` of [`View::plane_x`] / [`View::plane_y`].
+    #[inline]
+    pub fn ray_at(&self, x: f32, y: f32) -> Ray {
+        match self.projection {
+            Projection::Perspective { .. } => Ray {
                 o: self.centre,
-                d: self.to_world([((u - cx) / fx) as f32, ((v - cy) / fy) as f32, 1.0]),
+                d: self.to_world([x, y, 1.0]),
             },
-            Projection::Orthographic { sx, sy, cx, cy } => Ray {
-                o: add(
-                    self.centre,
-                    self.to_world([((u - cx) / sx) as f32, ((v - cy) / sy) as f32, 0.0]),
-                ),
+            Projection::Orthographic { .. } => Ray {
+                o: add(self.centre, self.to_world([x, y, 0.0])),
                 d: self.to_world([0.0, 0.0, 1.0]),
             },
         }
