@@ -193,21 +193,24 @@ pub(crate) struct Narrow;
 unsafe impl BoxTest for Narrow {
     #[inline(always)]
     unsafe fn boxes(n: &Node8, r: &Ray4, t_min: f32, t_max: f32) -> (u32, [f32; W]) {
+        #[inline(always)]
+        fn slab(n: &Node8, r: &Ray4, k: usize, h: usize) -> (F4, F4) {
+            let (o, inv) = (F4::splat(r.so[k]), F4::splat(r.sinv[k]));
+            let half = |b: &[f32; W]| F4::load(b[4 * h..4 * h + 4].try_into().unwrap());
+            let near = half(&n.b[r.near[k]]).sub(o).mul(inv);
+            let far = half(&n.b[r.near[k] ^ 1]).sub(o).mul(inv);
+            (near, far)
+        }
         let mut mask = 0;
         let mut dist = [0.0; W];
         for h in 0..2 {
-            let mut t0 = F4::splat(t_min);
-            let mut t1 = F4::splat(t_max);
-            for k in 0..3 {
-                let (o, inv) = (F4::splat(r.so[k]), F4::splat(r.sinv[k]));
-                let half = |b: &[f32; W]| F4::load(b[4 * h..4 * h + 4].try_into().unwrap());
-                let near = half(&n.b[r.near[k]]).sub(o).mul(inv);
-                let far = half(&n.b[r.near[k] ^ 1]).sub(o).mul(inv);
-                // The candidate goes first: a NaN from 0 * inf (ray in a slab plane) leaves the
-                // bound as it was.
-                t0 = near.max(t0);
-                t1 = far.min(t1);
-            }
+            let ((nx, fx), (ny, fy), (nz, fz)) =
+                (slab(n, r, 0, h), slab(n, r, 1, h), slab(n, r, 2, h));
+            // A tree, not a chain (shorter latency). A NaN from 0 * inf (ray in a slab plane)
+            // drops out: max/min return their second operand when either is NaN, and the
+            // second operand of the outer and right inner operations is NaN-free.
+            let t0 = nx.max(ny).max(nz.max(F4::splat(t_min)));
+            let t1 = fx.min(fy).min(fz.min(F4::splat(t_max)));
             mask |= t0.le(t1).bits() << (4 * h);
             dist[4 * h..4 * h + 4].copy_from_slice(&t0.to_array());
         }
@@ -227,17 +230,28 @@ unsafe impl BoxTest for Avx {
         use std::arch::x86_64::*;
         // SAFETY: the caller guarantees AVX; loads and stores touch exactly 8-float arrays.
         unsafe {
-            let mut t0 = _mm256_set1_ps(t_min);
-            let mut t1 = _mm256_set1_ps(t_max);
-            for k in 0..3 {
-                let (o, inv) = (_mm256_set1_ps(r.so[k]), _mm256_set1_ps(r.sinv[k]));
-                let lo = _mm256_loadu_ps(n.b[r.near[k]].as_ptr());
-                let hi = _mm256_loadu_ps(n.b[r.near[k] ^ 1].as_ptr());
-                let near = _mm256_mul_ps(_mm256_sub_ps(lo, o), inv);
-                let far = _mm256_mul_ps(_mm256_sub_ps(hi, o), inv);
-                t0 = _mm256_max_ps(near, t0);
-                t1 = _mm256_min_ps(far, t1);
+            #[inline(always)]
+            unsafe fn slab(n: &Node8, r: &Ray4, k: usize) -> (__m256, __m256) {
+                // SAFETY: as in `boxes` (inlined there).
+                unsafe {
+                    let (o, inv) = (_mm256_set1_ps(r.so[k]), _mm256_set1_ps(r.sinv[k]));
+                    let lo = _mm256_loadu_ps(n.b[r.near[k]].as_ptr());
+                    let hi = _mm256_loadu_ps(n.b[r.near[k] ^ 1].as_ptr());
+                    let near = _mm256_mul_ps(_mm256_sub_ps(lo, o), inv);
+                    let far = _mm256_mul_ps(_mm256_sub_ps(hi, o), inv);
+                    (near, far)
+                }
             }
+            let ((nx, fx), (ny, fy), (nz, fz)) = (slab(n, r, 0), slab(n, r, 1), slab(n, r, 2));
+            // The same tree as `Narrow`, with the same NaN handling.
+            let t0 = _mm256_max_ps(
+                _mm256_max_ps(nx, ny),
+                _mm256_max_ps(nz, _mm256_set1_ps(t_min)),
+            );
+            let t1 = _mm256_min_ps(
+                _mm256_min_ps(fx, fy),
+                _mm256_min_ps(fz, _mm256_set1_ps(t_max)),
+            );
             let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32;
             let mut dist = [0.0; W];
             _mm256_storeu_ps(dist.as_mut_ptr(), t0);
