@@ -28,6 +28,7 @@ from rgbd_rs.fusion.evaluate import (
     middlebury_sample,
     non_occluded,
 )
+from rgbd_rs.fusion.lc import REFINE_BIN_WIDTH
 from rgbd_rs.io import read_npz, read_png, write_png
 from rgbd_rs.metrics import rms_error
 
@@ -130,7 +131,13 @@ def test_lc_refine_removes_outliers() -> None:
     noisy[rng.random(noisy.shape) < 0.05] = np.nan
     core = (slice(5, -5), slice(12, -12))
     assert np.nanmean(np.abs(noisy[core] - 6) > 0.5) > 0.1
-    out = lc_refine(noisy, left, right, reference="right", params=LcParams(radius=4, stride=1))
+    out = lc_refine(
+        noisy,
+        left,
+        right,
+        reference="right",
+        params=LcParams(radius=4, stride=1, bin_width=REFINE_BIN_WIDTH),
+    )
     assert np.mean(np.abs(out[core] - 6) > 0.5) < 0.01
     # The same pair mirrored is a left-reference pair (left' x matches right' x - d).
     mirrored = lc_refine(
@@ -138,7 +145,7 @@ def test_lc_refine_removes_outliers() -> None:
         right[:, ::-1],
         left[:, ::-1],
         reference="left",
-        params=LcParams(radius=4, stride=1),
+        params=LcParams(radius=4, stride=1, bin_width=REFINE_BIN_WIDTH),
     )
     assert np.mean(np.abs(mirrored[core] - 6) > 0.5) < 0.01
     with pytest.raises(InvalidArgumentError, match="only NaN"):

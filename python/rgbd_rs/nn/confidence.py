@@ -107,6 +107,8 @@ def predict(
 
 #: The shipped checkpoint (trained by ``rgbd train confidence``; README: training recipe).
 WEIGHTS = Path(__file__).parent / "weights" / "confidence.pt"
+#: Checkpoint normalisation key of :attr:`ConfidenceEstimator.stereo_power` (optional; 1 if absent).
+STEREO_POWER_KEY = "lc_stereo_power"
 
 
 class ConfidenceEstimator:
@@ -115,12 +117,29 @@ class ConfidenceEstimator:
     ``ConfidenceEstimator.load()`` reads the checkpoint shipped in the package (no download);
     ``load(path)`` any checkpoint written by ``rgbd train confidence``. A checkpoint of another
     architecture or without the normalisation raises :class:`~rgbd_rs.RgbdError` naming the file.
+
+    ``stereo_power`` calibrates the stereo confidence for the LC accumulation: the estimator
+    returns ``P_S ** stereo_power``. It is stored in the checkpoint (normalisation key
+    :data:`STEREO_POWER_KEY`, written by ``rgbd train calibrate-confidence``, which chooses it on
+    validation scenes); a checkpoint without it uses 1 (the network's output as it is).
     """
 
-    def __init__(self, net: ConfidenceNet, sigmas: npt.ArrayLike, source: str = "") -> None:
+    def __init__(
+        self,
+        net: ConfidenceNet,
+        sigmas: npt.ArrayLike,
+        source: str = "",
+        *,
+        stereo_power: float = 1.0,
+    ) -> None:
         self.net = net
         self.sigmas = _validate.array("sigmas", sigmas, shape=(IN_CHANNELS,), finite=True)
         self.source = source
+        self.stereo_power = _validate.real("stereo_power", stereo_power, positive=True)
+
+    def with_stereo_power(self, power: float) -> ConfidenceEstimator:
+        """The same network and normalisation with another stereo calibration power."""
+        return ConfidenceEstimator(self.net, self.sigmas, self.source, stereo_power=power)
 
     @classmethod
     def load(cls, path: str | Path | None = None, *, device: str = "cpu") -> ConfidenceEstimator:
@@ -135,7 +154,12 @@ class ConfidenceEstimator:
         net = ConfidenceNet(width)
         ckpt.load_weights(net)
         net.to(device)
-        return cls(net, ckpt.normalisation["sigmas"], str(file))
+        power = ckpt.normalisation.get(STEREO_POWER_KEY, 1.0)
+        if not isinstance(power, (int, float)) or isinstance(power, bool) or not power > 0:
+            raise RgbdError(
+                f"{file}: normalisation {STEREO_POWER_KEY!r} is {power!r}, expected a number > 0"
+            )
+        return cls(net, ckpt.normalisation["sigmas"], str(file), stereo_power=float(power))
 
     def __call__(
         self,
@@ -147,7 +171,8 @@ class ConfidenceEstimator:
         *,
         reference: Literal["left", "right"] = "right",
     ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
-        """``(P_T, P_S)`` on the reference camera, 0 where the source has no disparity."""
+        """``(P_T, P_S)`` on the reference camera, 0 where the source has no disparity
+        (``P_S`` raised to :attr:`stereo_power`)."""
         from rgbd_rs.fusion.clues import compute_clues, normalise
 
         clues = compute_clues(
@@ -160,5 +185,5 @@ class ConfidenceEstimator:
         )
         p_t, p_s = predict(self.net, normalise(clues, self.sigmas))
         p_t = np.where(np.isfinite(clues.maps[1]), p_t, 0).astype(np.float32)
-        p_s = np.where(np.isfinite(clues.maps[2]), p_s, 0).astype(np.float32)
-        return p_t, p_s
+        weighted = np.where(np.isfinite(clues.maps[2]), p_s, 0) ** self.stereo_power
+        return p_t, weighted.astype(np.float32)

@@ -1,0 +1,147 @@
+"""Calibrating the confidence ConvNet's stereo weights for the LC fusion, on validation scenes.
+
+The network is trained to predict ``1 - min(|err|, 3)/3`` per source (thesis §3.7), but LC weighs
+whole windows of hypotheses: a stereo map that is wrong by 2-4 px over a patch, with the
+network's ``P_S`` ~0.75 there, outvotes a correct ToF (measured on the synthetic test set and
+Middlebury Cones: README "Design choices"). :func:`calibrate_stereo_power` fuses validation
+scenes (never the test set) with ``P_S ** p`` for a few powers ``p`` and picks the one with the
+lowest mean ratio of the fused RMS to the better input's, among those that never make a *good*
+input (:data:`GOOD_SHARE` of its pixels within 1 px) more than :data:`MAX_DAMAGE` times worse; if
+none qualifies, the one with the least damage. :func:`write_calibrated` stores the choice in a
+copy of the checkpoint, where :class:`~rgbd_rs.nn.confidence.ConfidenceEstimator` reads it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from tqdm import tqdm
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
+from rgbd_rs.fusion._inputs import views
+from rgbd_rs.fusion.evaluate import Sample, non_occluded
+from rgbd_rs.fusion.fuse import fuse
+from rgbd_rs.fusion.lc import LcParams, lc_fuse
+from rgbd_rs.metrics import bad_pixel_rate, rms_error
+
+if TYPE_CHECKING:
+    from rgbd_rs.nn.confidence import ConfidenceEstimator
+
+#: Powers tried by default.
+POWERS = (1.0, 1.5, 2.0, 3.0, 4.0)
+#: An input is "good" on a scene when at least this share of its pixels is within 1 px (issue 12).
+GOOD_SHARE = 0.95
+#: The fused RMS may exceed a good input's by at most this factor (issue 12: 5 %).
+MAX_DAMAGE = 1.05
+
+
+@dataclass(frozen=True)
+class PowerScore:
+    """One power over the validation scenes: ``mean_rms`` of the fused map, ``mean_ratio`` (fused
+    RMS / the better input's, averaged over scenes) and ``worst_damage`` (the largest fused RMS /
+    a good input's RMS; 0 when no scene has a good input)."""
+
+    power: float
+    mean_rms: float
+    mean_ratio: float
+    worst_damage: float
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The chosen power and every power's score."""
+
+    power: float
+    scores: tuple[PowerScore, ...]
+    scenes: int
+
+    def markdown(self) -> str:
+        """The scores as a markdown table (the chosen power in bold)."""
+        rows = [
+            f"| {'**' if s.power == self.power else ''}{s.power:g}"
+            f"{'**' if s.power == self.power else ''} | {s.mean_rms:.3f} | {s.mean_ratio:.3f} | "
+            f"{s.worst_damage:.3f} |"
+            for s in self.scores
+        ]
+        head = (
+            f"Stereo confidence power on {self.scenes} validation scenes (fused RMS / better "
+            f"input; worst fused / good input, limit {MAX_DAMAGE:g})\n\n"
+            "| power | mean RMS (px) | mean ratio | worst damage |\n|---:|---:|---:|---:|"
+        )
+        return "\n".join([head, *rows]) + "\n"
+
+
+def choose(scores: Sequence[PowerScore]) -> float:
+    """The lowest mean ratio among the powers within :data:`MAX_DAMAGE`, else the least damage."""
+    if not scores:
+        raise InvalidArgumentError("scores: got none, expected at least one power's score")
+    safe = [s for s in scores if s.worst_damage <= MAX_DAMAGE]
+    if safe:
+        return min(safe, key=lambda s: (s.mean_ratio, s.power)).power
+    return min(scores, key=lambda s: (s.worst_damage, s.power)).power
+
+
+def calibrate_stereo_power(
+    estimator: ConfidenceEstimator,
+    samples: Iterable[Sample],
+    *,
+    powers: Sequence[float] = POWERS,
+    params: LcParams | None = None,
+    quiet: bool = False,
+) -> Calibration:
+    """Score every power on ``samples`` (validation scenes with ground truth) and choose one."""
+    ps = [_validate.real(f"powers[{i}]", p, positive=True) for i, p in enumerate(powers)]
+    if not ps:
+        raise InvalidArgumentError("powers: got none, expected at least one positive power")
+    raw = estimator.with_stereo_power(1.0)
+    rms: dict[float, list[float]] = {p: [] for p in ps}
+    ratio: dict[float, list[float]] = {p: [] for p in ps}
+    damage: dict[float, list[float]] = {p: [] for p in ps}
+    scenes = 0
+    for s in tqdm(list(samples), desc="calibrate", disable=quiet, unit="scene"):
+        stages = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, confidence="uniform")
+        ref, tgt, sign = views(s.left, s.right, s.rig.reference)
+        tof_d, st_d = stages.tof_fused, stages.stereo_disparity
+        p_t, p_s = raw(ref, tgt, tof_d, stages.tof.amplitude, st_d, reference=s.rig.reference)
+        gt = s.gt_disparity
+        mask = np.isfinite(gt) & non_occluded(gt, sign) & np.isfinite(tof_d) & np.isfinite(st_d)
+        if not mask.any():
+            continue
+        scenes += 1
+        inputs = [rms_error(d, gt, mask) for d in (tof_d, st_d)]
+        good = [
+            e
+            for d, e in zip((tof_d, st_d), inputs, strict=True)
+            if 1.0 - bad_pixel_rate(d, gt, 1.0, mask) >= GOOD_SHARE
+        ]
+        for p in ps:
+            fused, _ = lc_fuse(
+                ref, tgt, [tof_d, st_d], [p_t, p_s**p], target_sign=sign, params=params
+            )
+            e = rms_error(fused, gt, mask & np.isfinite(fused))
+            rms[p].append(e)
+            ratio[p].append(e / max(min(inputs), 1e-9))
+            damage[p].append(e / max(min(good), 1e-9) if good else 0.0)
+    if scenes == 0:
+        raise RgbdError("samples: no scene had pixels valid in both inputs and the ground truth")
+    scores = tuple(
+        PowerScore(p, float(np.mean(rms[p])), float(np.mean(ratio[p])), float(max(damage[p])))
+        for p in ps
+    )
+    return Calibration(choose(scores), scores, scenes)
+
+
+def write_calibrated(checkpoint: str | Path, power: float, out: str | Path) -> Path:
+    """Copy ``checkpoint`` to ``out`` with ``power`` stored as its stereo calibration."""
+    from rgbd_rs.nn.checkpoint import load_checkpoint, save_checkpoint
+    from rgbd_rs.nn.confidence import ARCH, STEREO_POWER_KEY
+
+    p = _validate.real("power", power, positive=True)
+    ckpt = load_checkpoint(checkpoint, arch=ARCH, normalisation_keys=("sigmas",))
+    norm = dict(ckpt.normalisation) | {STEREO_POWER_KEY: p}
+    return save_checkpoint(replace(ckpt, normalisation=norm), out)
