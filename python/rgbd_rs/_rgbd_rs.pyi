@@ -143,6 +143,18 @@ _Maps = tuple[
     npt.NDArray[np.float32],
 ]
 
+@final
+class _SplineFit:
+    """One fitted surface; not in the module namespace (only ``fit_surface`` makes them)."""
+
+    def maps(
+        self,
+        points: npt.NDArray[np.float32],
+        mask: npt.NDArray[np.bool_] | None,
+        u0: int,
+        v0: int,
+    ) -> _Maps: ...
+
 def fit_surface(
     points: npt.NDArray[np.float32],
     mask: npt.NDArray[np.bool_] | None,
@@ -150,7 +162,7 @@ def fit_surface(
     degree: int,
     lam: float,
     with_dof: bool,
-) -> tuple[_Maps, int, float, float | None, bool]: ...
+) -> tuple[_SplineFit, int, float, float | None, bool, tuple[int, int, int, int]]: ...
 
 @final
 class SegmentFits:

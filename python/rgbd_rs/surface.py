@@ -21,7 +21,7 @@ Example::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import FrozenInstanceError, dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -82,9 +82,18 @@ class SurfaceMaps:
     gaussian: F32
 
 
-@dataclass(frozen=True)
+_MAP_NAMES = ("fitted", "error", "k1", "k2", "mean", "gaussian")
+
+
 class SurfaceFit(SurfaceMaps):
-    """One fitted surface: its per-pixel maps and fit statistics."""
+    """One fitted surface: its per-pixel maps and fit statistics.
+
+    The maps (:attr:`fitted`, :attr:`error`, :attr:`k1`, :attr:`k2`, :attr:`mean`,
+    :attr:`gaussian`) are evaluated on first access, all six at once, and only inside
+    :attr:`box` (the fitted pixels' bounding box), from a copy of the points taken at fit time;
+    a fit whose maps are never read costs only the fit. They are ``H x W`` like the points (NaN
+    outside the mask), or box-sized with ``crop=True``. Immutable, like the dataclass it extends.
+    """
 
     #: Valid pixels fitted.
     n: int
@@ -94,6 +103,117 @@ class SurfaceFit(SurfaceMaps):
     dof: float | None
     #: True when fewer than ``(degree+1)²`` pixels forced the linear fallback ``a + b·u + c·v``.
     linear: bool
+    #: ``(row0, row1, col0, col1)``: the pixels ``[row0:row1, col0:col1]`` the fitted pixels lie in
+    #: (the mask's bounding box; the whole image without a mask).
+    box: tuple[int, int, int, int]
+    #: Whether the maps are box-sized (``crop=True``) rather than image-sized.
+    cropped: bool
+    _image_shape: tuple[int, int]
+    _native: _rgbd_rs._SplineFit | None
+    _points: F32 | None
+    _mask: npt.NDArray[np.bool_] | None
+    _cache: dict[str, F32] | None
+
+    def __init__(
+        self,
+        native: _rgbd_rs._SplineFit | None,
+        points: F32 | None,
+        mask: npt.NDArray[np.bool_] | None,
+        *,
+        n: int,
+        sse: float,
+        dof: float | None,
+        linear: bool,
+        box: tuple[int, int, int, int],
+        image_shape: tuple[int, int],
+        cropped: bool,
+        maps: dict[str, F32] | None = None,
+    ) -> None:
+        # Frozen: attributes are set once, here (SurfaceMaps' __setattr__ refuses the maps).
+        for name, value in (
+            ("n", n),
+            ("sse", sse),
+            ("dof", dof),
+            ("linear", linear),
+            ("box", box),
+            ("cropped", cropped),
+            ("_image_shape", image_shape),
+            ("_native", native),
+            ("_points", points),
+            ("_mask", mask),
+            ("_cache", maps),
+        ):
+            object.__setattr__(self, name, value)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise FrozenInstanceError(f"cannot assign to field {name!r}")
+
+    def __delattr__(self, name: str) -> None:
+        raise FrozenInstanceError(f"cannot delete field {name!r}")
+
+    def __repr__(self) -> str:
+        return (
+            f"SurfaceFit(n={self.n}, sse={self.sse!r}, dof={self.dof!r}, linear={self.linear}, "
+            f"box={self.box}, cropped={self.cropped})"
+        )
+
+    def __reduce__(self) -> tuple[object, tuple[object, ...]]:
+        # The native fit does not pickle; the maps do.
+        state = (self.n, self.sse, self.dof, self.linear, self.box, self._image_shape)
+        return (_restore_fit, (*state, self.cropped, self._all_maps()))
+
+    def _all_maps(self) -> dict[str, F32]:
+        maps: dict[str, F32] | None = self._cache
+        if maps is not None:
+            return maps
+        r0, r1, c0, c1 = self.box
+        native, points = self._native, self._points
+        assert native is not None and points is not None
+        raw = dict(zip(_MAP_NAMES, native.maps(points, self._mask, c0, r0), strict=True))
+        if self.cropped:
+            maps = raw
+        else:
+            h, w = self._image_shape
+            maps = {}
+            for name, box_map in raw.items():
+                full = np.full((h, w, *box_map.shape[2:]), np.nan, np.float32)
+                full[r0:r1, c0:c1] = box_map
+                maps[name] = full
+        object.__setattr__(self, "_cache", maps)
+        # The points' copy is not needed any more.
+        object.__setattr__(self, "_points", None)
+        object.__setattr__(self, "_mask", None)
+        return maps
+
+    @property
+    def fitted(self) -> F32:
+        """Surface point at each pixel's ``(u, v)`` (``... x 3``)."""
+        return self._all_maps()["fitted"]
+
+    @property
+    def error(self) -> F32:
+        """Distance between the measured point and :attr:`fitted` (metres)."""
+        return self._all_maps()["error"]
+
+    @property
+    def k1(self) -> F32:
+        """Larger principal curvature (1/m; positive where the surface bulges to the camera)."""
+        return self._all_maps()["k1"]
+
+    @property
+    def k2(self) -> F32:
+        """Smaller principal curvature."""
+        return self._all_maps()["k2"]
+
+    @property
+    def mean(self) -> F32:
+        """Mean curvature ``(k1 + k2) / 2``."""
+        return self._all_maps()["mean"]
+
+    @property
+    def gaussian(self) -> F32:
+        """Gaussian curvature ``k1 * k2``."""
+        return self._all_maps()["gaussian"]
 
     @property
     def mse(self) -> float:
@@ -107,6 +227,32 @@ class SurfaceFit(SurfaceMaps):
             raise InvalidArgumentError("gcv: got a fit without dof, expected with_dof=True")
         rest = self.n - self.dof
         return float("inf") if rest <= 1e-9 * self.n else self.n * self.sse / rest**2
+
+
+def _restore_fit(
+    n: int,
+    sse: float,
+    dof: float | None,
+    linear: bool,
+    box: tuple[int, int, int, int],
+    image_shape: tuple[int, int],
+    cropped: bool,
+    maps: dict[str, F32],
+) -> SurfaceFit:
+    """Unpickles a :class:`SurfaceFit` (with its maps computed)."""
+    return SurfaceFit(
+        None,
+        None,
+        None,
+        n=n,
+        sse=sse,
+        dof=dof,
+        linear=linear,
+        box=box,
+        image_shape=image_shape,
+        cropped=cropped,
+        maps=maps,
+    )
 
 
 def _params(spacing: float, degree: int, lam: float) -> tuple[float, int, float]:
@@ -129,12 +275,16 @@ def fit_mask(
     degree: int = DEFAULT_DEGREE,
     lam: float = DEFAULT_LAMBDA,
     with_dof: bool = True,
+    crop: bool = False,
 ) -> SurfaceFit:
     """Fit one surface to the valid points where ``mask`` is true (any shape, holes allowed).
 
     Maps are NaN outside the mask. Fewer than ``(degree+1)²`` valid pixels fall back to a linear
     fit (``linear=True``); no valid pixel raises :class:`~rgbd_rs.InvalidArgumentError`.
     ``with_dof`` also computes the effective degrees of freedom for :attr:`SurfaceFit.gcv`.
+    The maps are computed when first read, inside the mask's bounding box only
+    (:attr:`SurfaceFit.box`); ``crop=True`` returns them box-sized instead of ``H x W`` (a small
+    segment of a large image then never allocates image-sized maps).
     """
     p = _validate.array("points", points, shape=(None, None, 3))
     m = None
@@ -148,8 +298,25 @@ def fit_mask(
             "mask", raw_mask.view(np.uint8), shape=(p.shape[0], p.shape[1]), dtype=np.uint8
         ).view(np.bool_)
     s, d, lam_ = _params(spacing, degree, lam)
-    raw, n, sse, dof, linear = _rgbd_rs.fit_surface(p, m, s, d, lam_, bool(with_dof))
-    return SurfaceFit(**_maps(raw), n=n, sse=sse, dof=dof, linear=linear)
+    if not isinstance(crop, (bool, np.bool_)):
+        raise InvalidArgumentError(f"crop: got {crop!r}, expected True or False")
+    native, n, sse, dof, linear, box = _rgbd_rs.fit_surface(p, m, s, d, lam_, bool(with_dof))
+    r0, r1, c0, c1 = box
+    # Copies of the box: the maps are computed later, from the points as they are now.
+    pts = np.array(p[r0:r1, c0:c1], dtype=np.float32, order="C")
+    sub = None if m is None else np.array(m[r0:r1, c0:c1], order="C")
+    return SurfaceFit(
+        native,
+        pts,
+        sub,
+        n=n,
+        sse=sse,
+        dof=dof,
+        linear=linear,
+        box=box,
+        image_shape=(p.shape[0], p.shape[1]),
+        cropped=bool(crop),
+    )
 
 
 def fit_grid(
@@ -162,7 +329,8 @@ def fit_grid(
 ) -> SurfaceFit:
     """Fit one surface to a whole view (NaN holes skipped) and return it with curvature maps.
 
-    The shape pipeline (thesis §5.3.3) calls this on each rendered depth view.
+    The shape pipeline (thesis §5.3.3) calls this on each rendered depth view. The maps are
+    computed when first read (see :class:`SurfaceFit`).
     """
     return fit_mask(points, None, spacing=spacing, degree=degree, lam=lam, with_dof=with_dof)
 

@@ -8,7 +8,7 @@ use std::sync::{PoisonError, RwLock, RwLockReadGuard};
 
 use pyo3::prelude::*;
 use rgbd_spline::{
-    fit_mask, Criterion, FitKind, KnotGrid, NoiseModel, SeamTest, SegmentFits, SurfaceMaps,
+    fit_mask, Criterion, FitKind, KnotGrid, NoiseModel, Region, SeamTest, SegmentFits, SurfaceMaps,
 };
 
 use crate::errors::{borrow, run, shape_err, InvalidArgumentError};
@@ -64,20 +64,72 @@ fn index(arg: &str, i: i64) -> PyResult<usize> {
     })
 }
 
-/// Fits one surface to the points (where `mask`, if given) and evaluates it at every pixel:
-/// `(fitted, error, k1, k2, mean, gaussian, n, sse, dof, linear)`.
+/// One fitted surface (rgbd-spline `Fit`) of a `width x height` image, returned by
+/// [`fit_surface`]; its maps are evaluated on request, over a pixel box only.
+#[pyclass(module = "rgbd_rs._rgbd_rs", name = "_SplineFit", frozen)]
+pub struct PySplineFit {
+    fit: rgbd_spline::Fit,
+    width: usize,
+    height: usize,
+}
+
+#[pymethods]
+impl PySplineFit {
+    /// Maps of the fit over the pixel box whose top-left pixel is `(u0, v0)`: `points` are the
+    /// box's measured points (`rows x columns x 3`), `mask` (box-sized) the pixels the fit
+    /// belongs to (`None`: all). Box-sized `(fitted, error, k1, k2, mean, gaussian)`.
+    fn maps<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray3<'py, f32>,
+        mask: Option<PyReadonlyArray2<'py, bool>>,
+        u0: usize,
+        v0: usize,
+    ) -> PyResult<MapsOut<'py>> {
+        let (bh, bw) = points_shape(&points)?;
+        let p = borrow("points", &points)?;
+        let m = match &mask {
+            Some(m) => {
+                same_size("mask", m.shape(), bh, bw)?;
+                Some(borrow("mask", m)?)
+            }
+            None => None,
+        };
+        let frame = Region {
+            u0,
+            u1: u0 + bw,
+            v0,
+            v1: v0 + bh,
+        };
+        let maps = run(py, || {
+            rgbd_spline::maps::surface_maps_box(p, m, frame, self.width, self.height, &self.fit)
+        })?;
+        maps_out(py, bh, bw, maps)
+    }
+}
+
+/// Fits one surface to the points (where `mask`, if given): `(fit, n, sse, dof, linear, box)`,
+/// `box = (v0, v1, u0, u1)` the pixel box of the fitted pixels (the mask's bounding box; the
+/// whole image without a mask). The maps are computed by `fit.maps` on request.
 #[pyfunction]
 #[pyo3(signature = (points, mask, spacing, degree, lam, with_dof))]
 #[allow(clippy::type_complexity)]
-pub fn fit_surface<'py>(
-    py: Python<'py>,
-    points: PyReadonlyArray3<'py, f32>,
-    mask: Option<PyReadonlyArray2<'py, bool>>,
+pub fn fit_surface(
+    py: Python<'_>,
+    points: PyReadonlyArray3<'_, f32>,
+    mask: Option<PyReadonlyArray2<'_, bool>>,
     spacing: f64,
     degree: usize,
     lam: f64,
     with_dof: bool,
-) -> PyResult<(MapsOut<'py>, usize, f64, Option<f64>, bool)> {
+) -> PyResult<(
+    PySplineFit,
+    usize,
+    f64,
+    Option<f64>,
+    bool,
+    (usize, usize, usize, usize),
+)> {
     let (h, w) = points_shape(&points)?;
     let p = borrow("points", &points)?;
     let m = match &mask {
@@ -87,18 +139,21 @@ pub fn fit_surface<'py>(
         }
         None => None,
     };
-    let (fit, maps) = run(py, || {
+    let (fit, region) = run(py, || {
         let grid = KnotGrid::new(w, h, spacing, degree)?;
         let fit = fit_mask(p, w, h, 3, m, &grid, lam, with_dof)?;
-        // Outside the mask every map is NaN: evaluate only the fit's cell box.
-        let region = m.map(|_| fit.surface.pixel_region(w, h));
-        let maps = rgbd_spline::surface_maps(p, w, h, 3, region, |i| {
-            m.is_none_or(|m| m[i]).then_some(&fit)
-        });
-        Ok::<_, rgbd_spline::RgbdError>((fit, maps))
+        // A fit has at least one pixel, so the mask has a box.
+        let region = m.map_or(Some(Region::full(w, h)), |m| Region::of_mask(w, m));
+        Ok::<_, rgbd_spline::RgbdError>((fit, region.unwrap_or(Region::full(w, h))))
     })?;
-    let linear = fit.kind == FitKind::Linear;
-    Ok((maps_out(py, h, w, maps)?, fit.n, fit.sse, fit.dof, linear))
+    let (n, sse, dof, linear) = (fit.n, fit.sse, fit.dof, fit.kind == FitKind::Linear);
+    let native = PySplineFit {
+        fit,
+        width: w,
+        height: h,
+    };
+    let bbox = (region.v0, region.v1, region.u0, region.u1);
+    Ok((native, n, sse, dof, linear, bbox))
 }
 
 fn criterion_name(c: Criterion) -> &'static str {

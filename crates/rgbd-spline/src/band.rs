@@ -178,6 +178,36 @@ fn factor<const FMA: bool>(m: &mut BandMatrix) -> Result<(), usize> {
     Ok(())
 }
 
+/// [`solve_lanes`] compiled for AVX2 + FMA.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn solve_one_avx2(l: &BandMatrix, b: &mut [f64]) {
+    solve_lanes::<true>(l, b)
+}
+
+/// Forward and back substitution with the factor `l` for one right-hand side `b`.
+#[inline(always)]
+fn solve_lanes<const FMA: bool>(l: &BandMatrix, b: &mut [f64]) {
+    let (n, bw) = (l.n, l.bw);
+    let w = bw + 1;
+    let d = &l.data;
+    for i in 0..n {
+        let (ri, k0) = (i * w + bw - i, i.saturating_sub(bw));
+        b[i] = (b[i] - dot_lanes::<FMA>(&d[ri + k0..ri + i], &b[k0..i])) / d[ri + i];
+    }
+    for i in (0..n).rev() {
+        let (ri, k0) = (i * w + bw - i, i.saturating_sub(bw));
+        b[i] /= d[ri + i];
+        let x = b[i];
+        for (bk, &lik) in b[k0..i].iter_mut().zip(&d[ri + k0..ri + i]) {
+            *bk -= lik * x;
+        }
+    }
+}
+
 /// `A = L Lᵀ` with `L` in band storage.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BandCholesky {
@@ -185,52 +215,36 @@ pub struct BandCholesky {
 }
 
 impl BandCholesky {
-    /// Solves `A X = B` in place for `B` of shape `n x channels` (row-major).
+    /// Solves `A X = B` in place for `B` of shape `n x channels` (row-major): one channel at a
+    /// time on contiguous row slices (dot products and axpys, AVX2 + FMA where the CPU has them).
     pub fn solve(&self, b: &mut [f64], channels: usize) {
-        let (n, bw) = (self.l.n, self.l.bw);
-        let w = bw + 1;
-        let d = &self.l.data;
+        let n = self.l.n;
         debug_assert_eq!(b.len(), n * channels);
         if channels == 1 {
-            // One right-hand side: contiguous row slices (dot products and axpys).
-            for i in 0..n {
-                let (ri, k0) = (i * w + bw - i, i.saturating_sub(bw));
-                b[i] = (b[i] - dot(&d[ri + k0..ri + i], &b[k0..i])) / d[ri + i];
-            }
-            for i in (0..n).rev() {
-                let (ri, k0) = (i * w + bw - i, i.saturating_sub(bw));
-                b[i] /= d[ri + i];
-                let x = b[i];
-                for (bk, &lik) in b[k0..i].iter_mut().zip(&d[ri + k0..ri + i]) {
-                    *bk -= lik * x;
-                }
-            }
+            self.solve_one(b);
             return;
         }
-        for i in 0..n {
-            let ri = i * w + bw - i;
-            for k in i.saturating_sub(bw)..i {
-                let lik = d[ri + k];
-                for c in 0..channels {
-                    b[i * channels + c] -= lik * b[k * channels + c];
-                }
+        let mut col = vec![0.0; n];
+        for c in 0..channels {
+            for (x, row) in col.iter_mut().zip(b.chunks_exact(channels)) {
+                *x = row[c];
             }
-            for c in 0..channels {
-                b[i * channels + c] /= d[ri + i];
+            self.solve_one(&mut col);
+            for (x, row) in col.iter().zip(b.chunks_exact_mut(channels)) {
+                row[c] = *x;
             }
         }
-        for i in (0..n).rev() {
-            let ri = i * w + bw - i;
-            for c in 0..channels {
-                b[i * channels + c] /= d[ri + i];
-            }
-            for k in i.saturating_sub(bw)..i {
-                let lik = d[ri + k];
-                for c in 0..channels {
-                    b[k * channels + c] -= lik * b[i * channels + c];
-                }
-            }
+    }
+
+    /// Solves `A x = b` in place for one right-hand side.
+    fn solve_one(&self, b: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if avx2_fma() {
+            // SAFETY: the CPU supports AVX2 and FMA (checked just above).
+            unsafe { solve_one_avx2(&self.l, b) };
+            return;
         }
+        solve_lanes::<false>(&self.l, b);
     }
 
     /// The entries of `A⁻¹` inside the band (Takahashi's selected inversion), `O(n·b²)`.

@@ -12,7 +12,7 @@
 
 use crate::basis::{uniform_basis, Basis, MAX_DEGREE};
 use crate::fit::{solve, Fit};
-use crate::normal::{accumulate, Region};
+use crate::normal::{accumulate_by, Region};
 use crate::surface::MAX_CHANNELS;
 use rgbd_error::{invalid, RgbdError};
 
@@ -77,6 +77,17 @@ impl KnotGrid {
         let g = x / self.spacing;
         let c = (g.floor().max(0.0) as usize).min(cells - 1);
         (c, (g - c as f64).clamp(0.0, 1.0))
+    }
+
+    /// The cell and basis of pixel coordinate `x` along u (`along_u`) or v.
+    #[inline]
+    pub fn axis(&self, x: f64, along_u: bool) -> (usize, Basis) {
+        let (c, t) = self.locate(x, if along_u { self.cells_u } else { self.cells_v });
+        // Degree was validated in `new`, t is clamped to [0, 1]: the basis cannot fail.
+        (
+            c,
+            uniform_basis(self.degree, t).unwrap_or_else(|_| unreachable!()),
+        )
     }
 
     /// The active control points (row-major indices) and basis of pixel `(u, v)`.
@@ -177,10 +188,8 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
     if let Some(m) = mask {
         check_pixels("mask", m.len(), width, height)?;
     }
-    let labels: Option<Vec<i32>> =
-        mask.map(|m| m.iter().map(|&b| if b { 0 } else { -1 }).collect());
     let region = match mask {
-        Some(m) => Region::bounding(width, height, |i| m[i]),
+        Some(m) => Region::of_mask(width, m),
         None => Some(Region::full(width, height)),
     };
     let Some(region) = region else {
@@ -193,12 +202,12 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
     let offset = valid_mean(values, width, channels, region, |i| {
         mask.is_none_or(|m| m[i])
     });
-    let normals = accumulate(
+    let normals = accumulate_by(
         values,
         width,
         height,
         channels,
-        labels.as_deref(),
+        |i| mask.map_or(0, |m| if m[i] { 0 } else { -1 }),
         1,
         grid,
         &offset,

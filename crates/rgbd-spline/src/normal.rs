@@ -264,17 +264,7 @@ type CellEntry = (i32, u32, Vec<f64>, Moments);
 
 /// Basis of every column (or row) of the image: the cell and the `p + 1` values.
 pub(crate) fn axis_table(grid: &KnotGrid, len: usize, along_u: bool) -> Vec<(usize, Basis)> {
-    (0..len)
-        .map(|x| {
-            let (c0, _, b0, _) = grid.support(x as f64, 0.0);
-            let (_, c1, _, b1) = grid.support(0.0, x as f64);
-            if along_u {
-                (c0, b0)
-            } else {
-                (c1, b1)
-            }
-        })
-        .collect()
+    (0..len).map(|x| grid.axis(x as f64, along_u)).collect()
 }
 
 /// Pixel rectangle `[u0, u1) x [v0, v1)` that holds every pixel of interest.
@@ -294,6 +284,28 @@ impl Region {
             v0: 0,
             v1: height,
         }
+    }
+
+    /// Bounding box of the true pixels of a `width`-wide row-major mask (`None` if none is).
+    pub fn of_mask(width: usize, mask: &[bool]) -> Option<Self> {
+        let mut r = Self {
+            u0: width,
+            u1: 0,
+            v0: usize::MAX,
+            v1: 0,
+        };
+        for (v, row) in mask.chunks_exact(width.max(1)).enumerate() {
+            // Rows are scanned a few bytes at a time; most of them hold no true pixel.
+            let Some(first) = row.iter().position(|&b| b) else {
+                continue;
+            };
+            let last = row.iter().rposition(|&b| b).unwrap_or(first);
+            r.u0 = r.u0.min(first);
+            r.u1 = r.u1.max(last + 1);
+            r.v0 = r.v0.min(v);
+            r.v1 = v + 1;
+        }
+        (r.u1 > r.u0).then_some(r)
     }
 
     /// Bounding box of the pixels where `keep` holds (`None` if there are none).
@@ -329,6 +341,25 @@ pub fn accumulate<T: Copy + Into<f64> + Sync>(
     height: usize,
     channels: usize,
     labels: Option<&[i32]>,
+    n_labels: usize,
+    grid: &KnotGrid,
+    offset: &[f64],
+    region: Region,
+) -> Vec<Normal> {
+    let lab = |i: usize| labels.map_or(0, |l| l[i]);
+    accumulate_by(
+        values, width, height, channels, lab, n_labels, grid, offset, region,
+    )
+}
+
+/// As [`accumulate`] with the label of pixel `i` given by `lab(i)` (a mask needs no label image).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn accumulate_by<T: Copy + Into<f64> + Sync>(
+    values: &[T],
+    width: usize,
+    height: usize,
+    channels: usize,
+    lab: impl Fn(usize) -> i32 + Sync,
     n_labels: usize,
     grid: &KnotGrid,
     offset: &[f64],
@@ -375,7 +406,6 @@ pub fn accumulate<T: Copy + Into<f64> + Sync>(
             let mut g2s: Vec<Vec<f64>> = Vec::new();
             let mut mt = vec![0.0; tri];
             let mut wt = vec![0.0; tri];
-            let lab = |i: usize| labels.map_or(0, |l| l[i]);
             for v in v0..v1 {
                 let (cv, bv) = rows[v];
                 let gv = v as f64 * inv_s;
