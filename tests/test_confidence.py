@@ -201,3 +201,24 @@ def test_cached_targets_retarget_to_a_smaller_threshold() -> None:
     assert retarget(cached, TARGET_T) is cached
     with pytest.raises(InvalidArgumentError, match="target_t"):
         PatchDataset([_scene()], np.ones(4), patch=16, target_t=4.0)
+
+
+def test_disagreement_weighted_loss() -> None:
+    from rgbd_rs.nn.confidence_data import DisagreementMSE
+
+    target = torch.zeros(1, 2, 2, 2)
+    target[0, 0, 0, 0] = 1.0  # ToF right, stereo >= 3 px off: the sources disagree here
+    target[0, 1, 1, 1] = 0.2  # 0.6 px apart: agree
+    mask = torch.ones(1, 2, 2, 2)
+    mask[0, 1, 1, 0] = 0.0  # undefined stereo target: never a disagreement
+    target[0, 0, 1, 0] = 1.0
+    out = torch.full((1, 2, 2, 2), 0.5)
+    batch = (torch.zeros(1, 4, 2, 2), target, mask)
+    torch.testing.assert_close(DisagreementMSE(0.0)(out, batch), masked_mse(out, batch))
+    err = (out - target).square() * mask
+    w = mask.clone()
+    w[0, :, 0, 0] *= 5.0  # the one disagreeing pixel, both channels
+    expected = (err * w).sum() / w.sum()
+    torch.testing.assert_close(DisagreementMSE(4.0)(out, batch), expected)
+    with pytest.raises(InvalidArgumentError, match="weight"):
+        DisagreementMSE(-1.0)

@@ -38,6 +38,13 @@ def register(commands: Commands) -> None:
         default=3.0,
         help="error (px) at which the target confidence reaches 0 (3; at most 3)",
     )
+    p.add_argument(
+        "--disagreement-weight",
+        type=real(0, 1000, low_open=False),
+        default=0.0,
+        help="extra loss weight on pixels where ToF and stereo errors differ by > 1 px "
+        "(0: the thesis' plain MSE)",
+    )
     p.add_argument("--init", type=Path, help="start from this checkpoint's weights (fine-tune)")
     p.add_argument(
         "--checkpoint-steps", type=integer(0), default=50, help="also save every N steps (50)"
@@ -117,7 +124,11 @@ def run_train(args: argparse.Namespace) -> int:
         checkpoint_steps=args.checkpoint_steps,
     )
     recipe = Recipe(
-        width=args.width, patch=args.patch, per_scene=args.per_scene, target_t=args.target_t
+        width=args.width,
+        patch=args.patch,
+        per_scene=args.per_scene,
+        target_t=args.target_t,
+        disagreement_weight=args.disagreement_weight,
     )
     best = train_confidence(
         args.data,

@@ -239,3 +239,28 @@ def masked_mse(output: torch.Tensor, batch: Sequence[torch.Tensor]) -> torch.Ten
     _, target, mask = batch[0], batch[1], batch[2]
     diff = (output - target) * mask
     return diff.square().sum() / mask.sum().clamp(min=1.0)
+
+
+class DisagreementMSE:
+    """:func:`masked_mse` with the pixels where the two sources disagree weighted ``1 + weight``.
+
+    A pixel disagrees when both targets are defined and the sources' errors differ by more than
+    ``DISAGREE_PX`` (``|t_T - t_S| > DISAGREE_PX / target_t``): there the two confidences decide
+    which hypothesis LC keeps, elsewhere both sources say the same and their weights matter
+    little. Our addition (``rgbd train confidence --disagreement-weight``); ``weight=0`` is §3.7.
+    """
+
+    def __init__(self, weight: float, target_t: float = TARGET_T) -> None:
+        self.weight = _validate.real("weight", weight, nonnegative=True)
+        self.threshold = DISAGREE_PX / _check_t(target_t)
+
+    def __call__(self, output: torch.Tensor, batch: Sequence[torch.Tensor]) -> torch.Tensor:
+        _, target, mask = batch[0], batch[1], batch[2]
+        both = mask[:, 0] * mask[:, 1]
+        apart = both * ((target[:, 0] - target[:, 1]).abs() > self.threshold).to(mask.dtype)
+        w = mask * (1.0 + self.weight * apart.unsqueeze(1))
+        return ((output - target).square() * w).sum() / w.sum().clamp(min=1.0)
+
+
+#: Error difference (px) above which the two sources disagree (:class:`DisagreementMSE`).
+DISAGREE_PX = 1.0

@@ -32,6 +32,8 @@ class Recipe:
     val_tile: int = 128
     #: Error (px) at which the target confidence reaches 0 (at most the caches' TARGET_T).
     target_t: float = TARGET_T
+    #: Extra loss weight where the sources disagree (DisagreementMSE; 0 = the thesis' MSE).
+    disagreement_weight: float = 0.0
 
 
 def prepare_caches(
@@ -71,6 +73,7 @@ def train_confidence(
 
     from rgbd_rs.nn.confidence import ARCH, ConfidenceNet
     from rgbd_rs.nn.confidence_data import (
+        DisagreementMSE,
         PatchDataset,
         TileDataset,
         load_scenes,
@@ -108,11 +111,14 @@ def train_confidence(
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
         load_checkpoint(init, arch=ARCH).load_weights(model)
+    loss = (
+        DisagreementMSE(r.disagreement_weight, r.target_t) if r.disagreement_weight else masked_mse
+    )
     result = train(
         model,
         train_set,
         val_set,
-        masked_mse,
+        loss,
         cfg,
         out,
         arch=ARCH,
