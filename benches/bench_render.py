@@ -29,6 +29,8 @@ import os
 import numpy as np
 
 from _timing import timeit
+from rgbd_rs import PinholeCamera
+from rgbd_rs.render import RenderScene
 
 REPEATS = 5
 
@@ -73,7 +75,9 @@ def dense_mesh() -> tuple[np.ndarray, np.ndarray]:
     from rgbd_rs.data.paths import data_root
     from rgbd_rs.meshes import load_mesh
 
-    m = load_mesh(data_root() / "meshes" / "stanford_bunny.off").normalized(1.0)
+    root = data_root(required=True)
+    assert root is not None
+    m = load_mesh(root / "meshes" / "stanford_bunny.off").normalized(1.0)
     v, f = m.vertices.astype(np.float64), m.triangles.astype(np.int64)
     for _ in range(3):
         v, f = subdivide(v, f)
@@ -82,8 +86,8 @@ def dense_mesh() -> tuple[np.ndarray, np.ndarray]:
 
 
 def cast_all(
-    built,  # type: ignore[no-untyped-def]
-    cam,  # type: ignore[no-untyped-def]
+    built: RenderScene,
+    cam: PinholeCamera,
     d: np.ndarray,
     verts: np.ndarray,
     faces: np.ndarray,
