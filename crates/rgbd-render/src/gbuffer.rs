@@ -34,10 +34,20 @@ pub fn render_depth(scene: &Scene, view: &View) -> Result<Vec<f32>> {
         .try_for_each(|(row, line)| {
             check_interrupt()?;
             let y = view.plane_y(row as f64);
-            for (px, &x) in line.iter_mut().zip(&xs) {
-                let ray = view.ray_at(x, y);
-                if let Some(h) = scene.cast(&ray, 0.0) {
-                    *px = h.t;
+            // Eight neighbouring pixels at a time walk the BVH as one packet.
+            let mut px = line.chunks_exact_mut(8);
+            let mut x8 = xs.chunks_exact(8);
+            for (out, x) in (&mut px).zip(&mut x8) {
+                let rays = std::array::from_fn(|i| view.ray_at(x[i], y));
+                for (o, h) in out.iter_mut().zip(scene.cast8(&rays, 0.0)) {
+                    if let Some(h) = h {
+                        *o = h.t;
+                    }
+                }
+            }
+            for (o, &x) in px.into_remainder().iter_mut().zip(x8.remainder()) {
+                if let Some(h) = scene.cast(&view.ray_at(x, y), 0.0) {
+                    *o = h.t;
                 }
             }
             Ok(())

@@ -12,6 +12,8 @@ pub mod bvh;
 pub mod gbuffer;
 pub mod material;
 pub mod math;
+#[cfg(target_arch = "x86_64")]
+mod packet;
 pub mod rng;
 pub mod scene;
 pub mod shade;

@@ -144,6 +144,14 @@ impl Scene {
         self.bvh.closest(ray.o, ray.d, t_min, f32::INFINITY)
     }
 
+    /// Nearest hits of eight rays beyond `t_min` (coherent rays: see [`Bvh::closest8`]).
+    #[inline]
+    pub fn cast8(&self, rays: &[Ray; 8], t_min: f32) -> [Option<Hit>; 8] {
+        let o = rays.map(|r| r.o);
+        let d = rays.map(|r| r.d);
+        self.bvh.closest8(&o, &d, t_min, f32::INFINITY)
+    }
+
     /// Resolves a hit of `ray` into position, facing normal and object.
     #[inline]
     pub fn surface(&self, ray: &Ray, hit: &Hit) -> Surface {

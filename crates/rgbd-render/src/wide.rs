@@ -17,21 +17,21 @@ use crate::simd4::{F4, M4};
 /// Marks a child reference as a leaf (the rest is the packet index).
 pub(crate) const LEAF: u32 = 1 << 31;
 /// Children per node.
-const W: usize = 8;
+pub(crate) const W: usize = 8;
 /// Traversal stack entries: at most `W - 1` pushes per level, and the build caps the depth at
 /// [`crate::bvh::MAX_DEPTH`] + 32 levels.
-const STACK: usize = (W - 1) * (crate::bvh::MAX_DEPTH + 32) + 1;
+pub(crate) const STACK: usize = (W - 1) * (crate::bvh::MAX_DEPTH + 32) + 1;
 
 /// Up to eight child boxes, one lane per child: `b[2k]` / `b[2k + 1]` are the low / high bounds
 /// along axis `k`. Unused lanes hold empty boxes and are masked off by `n`.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
 pub(crate) struct Node8 {
-    b: [[f32; W]; 6],
+    pub(crate) b: [[f32; W]; 6],
     /// A node index, or [`LEAF`] | packet index.
-    child: [u32; W],
+    pub(crate) child: [u32; W],
     /// Lanes in use (2..=8).
-    n: u32,
+    pub(crate) n: u32,
 }
 
 /// Up to four triangles, lane-wise: vertex 0, the edges to vertices 1 and 2, and the input
@@ -161,8 +161,13 @@ pub(crate) struct Ray4 {
 
 impl Ray4 {
     #[inline(always)]
-    fn new(o: V3, d: V3) -> Self {
-        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+    pub(crate) fn new(o: V3, d: V3) -> Self {
+        Self::with_inverse(o, d, [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]])
+    }
+
+    /// The ray with its reciprocal direction `inv` already computed.
+    #[inline(always)]
+    pub(crate) fn with_inverse(o: V3, d: V3, inv: V3) -> Self {
         Self {
             o: o.map(F4::splat),
             d: d.map(F4::splat),
@@ -294,6 +299,31 @@ fn triangles(p: &Tri4, r: &Ray4, t_min: F4, t_max: F4) -> (u32, F4, F4, F4) {
     (ok.bits(), t, u, v)
 }
 
+/// The nearest hit in a packet with `t_min < t < t_best` (the first lane among equals).
+#[inline(always)]
+pub(crate) fn leaf(p: &Tri4, r: &Ray4, t_min: F4, t_best: f32) -> Option<Hit> {
+    let (mask, t, u, v) = triangles(p, r, t_min, F4::splat(t_best));
+    if mask == 0 {
+        return None;
+    }
+    let ts = t.to_array();
+    let mut lane = mask.trailing_zeros() as usize;
+    let mut m = mask & (mask - 1);
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        if ts[i] < ts[lane] {
+            lane = i;
+        }
+    }
+    Some(Hit {
+        t: ts[lane],
+        prim: p.id[lane],
+        u: u.to_array()[lane],
+        v: v.to_array()[lane],
+    })
+}
+
 /// Closest hit with `t_min < t < t_max` (`ANY = false`), or the first hit found (`ANY = true`,
 /// shadow rays). `root` is the reference [`collapse`] returned; the tree must not be empty.
 ///
@@ -364,25 +394,9 @@ pub(crate) unsafe fn traverse<B: BoxTest, const ANY: bool>(
             }
         } else {
             let p = &packets[(cur & !LEAF) as usize];
-            let (mask, t, u, v) = triangles(p, &r, t_lo, F4::splat(t_best));
-            if mask != 0 {
-                let ts = t.to_array();
-                let mut lane = mask.trailing_zeros() as usize;
-                let mut m = mask & (mask - 1);
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    if ts[i] < ts[lane] {
-                        lane = i;
-                    }
-                }
-                t_best = ts[lane];
-                best = Some(Hit {
-                    t: t_best,
-                    prim: p.id[lane],
-                    u: u.to_array()[lane],
-                    v: v.to_array()[lane],
-                });
+            if let Some(h) = leaf(p, &r, t_lo, t_best) {
+                t_best = h.t;
+                best = Some(h);
                 if ANY {
                     return best;
                 }
