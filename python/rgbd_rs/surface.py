@@ -170,10 +170,10 @@ class SurfaceFit(SurfaceMaps):
         native, points = self._native, self._points
         assert native is not None and points is not None
         raw = dict(zip(_MAP_NAMES, native.maps(points, self._mask, c0, r0), strict=True))
-        if self.cropped:
+        h, w = self._image_shape
+        if self.cropped or self.box == (0, h, 0, w):
             maps = raw
         else:
-            h, w = self._image_shape
             maps = {}
             for name, box_map in raw.items():
                 full = np.full((h, w, *box_map.shape[2:]), np.nan, np.float32)

@@ -18,7 +18,7 @@ fn process_cpu() -> Option<Duration> {
 
 /// Times `f` by wall clock, or by the process' CPU time when `SPLINE_BENCH_CPU` is set (a shared,
 /// loaded machine: other processes then inflate wall time but not CPU time; 10 ms resolution,
-/// so give criterion a measurement time of a few seconds).
+/// each sample runs for at least 100 ms of CPU time).
 fn timed<R>(b: &mut criterion::Bencher, mut f: impl FnMut() -> R) {
     if std::env::var_os("SPLINE_BENCH_CPU").is_none() {
         b.iter(f);
@@ -26,12 +26,20 @@ fn timed<R>(b: &mut criterion::Bencher, mut f: impl FnMut() -> R) {
     }
     b.iter_custom(|iters| {
         let (t0, w0) = (process_cpu(), Instant::now());
-        for _ in 0..iters {
-            black_box(f());
-        }
-        match (t0, process_cpu()) {
-            (Some(a), Some(z)) => z.saturating_sub(a),
-            _ => w0.elapsed(),
+        // Whole batches of `iters` until at least 100 ms of CPU time (the clock ticks at 10 ms).
+        let mut done = 0u64;
+        loop {
+            for _ in 0..iters {
+                black_box(f());
+            }
+            done += iters;
+            let spent = match (t0, process_cpu()) {
+                (Some(a), Some(z)) => z.saturating_sub(a),
+                _ => w0.elapsed(),
+            };
+            if spent >= Duration::from_millis(100) {
+                return spent.mul_f64(iters as f64 / done as f64);
+            }
         }
     })
 }

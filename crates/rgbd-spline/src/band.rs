@@ -29,8 +29,21 @@ fn dot_lanes<const FMA: bool>(a: &[f64], b: &[f64]) -> f64 {
             };
         }
     }
+    // The remainder four lanes at a time into the first vector (band rows are short: a scalar
+    // tail of up to 15 dependent multiply-adds would cost as much as the vector part).
+    let (qa, qb) = (ra.chunks_exact(4), rb.chunks_exact(4));
+    let (ta, tb) = (qa.remainder(), qb.remainder());
+    for (x, y) in qa.zip(qb) {
+        for k in 0..4 {
+            acc[k] = if FMA {
+                x[k].mul_add(y[k], acc[k])
+            } else {
+                acc[k] + x[k] * y[k]
+            };
+        }
+    }
     let mut tail = 0.0;
-    for (x, y) in ra.iter().zip(rb) {
+    for (x, y) in ta.iter().zip(tb) {
         tail = if FMA {
             x.mul_add(*y, tail)
         } else {
@@ -52,7 +65,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// Whether the AVX2 + FMA kernels can run here (checked once; cached by std).
 #[inline]
-fn avx2_fma() -> bool {
+pub(crate) fn avx2_fma() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")

@@ -14,6 +14,7 @@ use crate::basis::{uniform_basis, Basis, MAX_DEGREE};
 use crate::fit::{solve, Fit};
 use crate::normal::{accumulate_by, Region};
 use crate::surface::MAX_CHANNELS;
+use rayon::prelude::*;
 use rgbd_error::{invalid, RgbdError};
 
 /// Default smoothness weight (relative to one data point's weight). Chosen small enough that a
@@ -104,25 +105,56 @@ impl KnotGrid {
 
 /// Per-channel mean of the valid pixels (all channels finite, `keep` true) inside `region`: the
 /// offset the normal equations are accumulated against, so sums of squares stay well-conditioned.
-pub fn valid_mean<T: Copy + Into<f64>>(
+pub fn valid_mean<T: Copy + Into<f64> + Sync>(
     values: &[T],
     width: usize,
     channels: usize,
     region: Region,
-    keep: impl Fn(usize) -> bool,
+    keep: impl Fn(usize) -> bool + Sync,
 ) -> Vec<f64> {
-    let mut sum = vec![0.0; channels];
-    let mut n = 0usize;
-    for v in region.v0..region.v1 {
-        for i in v * width + region.u0..v * width + region.u1 {
-            let px = &values[i * channels..][..channels];
-            if keep(i) && px.iter().all(|&x| x.into().is_finite()) {
+    match channels {
+        1 => mean_of::<T, 1>(values, width, region, keep),
+        2 => mean_of::<T, 2>(values, width, region, keep),
+        3 => mean_of::<T, 3>(values, width, region, keep),
+        _ => mean_of::<T, 4>(values, width, region, keep),
+    }
+}
+
+/// [`valid_mean`] of `C` channels.
+fn mean_of<T: Copy + Into<f64> + Sync, const C: usize>(
+    values: &[T],
+    width: usize,
+    region: Region,
+    keep: impl Fn(usize) -> bool + Sync,
+) -> Vec<f64> {
+    let row_sums = |v: usize| {
+        let mut sum = [0.0; C];
+        let mut n = 0usize;
+        let i0 = v * width + region.u0;
+        let px = &values[i0 * C..(v * width + region.u1) * C];
+        for (i, p) in (i0..).zip(px.chunks_exact(C)) {
+            let x: [f64; C] = std::array::from_fn(|c| p[c].into());
+            if x.iter().all(|x| x.is_finite()) && keep(i) {
                 n += 1;
-                for (s, &x) in sum.iter_mut().zip(px) {
-                    *s += x.into();
+                for (s, x) in sum.iter_mut().zip(x) {
+                    *s += x;
                 }
             }
         }
+        (sum, n)
+    };
+    // Rows in parallel, their sums added in row order: the same offset whatever the threads.
+    let rows: Vec<([f64; C], usize)> = (region.v0..region.v1)
+        .into_par_iter()
+        .with_min_len(32)
+        .map(row_sums)
+        .collect();
+    let (mut sum, mut n) = ([0.0; C], 0);
+    for (s, k) in rows {
+        for (a, b) in sum.iter_mut().zip(s) {
+            *a += b;
+        }
+        n += k;
     }
     sum.iter()
         .map(|s| if n > 0 { s / n as f64 } else { 0.0 })

@@ -134,7 +134,8 @@ struct RunSums {
     /// Lower triangle of `Σ b_u b_uᵀ` (row stride `RUN_K`).
     mu: [f64; RUN_K * RUN_K],
     ou: [f64; RUN_K],
-    ru: [[f64; MAX_CHANNELS]; RUN_K],
+    /// `Σ b_u x` per channel (channel-major: the basis functions of one channel are contiguous).
+    ru: [[f64; RUN_K]; MAX_CHANNELS],
     su: f64,
     suu: f64,
     sx: [f64; MAX_CHANNELS],
@@ -166,7 +167,7 @@ impl RunSums {
             n: 0,
             mu: [0.0; RUN_K * RUN_K],
             ou: [0.0; RUN_K],
-            ru: [[0.0; MAX_CHANNELS]; RUN_K],
+            ru: [[0.0; RUN_K]; MAX_CHANNELS],
             su: 0.0,
             suu: 0.0,
             sx: [0.0; MAX_CHANNELS],
@@ -176,7 +177,7 @@ impl RunSums {
     }
 
     /// Adds the geometric sums (basis products, column moments) of column `u`.
-    #[inline]
+    #[inline(always)]
     fn add_geometry(&mut self, u: usize, basis: &Basis, k1: usize, inv_s: f64) {
         let bu = &basis.value;
         let gu = u as f64 * inv_s;
@@ -210,6 +211,7 @@ fn full_runs(cols: &[(usize, Basis)], k1: usize, inv_s: f64) -> Vec<(usize, usiz
 
 /// The sums of one run of `C`-channel pixels `px` (columns `u0..`, bases `cols`); `full` holds
 /// the geometric sums to use when every pixel of the run is valid.
+#[inline(always)]
 fn run_sums<T: Copy + Into<f64>, const C: usize>(
     px: &[T],
     cols: &[(usize, Basis)],
@@ -230,9 +232,9 @@ fn run_sums<T: Copy + Into<f64>, const C: usize>(
         let bu = &basis.value;
         let gu = (u0 + i) as f64 * inv_s;
         r.n += 1;
-        for a in 0..k1 {
-            for c in 0..C {
-                r.ru[a][c] += bu[a] * x[c];
+        for c in 0..C {
+            for a in 0..k1 {
+                r.ru[c][a] += bu[a] * x[c];
             }
         }
         for c in 0..C {
@@ -330,6 +332,177 @@ impl Region {
     }
 }
 
+/// What [`cell_rows`] reads: the image, its labels and the tables shared by all cell rows.
+struct Ctx<'c, T, L> {
+    values: &'c [T],
+    width: usize,
+    lab: &'c L,
+    n_labels: usize,
+    cells_u: usize,
+    offset: &'c [f64],
+    region: Region,
+    cols: &'c [(usize, Basis)],
+    rows: &'c [(usize, Basis)],
+    templates: &'c [(usize, usize, RunSums)],
+    inv_s: f64,
+    /// (index into the Gram block, index into the `tri x tri` sums) of its lower triangle.
+    lower: &'c [(usize, usize)],
+    block_len: usize,
+}
+
+/// Index of the symmetric pair `(a, b)` among the `k1 (k1 + 1) / 2` distinct ones.
+#[inline(always)]
+fn pair(a: usize, b: usize) -> usize {
+    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+    hi * (hi + 1) / 2 + lo
+}
+
+/// The cell blocks of image rows `v0..v1` (one cell row), `K1 = p + 1` basis functions per axis
+/// and `C` channels known at compile time (the loops over them unroll).
+#[inline(always)]
+fn cell_rows<T: Copy + Into<f64>, L: Fn(usize) -> i32, const K1: usize, const C: usize>(
+    ctx: &Ctx<'_, T, L>,
+    v0: usize,
+    v1: usize,
+) -> Vec<CellEntry> {
+    let k = K1 * K1;
+    let tri = K1 * (K1 + 1) / 2;
+    let (region, cols, width) = (ctx.region, ctx.cols, ctx.width);
+    // Per cell column of this cell row: the (label, index into `out`) seen there.
+    let mut slots: Vec<Vec<(i32, usize)>> = vec![Vec::new(); ctx.cells_u];
+    let mut out: Vec<CellEntry> = Vec::new();
+    let mut g2s: Vec<Vec<f64>> = Vec::new();
+    let mut mt = [0.0; RUN_K * (RUN_K + 1) / 2];
+    let mut wt = [0.0; RUN_K * (RUN_K + 1) / 2];
+    for v in v0..v1 {
+        let (cv, bv) = ctx.rows[v];
+        let gv = v as f64 * ctx.inv_s;
+        for a in 0..K1 {
+            for b in 0..=a {
+                wt[pair(a, b)] = bv.value[a] * bv.value[b];
+            }
+        }
+        let mut u = region.u0;
+        while u < region.u1 {
+            let label = (ctx.lab)(v * width + u);
+            let cu = cols[u].0;
+            // One run: same label, same cell.
+            let mut end = u + 1;
+            while end < region.u1 && cols[end].0 == cu && (ctx.lab)(v * width + end) == label {
+                end += 1;
+            }
+            let (u0, u1) = (u, end);
+            u = end;
+            if label < 0 || label as usize >= ctx.n_labels.max(1) {
+                continue;
+            }
+            let px = &ctx.values[(v * width + u0) * C..(v * width + u1) * C];
+            let full = ctx
+                .templates
+                .get(cu)
+                .filter(|t| t.0 == u0 && t.1 == u1)
+                .map(|t| &t.2);
+            let r = run_sums::<T, C>(px, &cols[u0..u1], u0, K1, ctx.inv_s, ctx.offset, full);
+            if r.n == 0 {
+                continue;
+            }
+            let cell = (cv * ctx.cells_u + cu) as u32;
+            let slot = match slots[cu].iter().find(|e| e.0 == label) {
+                Some(e) => e.1,
+                None => {
+                    out.push((label, cell, vec![0.0; ctx.block_len], Moments::zeros(C)));
+                    g2s.push(vec![0.0; tri * tri]);
+                    slots[cu].push((label, out.len() - 1));
+                    out.len() - 1
+                }
+            };
+            let (_, _, block, mom) = &mut out[slot];
+            r.add_moments(mom, gv);
+            let (mu, ru, ou) = (&r.mu, &r.ru, &r.ou);
+            let bvv = &bv.value;
+            for a in 0..K1 {
+                for b in 0..=a {
+                    mt[pair(a, b)] = mu[a * RUN_K + b];
+                }
+            }
+            for (row, &m) in g2s[slot].chunks_exact_mut(tri).zip(&mt[..tri]) {
+                for (g, &w) in row.iter_mut().zip(&wt[..tri]) {
+                    *g += m * w;
+                }
+            }
+            let (_, rest) = block.split_at_mut(k * k);
+            let (rhs, ones) = rest.split_at_mut(k * C);
+            for ja in 0..K1 {
+                for ia in 0..K1 {
+                    let a = ja * K1 + ia;
+                    for ch in 0..C {
+                        rhs[a * C + ch] += ru[ch][ia] * bvv[ja];
+                    }
+                    ones[a] += ou[ia] * bvv[ja];
+                }
+            }
+        }
+    }
+    for ((_, _, block, _), g2) in out.iter_mut().zip(&g2s) {
+        for &(g, t) in ctx.lower {
+            block[g] = g2[t];
+        }
+    }
+    out
+}
+
+/// [`cell_rows`] of cubic splines compiled for AVX2 + FMA (the sums keep their separate
+/// roundings: the same results as the portable build).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn cell_rows_avx2<T: Copy + Into<f64>, L: Fn(usize) -> i32, const C: usize>(
+    ctx: &Ctx<'_, T, L>,
+    v0: usize,
+    v1: usize,
+) -> Vec<CellEntry> {
+    cell_rows::<T, L, 4, C>(ctx, v0, v1)
+}
+
+/// [`cell_rows`] for a run-time degree (1 ..= [`MAX_DEGREE`]) and channel count
+/// (1 ..= [`MAX_CHANNELS`]).
+fn cell_rows_dyn<T: Copy + Into<f64>, L: Fn(usize) -> i32>(
+    ctx: &Ctx<'_, T, L>,
+    degree: usize,
+    channels: usize,
+    v0: usize,
+    v1: usize,
+) -> Vec<CellEntry> {
+    #[cfg(target_arch = "x86_64")]
+    if degree == 3 && crate::band::avx2_fma() {
+        // SAFETY (all three): the CPU supports AVX2 and FMA (checked just above).
+        match channels {
+            1 => return unsafe { cell_rows_avx2::<T, L, 1>(ctx, v0, v1) },
+            3 => return unsafe { cell_rows_avx2::<T, L, 3>(ctx, v0, v1) },
+            _ => {}
+        }
+    }
+    macro_rules! by_channels {
+        ($k1:literal) => {
+            match channels {
+                1 => cell_rows::<T, L, $k1, 1>(ctx, v0, v1),
+                2 => cell_rows::<T, L, $k1, 2>(ctx, v0, v1),
+                3 => cell_rows::<T, L, $k1, 3>(ctx, v0, v1),
+                _ => cell_rows::<T, L, $k1, 4>(ctx, v0, v1),
+            }
+        };
+    }
+    match degree {
+        1 => by_channels!(2),
+        2 => by_channels!(3),
+        3 => by_channels!(4),
+        4 => by_channels!(5),
+        _ => by_channels!(6),
+    }
+}
+
 /// Accumulates the normal equations of every label in `0..n_labels` (`labels[i] < 0` or any
 /// non-finite channel: pixel ignored; `labels = None`: one set of all valid pixels) from
 /// `values` (`height x width x channels`, row-major, `f32` or `f64`) minus `offset` (per
@@ -384,10 +557,6 @@ pub(crate) fn accumulate_by<T: Copy + Into<f64> + Sync>(
     // each run adds the rank-1 product of the two `tri`-vectors to a `tri x tri` matrix (contiguous,
     // vectorisable); it is expanded into the lower triangle of the Gram block once per cell.
     let tri = k1 * (k1 + 1) / 2;
-    let pair = |a: usize, b: usize| {
-        let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
-        hi * (hi + 1) / 2 + lo
-    };
     let lower: Vec<(usize, usize)> = (0..k)
         .flat_map(|a| (0..=a).map(move |b| (a, b)))
         .map(|(a, b)| {
@@ -396,96 +565,24 @@ pub(crate) fn accumulate_by<T: Copy + Into<f64> + Sync>(
         })
         .collect();
     let template = Normal::empty(k, channels);
-    let bl = template.block_len();
+    let ctx = Ctx {
+        values,
+        width,
+        lab: &lab,
+        n_labels,
+        cells_u: grid.cells_u,
+        offset,
+        region,
+        cols: &cols,
+        rows: &rows,
+        templates: &templates,
+        inv_s,
+        lower: &lower,
+        block_len: template.block_len(),
+    };
     let parts: Vec<Vec<CellEntry>> = groups
         .par_iter()
-        .map(|&(v0, v1)| {
-            // Per cell column of this cell row: the (label, index into `out`) seen there.
-            let mut slots: Vec<Vec<(i32, usize)>> = vec![Vec::new(); grid.cells_u];
-            let mut out: Vec<CellEntry> = Vec::new();
-            let mut g2s: Vec<Vec<f64>> = Vec::new();
-            let mut mt = vec![0.0; tri];
-            let mut wt = vec![0.0; tri];
-            for v in v0..v1 {
-                let (cv, bv) = rows[v];
-                let gv = v as f64 * inv_s;
-                for a in 0..k1 {
-                    for b in 0..=a {
-                        wt[pair(a, b)] = bv.value[a] * bv.value[b];
-                    }
-                }
-                let mut u = region.u0;
-                while u < region.u1 {
-                    let label = lab(v * width + u);
-                    let cu = cols[u].0;
-                    // One run: same label, same cell.
-                    let mut end = u + 1;
-                    while end < region.u1 && cols[end].0 == cu && lab(v * width + end) == label {
-                        end += 1;
-                    }
-                    let (u0, u1) = (u, end);
-                    u = end;
-                    if label < 0 || label as usize >= n_labels.max(1) {
-                        continue;
-                    }
-                    let px = &values[(v * width + u0) * channels..(v * width + u1) * channels];
-                    let full = templates
-                        .get(cu)
-                        .filter(|t| t.0 == u0 && t.1 == u1)
-                        .map(|t| &t.2);
-                    let r = match channels {
-                        1 => run_sums::<T, 1>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
-                        2 => run_sums::<T, 2>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
-                        3 => run_sums::<T, 3>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
-                        _ => run_sums::<T, 4>(px, &cols[u0..u1], u0, k1, inv_s, offset, full),
-                    };
-                    if r.n == 0 {
-                        continue;
-                    }
-                    let cell = (cv * grid.cells_u + cu) as u32;
-                    let slot = match slots[cu].iter().find(|e| e.0 == label) {
-                        Some(e) => e.1,
-                        None => {
-                            out.push((label, cell, vec![0.0; bl], Moments::zeros(channels)));
-                            g2s.push(vec![0.0; tri * tri]);
-                            slots[cu].push((label, out.len() - 1));
-                            out.len() - 1
-                        }
-                    };
-                    let (_, _, block, mom) = &mut out[slot];
-                    r.add_moments(mom, gv);
-                    let (mu, ru, ou) = (&r.mu, &r.ru, &r.ou);
-                    let bvv = &bv.value;
-                    for a in 0..k1 {
-                        for b in 0..=a {
-                            mt[pair(a, b)] = mu[a * RUN_K + b];
-                        }
-                    }
-                    for (row, &m) in g2s[slot].chunks_exact_mut(tri).zip(&mt) {
-                        for (g, &w) in row.iter_mut().zip(&wt) {
-                            *g += m * w;
-                        }
-                    }
-                    let (_, rest) = block.split_at_mut(k * k);
-                    let (rhs, ones) = rest.split_at_mut(k * channels);
-                    for ja in 0..k1 {
-                        for ia in 0..k1 {
-                            let a = ja * k1 + ia;
-                            for ch in 0..channels {
-                                rhs[a * channels + ch] += ru[ia][ch] * bvv[ja];
-                            }
-                            ones[a] += ou[ia] * bvv[ja];
-                        }
-                    }
-                }
-            }
-            for ((_, _, block, _), g2) in out.iter_mut().zip(&g2s) {
-                for &(g, t) in &lower {
-                    block[g] = g2[t];
-                }
-            }
-            out
-        })
+        .map(|&(v0, v1)| cell_rows_dyn(&ctx, p, channels, v0, v1))
         .collect();
     let mut all: Vec<CellEntry> = parts.into_iter().flatten().collect();
     all.sort_unstable_by_key(|e| (e.0, e.1));
