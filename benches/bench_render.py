@@ -99,7 +99,7 @@ def cast_all(
     ours_depth = built.depth(cam, Pose.identity())
     rows = [
         (
-            "rgbd_rs (8-wide BVH, rayon)",
+            "rgbd_rs (8-wide BVH, 8-ray packets, rayon)",
             timeit(lambda: built.depth(cam, Pose.identity()), REPEATS),
             0.0,
         )
