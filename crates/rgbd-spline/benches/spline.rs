@@ -2,7 +2,8 @@
 //! the same fits against scipy's LSQBivariateSpline in one run.
 
 use criterion::{criterion_group, criterion_main, Criterion as Bench};
-use rgbd_spline::{fit_grid, fit_mask, Criterion, KnotGrid, SegmentFits, DEFAULT_LAMBDA};
+use rgbd_spline::maps::surface_maps_box;
+use rgbd_spline::{fit_grid, fit_mask, Criterion, KnotGrid, Region, SegmentFits, DEFAULT_LAMBDA};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -81,6 +82,37 @@ fn bench_segment(c: &mut Bench) {
                 true,
             )
             .unwrap()
+        })
+    });
+    // As the Python API: no degrees of freedom, then the maps of the segment's box.
+    c.bench_function("fit_mask 10k px, 10x10 cells, no dof", |b| {
+        timed(b, || {
+            fit_mask(
+                black_box(&pts),
+                w,
+                h,
+                3,
+                Some(&mask),
+                &grid,
+                DEFAULT_LAMBDA,
+                false,
+            )
+            .unwrap()
+        })
+    });
+    let frame = Region {
+        u0: 200,
+        u1: 300,
+        v0: 100,
+        v1: 200,
+    };
+    let box_pts: Vec<f32> = (frame.v0..frame.v1)
+        .flat_map(|v| pts[(v * w + frame.u0) * 3..(v * w + frame.u1) * 3].to_vec())
+        .collect();
+    let fit = fit_mask(&pts, w, h, 3, Some(&mask), &grid, DEFAULT_LAMBDA, false).unwrap();
+    c.bench_function("box maps 10k px", |b| {
+        timed(b, || {
+            surface_maps_box(black_box(&box_pts), None, frame, w, h, &fit).unwrap()
         })
     });
     // 300 segments of 32x32 pixels (20 x 15 tiles), 16-pixel spacing.
@@ -187,6 +219,12 @@ fn bench_view(c: &mut Bench) {
             })
         });
         let fit = fit_grid(&pts, w, h, 3, &grid, DEFAULT_LAMBDA, false).unwrap();
+        c.bench_function(&format!("fit_grid + maps 320x320 s={s}"), |b| {
+            timed(b, || {
+                let fit = fit_grid(black_box(&pts), w, h, 3, &grid, DEFAULT_LAMBDA, false).unwrap();
+                rgbd_spline::surface_maps(&pts, w, h, 3, None, |_| Some(&fit))
+            })
+        });
         c.bench_function(&format!("maps 320x320 s={s}"), |b| {
             timed(b, || {
                 rgbd_spline::surface_maps(black_box(&pts), w, h, 3, None, |_| Some(&fit))
