@@ -8,7 +8,7 @@ use std::sync::{PoisonError, RwLock, RwLockReadGuard};
 
 use pyo3::prelude::*;
 use rgbd_spline::{
-    fit_mask, Criterion, FitKind, KnotGrid, NoiseModel, Region, SeamTest, SegmentFits, SurfaceMaps,
+    Criterion, FitKind, KnotGrid, NoiseModel, Region, SeamTest, SegmentFits, SurfaceMaps,
 };
 
 use crate::errors::{borrow, run, shape_err, InvalidArgumentError};
@@ -141,10 +141,7 @@ pub fn fit_surface(
     };
     let (fit, region) = run(py, || {
         let grid = KnotGrid::new(w, h, spacing, degree)?;
-        let fit = fit_mask(p, w, h, 3, m, &grid, lam, with_dof)?;
-        // A fit has at least one pixel, so the mask has a box.
-        let region = m.map_or(Some(Region::full(w, h)), |m| Region::of_mask(w, m));
-        Ok::<_, rgbd_spline::RgbdError>((fit, region.unwrap_or(Region::full(w, h))))
+        rgbd_spline::grid::fit_mask_box(p, w, h, 3, m, &grid, lam, with_dof)
     })?;
     let (n, sse, dof, linear) = (fit.n, fit.sse, fit.dof, fit.kind == FitKind::Linear);
     let native = PySplineFit {

@@ -215,6 +215,25 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
     lambda: f64,
     with_dof: bool,
 ) -> Result<Fit, RgbdError> {
+    Ok(fit_mask_box(
+        values, width, height, channels, mask, grid, lambda, with_dof,
+    )?
+    .0)
+}
+
+/// As [`fit_mask`], also returning the bounding box of the mask's pixels (the whole image
+/// without a mask), which the fit found anyway.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_mask_box<T: Copy + Into<f64> + Sync>(
+    values: &[T],
+    width: usize,
+    height: usize,
+    channels: usize,
+    mask: Option<&[bool]>,
+    grid: &KnotGrid,
+    lambda: f64,
+    with_dof: bool,
+) -> Result<(Fit, Region), RgbdError> {
     check_values(values, width, height, channels, lambda)?;
     check_grid(grid, width, height)?;
     if let Some(m) = mask {
@@ -252,7 +271,7 @@ pub fn fit_mask<T: Copy + Into<f64> + Sync>(
             "at least one pixel with finite values",
         ));
     }
-    solve(&normals[0], grid, lambda, &offset, with_dof)
+    Ok((solve(&normals[0], grid, lambda, &offset, with_dof)?, region))
 }
 
 /// A per-pixel array (`arg`) must hold one value per pixel.

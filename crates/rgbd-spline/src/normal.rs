@@ -192,16 +192,22 @@ impl RunSums {
     }
 }
 
-/// Per cell column: its pixel columns `[start, end)` and the geometric sums of a run covering all
-/// of them. Most runs are such full runs without holes, and then only the data sums (`Aᵀx`, a
+/// Per cell column (from the first of `cols`, which start at column `u0`): its pixel columns
+/// `[start, end)` and the geometric sums of a run covering all of them. Most runs are such full runs without holes, and then only the data sums (`Aᵀx`, a
 /// few moments) are left to accumulate per pixel.
-fn full_runs(cols: &[(usize, Basis)], k1: usize, inv_s: f64) -> Vec<(usize, usize, RunSums)> {
+fn full_runs(
+    cols: &[(usize, Basis)],
+    u0: usize,
+    k1: usize,
+    inv_s: f64,
+) -> Vec<(usize, usize, RunSums)> {
     let mut out: Vec<(usize, usize, RunSums)> = Vec::new();
-    for (u, (cu, basis)) in cols.iter().enumerate() {
-        if out.len() <= *cu {
+    let c0 = cols.first().map_or(0, |c| c.0);
+    for (u, (cu, basis)) in (u0..).zip(cols) {
+        if out.len() <= cu - c0 {
             out.push((u, u, RunSums::zero()));
         }
-        let last = &mut out[*cu];
+        let last = &mut out[cu - c0];
         last.1 = u + 1;
         last.2.n += 1;
         last.2.add_geometry(u, basis, k1, inv_s);
@@ -264,9 +270,14 @@ fn run_sums<T: Copy + Into<f64>, const C: usize>(
 /// One label's block in one cell: (label, cell id, block, moments).
 type CellEntry = (i32, u32, Vec<f64>, Moments);
 
-/// Basis of every column (or row) of the image: the cell and the `p + 1` values.
-pub(crate) fn axis_table(grid: &KnotGrid, len: usize, along_u: bool) -> Vec<(usize, Basis)> {
-    (0..len).map(|x| grid.axis(x as f64, along_u)).collect()
+/// Basis of the columns (or rows) `a..b` of the image: the cell and the `p + 1` values.
+pub(crate) fn axis_table(
+    grid: &KnotGrid,
+    a: usize,
+    b: usize,
+    along_u: bool,
+) -> Vec<(usize, Basis)> {
+    (a..b).map(|x| grid.axis(x as f64, along_u)).collect()
 }
 
 /// Pixel rectangle `[u0, u1) x [v0, v1)` that holds every pixel of interest.
@@ -297,7 +308,11 @@ impl Region {
             v1: 0,
         };
         for (v, row) in mask.chunks_exact(width.max(1)).enumerate() {
-            // Rows are scanned a few bytes at a time; most of them hold no true pixel.
+            // Most rows hold no true pixel: a branch-free OR over the row vectorises, the
+            // early-exit search runs only on rows that have one.
+            if !row.iter().fold(false, |a, &b| a | b) {
+                continue;
+            }
             let Some(first) = row.iter().position(|&b| b) else {
                 continue;
             };
@@ -341,9 +356,12 @@ struct Ctx<'c, T, L> {
     cells_u: usize,
     offset: &'c [f64],
     region: Region,
+    /// Bases of the region's columns and rows (from `region.u0`, `region.v0`).
     cols: &'c [(usize, Basis)],
     rows: &'c [(usize, Basis)],
+    /// Full runs per cell column from the region's first, `cell0`.
     templates: &'c [(usize, usize, RunSums)],
+    cell0: usize,
     inv_s: f64,
     /// (index into the Gram block, index into the `tri x tri` sums) of its lower triangle.
     lower: &'c [(usize, usize)],
@@ -375,7 +393,7 @@ fn cell_rows<T: Copy + Into<f64>, L: Fn(usize) -> i32, const K1: usize, const C:
     let mut mt = [0.0; RUN_K * (RUN_K + 1) / 2];
     let mut wt = [0.0; RUN_K * (RUN_K + 1) / 2];
     for v in v0..v1 {
-        let (cv, bv) = ctx.rows[v];
+        let (cv, bv) = ctx.rows[v - region.v0];
         let gv = v as f64 * ctx.inv_s;
         for a in 0..K1 {
             for b in 0..=a {
@@ -385,10 +403,11 @@ fn cell_rows<T: Copy + Into<f64>, L: Fn(usize) -> i32, const K1: usize, const C:
         let mut u = region.u0;
         while u < region.u1 {
             let label = (ctx.lab)(v * width + u);
-            let cu = cols[u].0;
+            let col = |x: usize| &cols[x - region.u0];
+            let cu = col(u).0;
             // One run: same label, same cell.
             let mut end = u + 1;
-            while end < region.u1 && cols[end].0 == cu && (ctx.lab)(v * width + end) == label {
+            while end < region.u1 && col(end).0 == cu && (ctx.lab)(v * width + end) == label {
                 end += 1;
             }
             let (u0, u1) = (u, end);
@@ -399,10 +418,11 @@ fn cell_rows<T: Copy + Into<f64>, L: Fn(usize) -> i32, const K1: usize, const C:
             let px = &ctx.values[(v * width + u0) * C..(v * width + u1) * C];
             let full = ctx
                 .templates
-                .get(cu)
+                .get(cu - ctx.cell0)
                 .filter(|t| t.0 == u0 && t.1 == u1)
                 .map(|t| &t.2);
-            let r = run_sums::<T, C>(px, &cols[u0..u1], u0, K1, ctx.inv_s, ctx.offset, full);
+            let run_cols = &cols[u0 - region.u0..u1 - region.u0];
+            let r = run_sums::<T, C>(px, run_cols, u0, K1, ctx.inv_s, ctx.offset, full);
             if r.n == 0 {
                 continue;
             }
@@ -540,16 +560,17 @@ pub(crate) fn accumulate_by<T: Copy + Into<f64> + Sync>(
 ) -> Vec<Normal> {
     let p = grid.degree;
     let (k1, k) = (p + 1, (p + 1) * (p + 1));
-    let cols = axis_table(grid, width, true);
-    let rows = axis_table(grid, height, false);
+    debug_assert!(region.u1 <= width && region.v1 <= height);
+    // Only the region's columns and rows: a small segment of a large image costs its box.
+    let cols = axis_table(grid, region.u0, region.u1, true);
+    let rows = axis_table(grid, region.v0, region.v1, false);
     let inv_s = 1.0 / grid.spacing;
-    let templates = full_runs(&cols, k1, inv_s);
+    let templates = full_runs(&cols, region.u0, k1, inv_s);
     // Rows grouped by their cell row; groups are independent and run in parallel.
     let mut groups: Vec<(usize, usize)> = Vec::new();
-    debug_assert!(region.u1 <= width && region.v1 <= height);
     for v in region.v0..region.v1 {
         match groups.last_mut() {
-            Some(g) if rows[g.0].0 == rows[v].0 => g.1 = v + 1,
+            Some(g) if rows[g.0 - region.v0].0 == rows[v - region.v0].0 => g.1 = v + 1,
             _ => groups.push((v, v + 1)),
         }
     }
@@ -576,6 +597,7 @@ pub(crate) fn accumulate_by<T: Copy + Into<f64> + Sync>(
         cols: &cols,
         rows: &rows,
         templates: &templates,
+        cell0: cols.first().map_or(0, |c| c.0),
         inv_s,
         lower: &lower,
         block_len: template.block_len(),
