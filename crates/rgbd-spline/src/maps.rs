@@ -325,6 +325,8 @@ fn maps_in<'a, T: Copy + Into<f64> + Sync, const C: usize>(
         .zip(mean.par_chunks_mut(fw))
         .zip(gaussian.par_chunks_mut(fw))
         .enumerate()
+        // Each job allocates its own scratch: rows in blocks, not one job per row.
+        .with_min_len(8)
         .filter(|(r, _)| (region.v0..region.v1).contains(&(frame.v0 + r)))
         .for_each_init(
             || vec![0.0; 6 * C * cols.stride],
