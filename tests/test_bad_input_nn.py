@@ -95,6 +95,12 @@ CASES: list[Case] = [
     ),
     Case("ConfidenceEstimator", lambda: ConfidenceEstimator(NET, [1.0, 2.0]), SHAPE, r"^sigmas"),
     Case(
+        "ConfidenceEstimator.with_stereo_power",
+        lambda: ConfidenceEstimator(NET, [1.0] * 4).with_stereo_power(-2.0),
+        ARG,
+        r"^stereo_power: got -2",
+    ),
+    Case(
         "ConfidenceEstimator.load",
         lambda: ConfidenceEstimator.load(TMP / "garbage.pt"),
         RgbdError,
