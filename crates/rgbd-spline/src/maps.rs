@@ -6,8 +6,9 @@
 //! only `p + 1` terms per output instead of `(p + 1)²`. The pixels of a row are evaluated as
 //! columns (structure of arrays: one array per derivative and channel), so the sums over the
 //! basis and the curvature formulas vectorise over consecutive pixels (AVX2 where the CPU has
-//! it); the results are the same bits as the per-pixel [`GridSurface::jet`](crate::GridSurface)
-//! contraction followed by [`curvature`](crate::curvature()).
+//! it); the results are the per-pixel [`GridSurface::jet`](crate::GridSurface) contraction
+//! followed by [`curvature`](crate::curvature()), to rounding (the AVX2 build fuses the basis
+//! sums' multiply-adds; the portable build gives the same bits as the per-pixel path).
 
 use rayon::prelude::*;
 
@@ -149,11 +150,22 @@ struct Source<'v, T> {
     origin: (usize, usize),
 }
 
+/// `a · b + c`, fused (one rounding) when `FMA` (the AVX2 + FMA build), else two roundings
+/// (the portable build, where a fused multiply-add would be a slow library call).
+#[inline(always)]
+fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        c + a * b
+    }
+}
+
 /// Evaluates one row `v` of `region` into `out` (whose pixel 0 is column `frame_u0`), `C`
 /// channels; `jets` is scratch of at least `6 · C · cols.stride` floats.
 #[inline(always)]
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
-fn eval_row<'a, T: Copy + Into<f64>, const C: usize>(
+fn eval_row<'a, T: Copy + Into<f64>, const C: usize, const FMA: bool>(
     src: Source<'_, T>,
     v: usize,
     (cv, bv): (usize, &Basis),
@@ -165,10 +177,28 @@ fn eval_row<'a, T: Copy + Into<f64>, const C: usize>(
     jets: &mut [f64],
 ) {
     let (fitted, error, k1, k2, mean, gauss) = out;
+    // The outputs are not pre-filled: every pixel of the row gets a value or NaN here.
+    let (ra, rb) = (region.u0 - frame_u0, region.u1 - frame_u0);
+    fitted[..ra * C].fill(f32::NAN);
+    fitted[rb * C..].fill(f32::NAN);
+    for o in [&mut *error, &mut *k1, &mut *k2, &mut *mean, &mut *gauss] {
+        o[..ra].fill(f32::NAN);
+        o[rb..].fill(f32::NAN);
+    }
+    macro_rules! skip {
+        ($u:expr) => {{
+            let o = $u - frame_u0;
+            fitted[o * C..(o + 1) * C].fill(f32::NAN);
+            for out in [&mut *error, &mut *k1, &mut *k2, &mut *mean, &mut *gauss] {
+                out[o] = f32::NAN;
+            }
+        }};
+    }
     let mut cache: Option<RowContraction> = None;
     let mut u = region.u0;
     while u < region.u1 {
         let Some(fit) = fit_of(u, v) else {
+            skip!(u);
             u += 1;
             continue;
         };
@@ -176,6 +206,7 @@ fn eval_row<'a, T: Copy + Into<f64>, const C: usize>(
             cache = RowContraction::new(fit, cv, bv);
         }
         let Some(rc) = cache.as_ref() else {
+            skip!(u);
             u += 1;
             continue;
         };
@@ -189,6 +220,7 @@ fn eval_row<'a, T: Copy + Into<f64>, const C: usize>(
             end += 1;
         }
         if end == u {
+            skip!(u);
             u += 1;
             continue;
         }
@@ -222,12 +254,12 @@ fn eval_row<'a, T: Copy + Into<f64>, const C: usize>(
                             cols.lanes(2, k, i),
                         );
                         for l in 0..LANES {
-                            acc[0][l] += b0[l] * x0;
-                            acc[1][l] += b1[l] * x0;
-                            acc[2][l] += b0[l] * x1;
-                            acc[3][l] += b2[l] * x0;
-                            acc[4][l] += b1[l] * x1;
-                            acc[5][l] += b0[l] * x2;
+                            acc[0][l] = madd::<FMA>(b0[l], x0, acc[0][l]);
+                            acc[1][l] = madd::<FMA>(b1[l], x0, acc[1][l]);
+                            acc[2][l] = madd::<FMA>(b0[l], x1, acc[2][l]);
+                            acc[3][l] = madd::<FMA>(b2[l], x0, acc[3][l]);
+                            acc[4][l] = madd::<FMA>(b1[l], x1, acc[4][l]);
+                            acc[5][l] = madd::<FMA>(b0[l], x2, acc[5][l]);
                         }
                     }
                     for (d, x) in acc.iter().enumerate() {
@@ -265,13 +297,17 @@ fn eval_row<'a, T: Copy + Into<f64>, const C: usize>(
                     &mut gauss[oa..ob],
                 ],
             );
+        } else {
+            for o in [&mut *k1, &mut *k2, &mut *mean, &mut *gauss] {
+                o[oa..ob].fill(f32::NAN);
+            }
         }
         u = end;
     }
 }
 
-/// [`eval_row`] compiled for AVX2 + FMA (FMA only where the source asks for it: the sums keep
-/// their separate rounding, so the results equal the portable build's).
+/// [`eval_row`] compiled for AVX2 + FMA, the basis sums as fused multiply-adds (the results
+/// differ from the portable build's by rounding only).
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
@@ -289,7 +325,7 @@ unsafe fn eval_row_avx2<'a, T: Copy + Into<f64>, const C: usize>(
     out: OutRow<'_>,
     jets: &mut [f64],
 ) {
-    eval_row::<T, C>(src, v, row, region, frame_u0, cols, fit_of, out, jets)
+    eval_row::<T, C, true>(src, v, row, region, frame_u0, cols, fit_of, out, jets)
 }
 
 /// Maps over `frame` (output `frame` sized, NaN outside `region`), evaluating `fit_of(u, v)` at
@@ -301,12 +337,25 @@ fn maps_in<'a, T: Copy + Into<f64> + Sync, const C: usize>(
     fit_of: impl Fn(usize, usize) -> Option<&'a Fit> + Sync,
 ) -> SurfaceMaps {
     let fw = frame.u1 - frame.u0;
-    let mut out = SurfaceMaps::nan(fw * (frame.v1 - frame.v0), C);
+    let pixels = fw * (frame.v1 - frame.v0);
     let grid = (region.v0..region.v1)
         .flat_map(|v| (region.u0..region.u1).map(move |u| (u, v)))
         .find_map(|(u, v)| fit_of(u, v))
         .map(|f| f.surface.grid);
-    let Some(grid) = grid else { return out };
+    let Some(grid) = grid else {
+        return SurfaceMaps::nan(pixels, C);
+    };
+    // Zeroed (fresh pages from the allocator, no pass over them here): every pixel is written
+    // once below, in parallel, with its value or NaN.
+    let zeros = |n: usize| vec![0.0f32; n];
+    let mut out = SurfaceMaps {
+        fitted: zeros(pixels * C),
+        error: zeros(pixels),
+        k1: zeros(pixels),
+        k2: zeros(pixels),
+        mean: zeros(pixels),
+        gaussian: zeros(pixels),
+    };
     let cols = ColumnBasis::new(&grid, region.u0, region.u1);
     let fast = avx2_fma();
     let SurfaceMaps {
@@ -327,11 +376,16 @@ fn maps_in<'a, T: Copy + Into<f64> + Sync, const C: usize>(
         .enumerate()
         // Each job allocates its own scratch: rows in blocks, not one job per row.
         .with_min_len(8)
-        .filter(|(r, _)| (region.v0..region.v1).contains(&(frame.v0 + r)))
         .for_each_init(
             || vec![0.0; 6 * C * cols.stride],
             |jets, (r, (((((f, e), a), b), m), g))| {
                 let v = frame.v0 + r;
+                if !(region.v0..region.v1).contains(&v) {
+                    for o in [f, e, a, b, m, g] {
+                        o.fill(f32::NAN);
+                    }
+                    return;
+                }
                 let (_, cv, _, bv) = grid.support(0.0, v as f64);
                 let row = (cv, &bv);
                 let out = (f, e, a, b, m, g);
@@ -346,7 +400,7 @@ fn maps_in<'a, T: Copy + Into<f64> + Sync, const C: usize>(
                     return;
                 }
                 let _ = fast;
-                eval_row::<T, C>(src, v, row, region, frame.u0, &cols, &fit_of, out, jets);
+                eval_row::<T, C, false>(src, v, row, region, frame.u0, &cols, &fit_of, out, jets);
             },
         );
     out
