@@ -241,18 +241,19 @@ fn eval_row<'a, T: Copy + Into<f64>, const C: usize, const FMA: bool>(
             }
             let lc = surf.local_u(cu).unwrap_or_else(|| unreachable!("covered"));
             let rows = &rc.cols[lc..lc + k1n];
-            for ch in 0..C {
-                let mut i = a - cols.u0;
-                while i < b - cols.u0 {
-                    // Derivative order: value, du, dv, duu, duv, dvv.
-                    let mut acc = [[0.0f64; LANES]; 6];
-                    for (k, [r0, r1, r2]) in rows.iter().enumerate() {
+            // All channels of a group of pixels together: the basis lanes are loaded once.
+            let mut i = a - cols.u0;
+            while i < b - cols.u0 {
+                // Derivative order: value, du, dv, duu, duv, dvv.
+                let mut acc = [[[0.0f64; LANES]; 6]; C];
+                for (k, [r0, r1, r2]) in rows.iter().enumerate() {
+                    let (b0, b1, b2) = (
+                        cols.lanes(0, k, i),
+                        cols.lanes(1, k, i),
+                        cols.lanes(2, k, i),
+                    );
+                    for (ch, acc) in acc.iter_mut().enumerate() {
                         let (x0, x1, x2) = (r0[ch], r1[ch], r2[ch]);
-                        let (b0, b1, b2) = (
-                            cols.lanes(0, k, i),
-                            cols.lanes(1, k, i),
-                            cols.lanes(2, k, i),
-                        );
                         for l in 0..LANES {
                             acc[0][l] = madd::<FMA>(b0[l], x0, acc[0][l]);
                             acc[1][l] = madd::<FMA>(b1[l], x0, acc[1][l]);
@@ -262,11 +263,13 @@ fn eval_row<'a, T: Copy + Into<f64>, const C: usize, const FMA: bool>(
                             acc[5][l] = madd::<FMA>(b0[l], x2, acc[5][l]);
                         }
                     }
+                }
+                for (ch, acc) in acc.iter().enumerate() {
                     for (d, x) in acc.iter().enumerate() {
                         jets[col(d, ch) + i..][..LANES].copy_from_slice(x);
                     }
-                    i += LANES;
                 }
+                i += LANES;
             }
             a = b;
         }
