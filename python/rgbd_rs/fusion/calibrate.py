@@ -104,10 +104,15 @@ def calibrate_stereo_power(
     damage: dict[float, list[float]] = {p: [] for p in ps}
     scenes = 0
     for s in tqdm(list(samples), desc="calibrate", disable=quiet, unit="scene"):
-        stages = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, confidence="uniform")
+        # fuse() with the raw network gives the stages, both confidences and the power-1 result.
+        out = fuse(
+            s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, confidence=raw, params=params
+        )
         ref, tgt, sign = views(s.left, s.right, s.rig.reference)
-        tof_d, st_d = stages.tof_fused, stages.stereo_disparity
-        p_t, p_s = raw(ref, tgt, tof_d, stages.tof.amplitude, st_d, reference=s.rig.reference)
+        tof_d, st_d = out.tof_fused, out.stereo_disparity
+        p_t, p_s = out.tof_confidence, out.stereo_confidence
+        if p_t is None or p_s is None:  # an estimator always gives both maps
+            raise RgbdError(f"{s.name}: the estimator returned no confidence maps")
         gt = s.gt_disparity
         mask = np.isfinite(gt) & non_occluded(gt, sign) & np.isfinite(tof_d) & np.isfinite(st_d)
         if not mask.any():
@@ -120,8 +125,12 @@ def calibrate_stereo_power(
             if 1.0 - bad_pixel_rate(d, gt, 1.0, mask) >= GOOD_SHARE
         ]
         for p in ps:
-            fused, _ = lc_fuse(
-                ref, tgt, [tof_d, st_d], [p_t, p_s**p], target_sign=sign, params=params
+            fused = (
+                out.disparity
+                if p == 1.0
+                else lc_fuse(
+                    ref, tgt, [tof_d, st_d], [p_t, p_s**p], target_sign=sign, params=params
+                )[0]
             )
             e = rms_error(fused, gt, mask & np.isfinite(fused))
             rms[p].append(e)
