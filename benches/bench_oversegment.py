@@ -157,7 +157,9 @@ def numpy_oversegment(
 
 def run_one(which: str, frame: int) -> dict[str, object]:
     from rgbd_rs import _rgbd_rs
-    from rgbd_rs.segmentation import oversegment as O
+    import importlib
+
+    O = importlib.import_module("rgbd_rs.segmentation.oversegment")
 
     f, _, _ = nyu_features(frame)
 
