@@ -11,7 +11,14 @@ from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.meshes import box, concat, cylinder
 from rgbd_rs.nn.shapes import pack, unpack
 from rgbd_rs.shapes import InputSpec, shape_inputs
-from rgbd_rs.shapes.augment import RotatedShapes, quarter_turns, turn_inputs
+from rgbd_rs.shapes.augment import (
+    AugmentedShapes,
+    RotatedShapes,
+    mirror_inputs,
+    mirror_pair,
+    quarter_turns,
+    turn_inputs,
+)
 
 SPEC = InputSpec(("depth", "volume", "curvature"), view_resolution=32, volume_resolution=32)
 
@@ -110,3 +117,65 @@ def test_bad_representation_and_turns() -> None:
         turn_inputs({"colour": torch.zeros(1, 6, 4, 4)}, 1)
     with pytest.raises(InvalidArgumentError, match="turns"):
         turn_inputs({"depth": torch.zeros(1, 6, 4, 4)}, 1.5)  # type: ignore[arg-type]
+
+
+def _mirrored(points: np.ndarray) -> np.ndarray:
+    out = points.copy()
+    out[:, 0] *= -1
+    return out
+
+
+def test_mirror_matches_rendered_inputs() -> None:
+    points = _chair_like()
+    base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(points, SPEC).items()}
+    want = shape_inputs(_mirrored(points), SPEC)
+    got = mirror_inputs(base)
+    for name in want:
+        assert not np.allclose(base[name][0].numpy(), want[name], atol=1e-3), "shape symmetric"
+        np.testing.assert_allclose(got[name][0].numpy(), want[name], atol=1e-4, err_msg=name)
+
+
+def test_mirror_matches_on_a_mesh() -> None:
+    from rgbd_rs.meshes import Mesh
+
+    mesh = concat([box((1.0, 0.8, 0.1), (0, 0, 0.5)), box((0.1, 0.8, 0.9), (0.45, 0, 0.95)),
+                   cylinder(0.05, 0.5, (-0.4, 0.3, 0.25))])  # fmt: skip
+    # A reflection reverses the triangles' winding: flip it back so the mesh stays the same.
+    mirrored = Mesh(_mirrored(mesh.vertices), mesh.triangles[:, ::-1].copy())
+    base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(mesh, SPEC).items()}
+    want = shape_inputs(mirrored, SPEC)
+    for name, value in mirror_inputs(base).items():
+        np.testing.assert_allclose(value[0].numpy(), want[name], atol=1e-4, err_msg=name)
+
+
+def test_mirror_is_an_involution_and_commutes_with_a_half_turn() -> None:
+    shapes = {"depth": (6, 8, 8), "volume": (3, 8, 8), "curvature": (6, 2, 8, 8)}
+    x = pack({n: torch.randn(2, *s) for n, s in shapes.items()}, shapes)
+    pair = mirror_pair(x, shapes)
+    assert len(pair) == 2 and torch.equal(pair[0], x) and not torch.equal(pair[1], x)
+    torch.testing.assert_close(mirror_pair(pair[1], shapes)[1], x)
+    # x -> -x then a half turn = y -> -y; both orders give the same inputs.
+    a = turn_inputs(mirror_inputs(unpack(x, shapes)), 2)
+    b = mirror_inputs(turn_inputs(unpack(x, shapes), 2))
+    for name in shapes:
+        torch.testing.assert_close(a[name], b[name])
+
+
+def test_augmented_dataset_mirrors_about_half_and_is_deterministic() -> None:
+    shapes = {"depth": (6, 4, 4), "volume": (3, 4, 4)}
+    x = pack({n: torch.randn(40, *s) for n, s in shapes.items()}, shapes)
+    data = [(x[i], torch.tensor(i)) for i in range(40)]
+    ds = AugmentedShapes(data, shapes, turns=False, mirror=True)
+    torch.manual_seed(5)
+    a = [ds[i][0] for i in range(40)]
+    torch.manual_seed(5)
+    b = [ds[i][0] for i in range(40)]
+    assert all(torch.equal(p, q) for p, q in zip(a, b, strict=True))
+    mirrored = [torch.equal(a[i], mirror_pair(x[i : i + 1], shapes)[1][0]) for i in range(40)]
+    kept = [torch.equal(a[i], x[i]) for i in range(40)]
+    assert all(m or k for m, k in zip(mirrored, kept, strict=True))
+    assert 10 <= sum(mirrored) <= 30, sum(mirrored)
+    with pytest.raises(InvalidArgumentError, match="mirror"):
+        AugmentedShapes(data, shapes, mirror=1)  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgumentError, match="inputs"):
+        mirror_inputs({"colour": torch.zeros(1, 6, 4, 4)})

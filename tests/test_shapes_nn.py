@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.nn.checkpoint import load_checkpoint
 from rgbd_rs.nn.shapes import (
     CAP_VIEWS,
@@ -248,3 +249,31 @@ def test_rotate_turns_the_training_shapes(tiny_cache: Path) -> None:
     key = next(k for k in runs["plain"] if k.endswith("weight"))
     assert not torch.equal(runs["plain"][key], runs["turned"][key])
     assert all(torch.equal(runs["turned"][k], runs["turned_again"][k]) for k in runs["turned"])
+
+
+def test_mirror_trains_on_mirror_images_and_evaluates_both(tiny_cache: Path) -> None:
+    """mirror=True trains on mirrored inputs (other weights, reproducible); evaluate(mirror=True)
+    averages a shape with its mirror image, and turns with it when both are asked for."""
+    from rgbd_rs.shapes.evaluate import evaluate
+
+    runs = {}
+    for name, mirror in (("plain", False), ("mirrored", True), ("mirrored_again", True)):
+        best = train_shapes(
+            tiny_cache / "cache",
+            tiny_cache / f"mir_{name}",
+            recipe=ShapeRecipe(width=4, val_fraction=0, mirror=mirror),
+            config=_config(epochs=1),
+            quiet=True,
+        )
+        runs[name] = (best, load_checkpoint(best).model_state)
+    key = next(k for k in runs["plain"][1] if k.endswith("weight"))
+    assert not torch.equal(runs["plain"][1][key], runs["mirrored"][1][key])
+    assert all(torch.equal(v, runs["mirrored_again"][1][k]) for k, v in runs["mirrored"][1].items())
+    best = runs["mirrored"][0]
+    both = evaluate(best, tiny_cache / "cache", split="train", mirror=True, turns=True)
+    assert both.mirror and both.turns and both.count == CLASSES * PER_CLASS
+    assert "mirror averaged" in both.summary() and "4 turns averaged" in both.summary()
+    with pytest.raises(InvalidArgumentError, match="mirror"):
+        evaluate(best, tiny_cache / "cache", mirror="yes")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgumentError, match="mirror"):
+        ShapeRecipe(mirror=1)  # type: ignore[arg-type]

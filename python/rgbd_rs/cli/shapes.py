@@ -213,6 +213,11 @@ def _train(commands: Commands) -> None:
         help="random quarter turns about z of the training shapes (for data in arbitrary "
         "orientation; off by default: ModelNet is aligned)",
     )
+    p.add_argument(
+        "--mirror",
+        action="store_true",
+        help="replace each training shape by its mirror image (x -> -x) with probability 1/2",
+    )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     training_run_options(p)
 
@@ -242,6 +247,7 @@ def run_train(args: argparse.Namespace) -> int:
         width=args.width,
         val_fraction=args.val_fraction,
         rotate=args.rotate,
+        mirror=args.mirror,
     )
     t0 = time.perf_counter()
     if args.ablation:
@@ -310,6 +316,11 @@ def _eval(commands: Commands) -> None:
         action="store_true",
         help="average the probabilities over the four quarter turns about z of each shape",
     )
+    p.add_argument(
+        "--mirror",
+        action="store_true",
+        help="average the probabilities over each shape and its mirror image (x -> -x)",
+    )
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -345,6 +356,7 @@ def run_eval(args: argparse.Namespace) -> int:
                 batch_size=args.batch_size,
                 device=args.device,
                 turns=args.turns,
+                mirror=args.mirror,
             )
 
         res = named(str(ck), one)

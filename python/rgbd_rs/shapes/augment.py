@@ -1,4 +1,5 @@
-"""Rotation about the vertical axis, done exactly on the network inputs (no re-rendering).
+"""Rotation about the vertical axis and mirroring, done exactly on the network inputs (no
+re-rendering).
 
 ModelNet's shapes stand upright (z up) but face any direction, so a classifier should not care
 about a turn about z. A quarter turn of a shape maps its bounding cube onto itself, so its inputs
@@ -10,10 +11,19 @@ transposed) and the Z map turns by +90°. Curvature maps move like the depth vie
 Local contrast normalisation and per-map standardisation commute with these moves, so they apply
 to cached, normalised inputs.
 
+A mirror image of a shape (x -> -x, the reflection through the plane x = 0 of its bounding cube)
+is also a permutation of its inputs (:func:`mirror_inputs`, checked the same way): the +x and -x
+side views swap and every view image is flipped left-right (the +y and -y side views, top and
+bottom included: their image's right is +-x or their view direction is x), the X density profile
+stays and the Y and Z profiles flip left-right. Curvatures are invariant under a reflection of
+the image. Unlike a quarter turn this keeps the front of an aligned ModelNet shape where it was
+(a chair's mirror image is still a chair facing the same way).
+
 Training can draw a random number of quarter turns per shape and step (:class:`RotatedShapes`,
-``ShapeRecipe(rotate=True)``, ``rgbd train shapes --rotate``);
-evaluation can average the class probabilities over the four turns (:func:`quarter_turns`), a
-cheap test-time augmentation.
+``ShapeRecipe(rotate=True)``, ``rgbd train shapes --rotate``) and a random mirror image
+(:class:`AugmentedShapes`, ``ShapeRecipe(mirror=True)``, ``--mirror``); evaluation can average
+the class probabilities over the four turns (:func:`quarter_turns`) and over the mirror image
+(:func:`mirror_pair`), cheap test-time augmentations.
 """
 
 from __future__ import annotations
@@ -28,7 +38,14 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.nn.shapes import pack, unpack
 
-__all__ = ["RotatedShapes", "quarter_turns", "turn_inputs"]
+__all__ = [
+    "AugmentedShapes",
+    "RotatedShapes",
+    "mirror_inputs",
+    "mirror_pair",
+    "quarter_turns",
+    "turn_inputs",
+]
 
 _SIDES = 4
 
@@ -54,21 +71,57 @@ def _turn_volume(v: torch.Tensor) -> torch.Tensor:
 _TURNS = {"depth": _turn_views, "curvature": _turn_views, "volume": _turn_volume}
 
 
-def turn_inputs(inputs: Mapping[str, torch.Tensor], turns: int) -> dict[str, torch.Tensor]:
-    """The inputs (``{representation: N x ...}``) of the shapes turned by ``turns`` quarter turns
-    counter-clockwise about z (seen from above); any integer, taken modulo 4."""
-    k = _validate.integer("turns", turns, minimum=-(2**31), maximum=2**31 - 1) % _SIDES
-    out: dict[str, torch.Tensor] = {}
-    for name, value in inputs.items():
+def _flip(t: torch.Tensor) -> torch.Tensor:
+    """Flip the images (last axis: columns) left-right."""
+    return torch.flip(t, dims=(-1,))
+
+
+def _mirror_views(v: torch.Tensor) -> torch.Tensor:
+    """``N x 6 x ...`` view maps (depth or curvature) of the shape mirrored in x."""
+    return torch.cat(
+        [_flip(v[:, 2:3]), _flip(v[:, 1:2]), _flip(v[:, 0:1]), _flip(v[:, 3:6])], dim=1
+    )
+
+
+def _mirror_volume(v: torch.Tensor) -> torch.Tensor:
+    """``N x 3 x R x R`` density profiles (X, Y, Z maps) of the shape mirrored in x."""
+    return torch.cat([v[:, 0:1], _flip(v[:, 1:3])], dim=1)
+
+
+_MIRRORS = {"depth": _mirror_views, "curvature": _mirror_views, "volume": _mirror_volume}
+
+
+def _check_names(inputs: Mapping[str, torch.Tensor]) -> None:
+    for name in inputs:
         if name not in _TURNS:
             raise InvalidArgumentError(
                 f"inputs: got representation {name!r}, expected one of {sorted(_TURNS)}"
             )
+
+
+def turn_inputs(inputs: Mapping[str, torch.Tensor], turns: int) -> dict[str, torch.Tensor]:
+    """The inputs (``{representation: N x ...}``) of the shapes turned by ``turns`` quarter turns
+    counter-clockwise about z (seen from above); any integer, taken modulo 4."""
+    k = _validate.integer("turns", turns, minimum=-(2**31), maximum=2**31 - 1) % _SIDES
+    _check_names(inputs)
+    out: dict[str, torch.Tensor] = {}
+    for name, value in inputs.items():
         t = value
         for _ in range(k):
             t = _TURNS[name](t)
         out[name] = t
     return out
+
+
+def mirror_inputs(inputs: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The inputs (``{representation: N x ...}``) of the shapes mirrored in x (x -> -x)."""
+    _check_names(inputs)
+    return {name: _MIRRORS[name](value).contiguous() for name, value in inputs.items()}
+
+
+def mirror_pair(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> list[torch.Tensor]:
+    """The packed batch ``x`` and its mirror image (see :func:`mirror_inputs`)."""
+    return [x, pack(mirror_inputs(unpack(x, shapes)), shapes)]
 
 
 def quarter_turns(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> list[torch.Tensor]:
@@ -77,21 +130,47 @@ def quarter_turns(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> lis
     return [pack(turn_inputs(parts, k), shapes) for k in range(_SIDES)]
 
 
-class RotatedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
+class AugmentedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
     """``dataset`` (items ``(packed inputs, label)``) with each item turned by a random number
-    of quarter turns drawn from torch's generator (seeded by the trainer: deterministic)."""
+    of quarter turns (``turns``) and/or mirrored with probability 1/2 (``mirror``), drawn from
+    torch's generator (seeded by the trainer: deterministic)."""
 
-    def __init__(self, dataset: Any, shapes: Mapping[str, tuple[int, ...]]) -> None:
+    def __init__(
+        self,
+        dataset: Any,
+        shapes: Mapping[str, tuple[int, ...]],
+        *,
+        turns: bool = True,
+        mirror: bool = False,
+    ) -> None:
+        for name, flag in (("turns", turns), ("mirror", mirror)):
+            if not isinstance(flag, bool):
+                raise InvalidArgumentError(f"{name}: got {flag!r}, expected True or False")
         self.dataset = dataset
         self.shapes = dict(shapes)
+        self.turns = turns
+        self.mirror = mirror
 
     def __len__(self) -> int:
         return len(self.dataset)
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
         x, y = self.dataset[i]
-        k = int(torch.randint(0, _SIDES, ()).item())
-        if k == 0:
+        k = int(torch.randint(0, _SIDES, ()).item()) if self.turns else 0
+        m = bool(torch.randint(0, 2, ()).item()) if self.mirror else False
+        if k == 0 and not m:
             return x, y
-        turned = turn_inputs(unpack(x[None], self.shapes), k)
-        return pack(turned, self.shapes)[0], y
+        parts = unpack(x[None], self.shapes)
+        if m:
+            parts = mirror_inputs(parts)
+        if k:
+            parts = turn_inputs(parts, k)
+        return pack(parts, self.shapes)[0], y
+
+
+class RotatedShapes(AugmentedShapes):
+    """``dataset`` with each item turned by a random number of quarter turns drawn from torch's
+    generator (seeded by the trainer: deterministic); :class:`AugmentedShapes` with turns only."""
+
+    def __init__(self, dataset: Any, shapes: Mapping[str, tuple[int, ...]]) -> None:
+        super().__init__(dataset, shapes, turns=True, mirror=False)

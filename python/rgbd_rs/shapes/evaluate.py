@@ -21,7 +21,7 @@ import torch
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.shapes.augment import quarter_turns
+from rgbd_rs.shapes.augment import mirror_pair, quarter_turns
 from rgbd_rs.shapes.classify import ShapeClassifier
 from rgbd_rs.shapes.dataset import ShapeCache
 
@@ -65,6 +65,8 @@ class ShapeEvaluation:
     split: str
     #: True when probabilities were averaged over four quarter turns about z.
     turns: bool = False
+    #: True when probabilities were averaged over the shape and its mirror image (x -> -x).
+    mirror: bool = False
 
     @property
     def count(self) -> int:
@@ -109,11 +111,13 @@ class ShapeEvaluation:
 
     def summary(self) -> str:
         """One line: accuracy, mean class accuracy, count, representations, checkpoint."""
+        tta = ("; 4 turns averaged" if self.turns else "") + (
+            "; mirror averaged" if self.mirror else ""
+        )
         return (
             f"{self.dataset} {self.split}: accuracy {_pct(self.accuracy)}, mean class accuracy "
             f"{_pct(self.mean_class_accuracy)} over {self.count} shapes "
-            f"({row_name(self.representations)}{'; 4 turns averaged' if self.turns else ''}; "
-            f"{self.checkpoint})"
+            f"({row_name(self.representations)}{tta}; {self.checkpoint})"
         )
 
     def markdown(self) -> str:
@@ -190,10 +194,12 @@ def evaluate(
     batch_size: int = 64,
     device: str = "cpu",
     turns: bool = False,
+    mirror: bool = False,
 ) -> ShapeEvaluation:
     """Accuracy of ``checkpoint`` on ``cache``'s ``split`` (``"test"``, ``"train"``, ``"all"``).
     ``turns``: average each shape's probabilities over its four quarter turns about z
-    (:mod:`rgbd_rs.shapes.augment`).
+    (:mod:`rgbd_rs.shapes.augment`); ``mirror``: average them over the shape and its mirror image
+    in x (both: over all eight).
     A cache computed with other inputs (resolution, normalisation, classes, missing
     representations) raises :class:`RgbdError` naming both."""
     clf = (
@@ -208,14 +214,16 @@ def evaluate(
     k = len(c.classes)
     confusion = np.zeros((k, k), np.int64)
     loader = torch.utils.data.DataLoader(data, batch_size=bs, shuffle=False)
-    if not isinstance(turns, bool):
-        raise InvalidArgumentError(f"turns: got {turns!r}, expected True or False")
+    for name, flag in (("turns", turns), ("mirror", mirror)):
+        if not isinstance(flag, bool):
+            raise InvalidArgumentError(f"{name}: got {flag!r}, expected True or False")
+    shapes = clf.net.shapes
     for x, y in loader:
+        views = mirror_pair(x, shapes) if mirror else [x]
         if turns:
-            probs = sum(clf.probabilities_of_inputs(t) for t in quarter_turns(x, clf.net.shapes))
-            pred = np.asarray(probs).argmax(axis=1)
-        else:
-            pred = clf.probabilities_of_inputs(x).argmax(axis=1)
+            views = [t for v in views for t in quarter_turns(v, shapes)]
+        probs = sum(np.asarray(clf.probabilities_of_inputs(v)) for v in views)
+        pred = np.asarray(probs).argmax(axis=1)
         np.add.at(confusion, (y.numpy(), pred), 1)
     return ShapeEvaluation(
         classes=c.classes,
@@ -225,6 +233,7 @@ def evaluate(
         dataset=str(c.meta.get("source", c.path.name)),
         split=split,
         turns=turns,
+        mirror=mirror,
     )
 
 
