@@ -30,6 +30,9 @@ use rgbd_geom::error::{check_len, invalid, Result};
 use crate::check::window_and_positive;
 use crate::color::{exp_table, sum_abs};
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+
 /// Quarter-pixel resampling of the target rows.
 pub const PHASES: i64 = 4;
 
@@ -260,6 +263,19 @@ pub fn lc_fuse(
     sources: &[Source<'_>],
     params: &LcParams,
 ) -> Result<LcOutput> {
+    fuse_with(reference, target, width, height, sources, params, None)
+}
+
+/// [`lc_fuse`] with the row kernel forced (tests compare the kernels) or chosen (`None`).
+fn fuse_with(
+    reference: &[u8],
+    target: &[u8],
+    width: usize,
+    height: usize,
+    sources: &[Source<'_>],
+    params: &LcParams,
+    force: Option<Kernel>,
+) -> Result<LcOutput> {
     params.validate()?;
     check_inputs(reference, target, width, height, sources)?;
     let n = width * height;
@@ -281,24 +297,10 @@ pub fn lc_fuse(
         ));
     }
     let nbins = bins_f as usize + 1;
-    let t4 = quarter_rows(target, width, height);
-    let refc = rgb_pixels(reference);
-    let len = PHASES as usize * (width - 1) + 1;
-    let hyps: Vec<Vec<Hyp>> = sources
-        .iter()
-        .map(|s| prepare(s, &t4, width, height, dmin, params))
-        .collect();
-    let side = 2 * params.radius + 1;
-    let r = params.radius as i64;
-    let spatial: Vec<f32> = (0..side * side)
-        .map(|i| {
-            let (dy, dx) = ((i / side) as f32 - r as f32, (i % side) as f32 - r as f32);
-            (-2.0 * (dx * dx + dy * dy).sqrt() / params.gamma_s).exp()
-        })
-        .collect();
-    let lut_c = padded(exp_table(params.gamma_c, params.truncation));
-    let lut_t = padded(exp_table(params.gamma_t, params.truncation));
-
+    let kernel = force.unwrap_or_else(|| Kernel::select(nbins));
+    let plan = Plan::new(
+        reference, target, width, height, sources, dmin, nbins, params, kernel,
+    );
     let mut disparity = vec![f32::NAN; n];
     let mut plausibility = vec![f32::NAN; n];
     disparity
@@ -307,66 +309,182 @@ pub fn lc_fuse(
         .enumerate()
         .try_for_each(|(y, (d_row, p_row))| {
             check_interrupt()?;
-            let mut bins = Bins::new(nbins);
-            // Spatial x reference-colour weight of each window pixel, computed once per p and
-            // shared by all sources.
-            let mut base = vec![0.0f32; side * side];
-            let trow = &t4[y * len..(y + 1) * len];
-            let st = params.effective_stride();
-            let (y0, y1) = span(y, params.radius, st, height);
-            for x in 0..width {
-                let cp = refc[y * width + x];
-                let (x0, x1) = span(x, params.radius, st, width);
-                let cols = (x1 - x0) / st + 1;
-                for (j, yq) in (y0..=y1).step_by(st).enumerate() {
-                    let srow = &spatial[(yq + params.radius - y) * side + x0 + params.radius - x..];
-                    let crow = &refc[yq * width + x0..=yq * width + x1];
-                    for ((b, &sp), &cq) in base[j * cols..(j + 1) * cols]
-                        .iter_mut()
-                        .zip(srow.iter().step_by(st))
-                        .zip(crow.iter().step_by(st))
-                    {
-                        *b = sp * lut_c[sum_abs(&cp, &cq) & LUT_MASK];
-                    }
-                }
-                let px4 = PHASES as i32 * x as i32;
-                for hs in &hyps {
-                    // Consecutive window pixels mostly lend to the same bin: sum in registers and
-                    // touch memory only when the bin changes (breaks the store-load chain).
-                    let (mut rb, mut rw, mut rwd) = (0u32, 0.0f32, 0.0f32);
-                    for (j, yq) in (y0..=y1).step_by(st).enumerate() {
-                        let hrow = &hs[yq * width + x0..=yq * width + x1];
-                        for (h, &bw) in hrow.iter().step_by(st).zip(&base[j * cols..(j + 1) * cols])
-                        {
-                            if h.w <= 0.0 {
-                                continue;
-                            }
-                            // A negative position wraps to a huge index: one check for both ends.
-                            let Some(t) = trow.get((px4 + h.shift) as usize) else {
-                                continue;
-                            };
-                            let v = bw
-                                * h.w
-                                * lut_c[sum_abs(t, &h.col) & LUT_MASK]
-                                * lut_t[sum_abs(&cp, t) & LUT_MASK];
-                            if h.bin != rb {
-                                bins.add(rb, rw, rwd);
-                                (rb, rw, rwd) = (h.bin, 0.0, 0.0);
-                            }
-                            rw += v;
-                            rwd += v * h.d;
-                        }
-                    }
-                    bins.add(rb, rw, rwd);
-                }
-                (d_row[x], p_row[x]) = bins.winner_and_clear();
-            }
+            plan.row(y, d_row, p_row);
             Ok(())
         })?;
     Ok(LcOutput {
         disparity,
         plausibility,
     })
+}
+
+/// Which row kernel runs: the portable one, or eight receiving pixels per step ([`avx2`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kernel {
+    Scalar,
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+}
+
+impl Kernel {
+    /// The fastest kernel the running CPU supports for `nbins` bins (the AVX2 one keeps eight
+    /// bin arrays per worker, so a huge range falls back to the portable kernel).
+    fn select(nbins: usize) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if nbins <= avx2::MAX_BINS && avx2::available() {
+            return Self::Avx2;
+        }
+        let _ = nbins;
+        Self::Scalar
+    }
+}
+
+/// Everything the row kernels share, built once per call.
+struct Plan {
+    width: usize,
+    height: usize,
+    radius: usize,
+    /// Effective window step.
+    st: usize,
+    /// Window side `2 radius + 1`.
+    side: usize,
+    nbins: usize,
+    /// Quarter-pixel target rows ([`quarter_rows`]), `len` samples each.
+    t4: Vec<[u8; 3]>,
+    len: usize,
+    refc: Vec<[u8; 3]>,
+    hyps: Vec<Vec<Hyp>>,
+    /// `e^{-2 Δ / γs}` of each window offset, row-major `side x side`.
+    spatial: Vec<f32>,
+    lut_c: Box<[f32; LUT_MASK + 1]>,
+    lut_t: Box<[f32; LUT_MASK + 1]>,
+    /// The AVX2 kernel's tables when it runs.
+    #[cfg(target_arch = "x86_64")]
+    simd: Option<avx2::Tables>,
+}
+
+impl Plan {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        reference: &[u8],
+        target: &[u8],
+        width: usize,
+        height: usize,
+        sources: &[Source<'_>],
+        dmin: f32,
+        nbins: usize,
+        params: &LcParams,
+        kernel: Kernel,
+    ) -> Self {
+        let t4 = quarter_rows(target, width, height);
+        let hyps = sources
+            .iter()
+            .map(|s| prepare(s, &t4, width, height, dmin, params))
+            .collect();
+        let side = 2 * params.radius + 1;
+        let r = params.radius as f32;
+        let spatial = (0..side * side)
+            .map(|i| {
+                let (dy, dx) = ((i / side) as f32 - r, (i % side) as f32 - r);
+                (-2.0 * (dx * dx + dy * dy).sqrt() / params.gamma_s).exp()
+            })
+            .collect();
+        let plan = Self {
+            width,
+            height,
+            radius: params.radius,
+            st: params.effective_stride(),
+            side,
+            nbins,
+            t4,
+            len: PHASES as usize * (width - 1) + 1,
+            refc: rgb_pixels(reference),
+            hyps,
+            spatial,
+            lut_c: padded(exp_table(params.gamma_c, params.truncation)),
+            lut_t: padded(exp_table(params.gamma_t, params.truncation)),
+            #[cfg(target_arch = "x86_64")]
+            simd: None,
+        };
+        match kernel {
+            Kernel::Scalar => plan,
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => Self {
+                simd: Some(avx2::Tables::new(&plan)),
+                ..plan
+            },
+        }
+    }
+
+    /// Fuses row `y` into `d_row` / `p_row` with the selected kernel.
+    fn row(&self, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(tabs) = &self.simd {
+            // SAFETY: the tables exist only when `Kernel::select` detected AVX2 on this CPU.
+            unsafe { avx2::row(self, tabs, y, d_row, p_row) };
+            return;
+        }
+        self.row_scalar(y, d_row, p_row);
+    }
+
+    /// The portable kernel: one receiving pixel at a time.
+    fn row_scalar(&self, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
+        let (width, side, st) = (self.width, self.side, self.st);
+        let (refc, spatial) = (&self.refc, &self.spatial);
+        let (lut_c, lut_t) = (&self.lut_c, &self.lut_t);
+        let mut bins = Bins::new(self.nbins);
+        // Spatial x reference-colour weight of each window pixel, computed once per p and
+        // shared by all sources.
+        let mut base = vec![0.0f32; side * side];
+        let trow = &self.t4[y * self.len..(y + 1) * self.len];
+        let (y0, y1) = span(y, self.radius, st, self.height);
+        for x in 0..width {
+            let cp = refc[y * width + x];
+            let (x0, x1) = span(x, self.radius, st, width);
+            let cols = (x1 - x0) / st + 1;
+            for (j, yq) in (y0..=y1).step_by(st).enumerate() {
+                let srow = &spatial[(yq + self.radius - y) * side + x0 + self.radius - x..];
+                let crow = &refc[yq * width + x0..=yq * width + x1];
+                for ((b, &sp), &cq) in base[j * cols..(j + 1) * cols]
+                    .iter_mut()
+                    .zip(srow.iter().step_by(st))
+                    .zip(crow.iter().step_by(st))
+                {
+                    *b = sp * lut_c[sum_abs(&cp, &cq) & LUT_MASK];
+                }
+            }
+            let px4 = PHASES as i32 * x as i32;
+            for hs in &self.hyps {
+                // Consecutive window pixels mostly lend to the same bin: sum in registers and
+                // touch memory only when the bin changes (breaks the store-load chain).
+                let (mut rb, mut rw, mut rwd) = (0u32, 0.0f32, 0.0f32);
+                for (j, yq) in (y0..=y1).step_by(st).enumerate() {
+                    let hrow = &hs[yq * width + x0..=yq * width + x1];
+                    for (h, &bw) in hrow.iter().step_by(st).zip(&base[j * cols..(j + 1) * cols]) {
+                        if h.w <= 0.0 {
+                            continue;
+                        }
+                        // A negative position wraps to a huge index: one check for both ends.
+                        let Some(t) = trow.get((px4 + h.shift) as usize) else {
+                            continue;
+                        };
+                        let v = bw
+                            * h.w
+                            * lut_c[sum_abs(t, &h.col) & LUT_MASK]
+                            * lut_t[sum_abs(&cp, t) & LUT_MASK];
+                        if h.bin != rb {
+                            bins.add(rb, rw, rwd);
+                            (rb, rw, rwd) = (h.bin, 0.0, 0.0);
+                        }
+                        rw += v;
+                        rwd += v * h.d;
+                    }
+                }
+                bins.add(rb, rw, rwd);
+            }
+            (d_row[x], p_row[x]) = bins.winner_and_clear();
+        }
+    }
 }
 
 /// First and last window coordinates around `c` that lie on the stride grid through `c`.
@@ -475,12 +593,23 @@ impl Bins {
 /// WTA over the touched bins: the bin maximising its 3-bin sum (ties: lowest bin); returns the
 /// weighted mean disparity of those bins and their share of the total.
 fn winner(acc: &[f32], accd: &[f32], touched: &[u32]) -> (f32, f32) {
+    winner_by(touched, |b| acc[b], |b| accd[b])
+}
+
+/// [`winner`] over bins read through `acc` / `accd` (the AVX2 kernel interleaves eight pixels'
+/// bins); the same sums in the same order.
+#[inline(always)]
+fn winner_by(
+    touched: &[u32],
+    acc: impl Fn(usize) -> f32,
+    accd: impl Fn(usize) -> f32,
+) -> (f32, f32) {
     let mut total = 0.0f32;
     let mut best = (f32::NEG_INFINITY, usize::MAX);
     for &b in touched {
         let b = b as usize;
-        total += acc[b];
-        let s = acc[b - 1] + acc[b] + acc[b + 1];
+        total += acc(b);
+        let s = acc(b - 1) + acc(b) + acc(b + 1);
         if s > best.0 || (s == best.0 && b < best.1) {
             best = (s, b);
         }
@@ -489,6 +618,6 @@ fn winner(acc: &[f32], accd: &[f32], touched: &[u32]) -> (f32, f32) {
         return (f32::NAN, f32::NAN);
     }
     let (s, b) = best;
-    let d = (accd[b - 1] + accd[b] + accd[b + 1]) / s;
+    let d = (accd(b - 1) + accd(b) + accd(b + 1)) / s;
     (d, (s / total).min(1.0))
 }
