@@ -31,13 +31,11 @@ pub(super) fn available() -> bool {
     std::arch::is_x86_feature_detected!("avx2")
 }
 
-/// A hypothesis in the form the lane loop reads: its quarter-pixel shift split as
-/// `shift = 4 s qa + qb` (`0 <= qb < 4 s`) so the target colours' position in the split row
-/// needs no division.
+/// A hypothesis in the form the lane loop reads.
 #[derive(Debug, Clone, Copy, Default)]
 struct Lend {
-    qa: i32,
-    qb: i32,
+    /// Quarter-pixel shift minus the smallest one ([`Tables::smin`]).
+    sidx: u32,
     bin: i32,
     d: f32,
     /// Confidence; 0 marks "no hypothesis".
@@ -50,6 +48,8 @@ struct Lend {
 pub(super) struct Tables {
     /// Per source, per pixel.
     lend: Vec<Vec<Lend>>,
+    /// Smallest quarter-pixel shift of any hypothesis.
+    smin: i32,
     /// Window rows / columns either side of the centre (`radius / s`).
     kk: usize,
     /// Union columns of the eight windows: `2 kk + 8`.
@@ -57,8 +57,8 @@ pub(super) struct Tables {
     /// Spatial weight of window row `jj` (0..=2kk) and union column `u` (0..ucols, lender at
     /// `x_0 + s (u - kk)`) for each lane, 0 where the lane's window misses the column.
     sp8: Vec<f32>,
-    /// Per union column: all ones in the lanes whose window holds it.
-    colmask: Vec<i32>,
+    /// Per union column: bit i set when lane i's window holds it.
+    colbits: Vec<i32>,
 }
 
 fn pack(c: [u8; 3]) -> u32 {
@@ -68,7 +68,12 @@ fn pack(c: [u8; 3]) -> u32 {
 impl Tables {
     pub(super) fn new(plan: &Plan) -> Self {
         let st = plan.st;
-        let p = PHASES as i32 * st as i32;
+        let smin = plan
+            .hyps
+            .iter()
+            .flat_map(|hs| hs.iter().filter(|h| h.w > 0.0).map(|h| h.shift))
+            .min()
+            .unwrap_or(0);
         let kk = plan.radius / st;
         let ucols = 2 * kk + LANES;
         let lend = plan
@@ -79,8 +84,7 @@ impl Tables {
                     .map(|h| {
                         if h.w > 0.0 {
                             Lend {
-                                qa: h.shift.div_euclid(p),
-                                qb: h.shift.rem_euclid(p),
+                                sidx: h.shift.abs_diff(smin),
                                 bin: h.bin as i32,
                                 d: h.d,
                                 w: h.w,
@@ -95,14 +99,14 @@ impl Tables {
             .collect();
         let (r, side) = (plan.radius as isize, plan.side);
         let mut sp8 = vec![0.0f32; (2 * kk + 1) * ucols * LANES];
-        let mut colmask = vec![0i32; ucols * LANES];
+        let mut colbits = vec![0i32; ucols];
         for u in 0..ucols {
             for i in 0..LANES {
                 let dm = u as isize - kk as isize - i as isize;
                 if dm.unsigned_abs() > kk {
                     continue;
                 }
-                colmask[u * LANES + i] = -1;
+                colbits[u] |= 1 << i;
                 let dx = (st as isize * dm + r) as usize;
                 for jj in 0..=2 * kk {
                     let dy = (st as isize * (jj as isize - kk as isize) + r) as usize;
@@ -112,10 +116,11 @@ impl Tables {
         }
         Self {
             lend,
+            smin,
             kk,
             ucols,
             sp8,
-            colmask,
+            colbits,
         }
     }
 }
@@ -229,6 +234,60 @@ impl LaneBins {
     }
 }
 
+/// Slots of the per-group cache of target-side lane values, keyed by shift (direct-mapped: two
+/// shifts of one window 128 pixels of disparity apart share a slot and recompute, nothing
+/// worse). 512 x 64 bytes stays in L1.
+const SLOTS: usize = 512;
+
+/// What the eight lanes read at one shift: the target colours at `4 x_i + shift` and the
+/// cross-view term `e^{-Δ(p_i, p_i T)/γt}`, 0 in lanes whose target position is outside the
+/// row or that have no receiver (their weights vanish with it).
+#[derive(Clone, Copy, Default)]
+#[repr(C, align(64))]
+struct AtShift {
+    t: [u32; LANES],
+    lt: [f32; LANES],
+}
+
+/// A flush of the lanes in `bits` (their running sums `rw`, `rwd` into their bins `rb`),
+/// recorded in the lender loop and replayed after it.
+#[derive(Clone, Copy, Default)]
+#[repr(C, align(32))]
+struct Flush {
+    rb: [i32; LANES],
+    rw: [f32; LANES],
+    rwd: [f32; LANES],
+    bits: i32,
+}
+
+impl Flush {
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn record(&mut self, bits: i32, rb: __m256i, rw: __m256, rwd: __m256) {
+        // SAFETY: each array holds eight lanes, 32-byte aligned by the struct's layout.
+        unsafe {
+            _mm256_store_si256(self.rb.as_mut_ptr().cast(), rb);
+            _mm256_store_ps(self.rw.as_mut_ptr(), rw);
+            _mm256_store_ps(self.rwd.as_mut_ptr(), rwd);
+        }
+        self.bits = bits;
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn replay(&self, bins: &mut LaneBins) {
+        // SAFETY: as in `record`.
+        let (rb, rw, rwd) = unsafe {
+            (
+                _mm256_load_si256(self.rb.as_ptr().cast()),
+                _mm256_load_ps(self.rw.as_ptr()),
+                _mm256_load_ps(self.rwd.as_ptr()),
+            )
+        };
+        bins.flush(self.bits, rb, rw, rwd);
+    }
+}
+
 /// Fuses row `y` (the portable kernel's `row_scalar`, eight receivers per step).
 #[target_feature(enable = "avx2")]
 pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
@@ -253,6 +312,13 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
         accd: vec![0.0; (plan.nbins + 2) * LANES],
         touched: Default::default(),
     };
+    // Cache slots and their keys (group number << 32 | shift index, with the lanes' validity
+    // bits); group numbers start at 1 so no key matches before its slot is filled.
+    let mut cache = Box::new([AtShift::default(); SLOTS]);
+    let mut keys = Box::new([(0u64, 0i32); SLOTS]);
+    // At most one flush per lender of a pass, and the final one.
+    let mut events = vec![Flush::default(); nrows * ucols + 1];
+    let mut group = 0u64;
     let pi = p as i32;
     let lanes_p = _mm256_mullo_epi32(
         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
@@ -265,9 +331,10 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
         // Receivers rho, rho + st, ...: groups of LANES.
         let count = (width - 1 - rho) / st + 1;
         for g in 0..count.div_ceil(LANES) {
+            group += 1;
             let x0 = rho + st * LANES * g;
             let n_lanes = (count - LANES * g).min(LANES);
-            let exists = mask_of((1 << n_lanes) - 1);
+            let exists = (1i32 << n_lanes) - 1;
             let mut cpa = [0u32; LANES];
             for (i, c) in cpa.iter_mut().enumerate().take(n_lanes) {
                 *c = pack(refc[y * width + x0 + st * i]);
@@ -296,64 +363,86 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
                     };
                 }
             }
-            let colmask: Vec<__m256> = (0..ucols)
-                .map(|u| {
-                    // SAFETY: colmask holds eight i32 per union column.
-                    let m =
-                        unsafe { _mm256_loadu_si256(tabs.colmask[u * LANES..].as_ptr().cast()) };
-                    _mm256_and_ps(_mm256_castsi256_ps(m), exists)
-                })
-                .collect();
-            let carry_from = 4 * rho as i32;
+            // Fills the cache slot of shift index `sidx` for this group; returns the lanes'
+            // validity bits.
+            let fill = |sidx: u32, slot: &mut AtShift| -> i32 {
+                // Lane 0's target position; lane i's is p i further.
+                let k0 = 4 * x0 as i32 + tabs.smin + sidx as i32;
+                let kv = _mm256_add_epi32(_mm256_set1_epi32(k0), lanes_p);
+                let inside = _mm256_and_si256(
+                    _mm256_cmpgt_epi32(kv, minus_one),
+                    _mm256_cmpgt_epi32(len_v, kv),
+                );
+                let bits = exists & _mm256_movemask_ps(_mm256_castsi256_ps(inside));
+                if bits == 0 {
+                    return 0;
+                }
+                // A valid lane i has 0 <= m0 + i < mcount, so the load stays inside the
+                // part's LANES-wide margins.
+                let (m0, r4) = (k0.div_euclid(pi), k0.rem_euclid(pi));
+                let at = r4 as usize * rs + (LANES as i32 + m0) as usize;
+                let s = &split[at..at + LANES];
+                // SAFETY: `s` holds eight u32.
+                let t8 = unsafe { _mm256_loadu_si256(s.as_ptr().cast()) };
+                let lt = _mm256_and_ps(lookup(&plan.lut_t, sad(cp8, t8)), mask_of(bits));
+                // SAFETY: the slot holds eight u32 and eight f32.
+                unsafe {
+                    _mm256_storeu_si256(slot.t.as_mut_ptr().cast(), t8);
+                    _mm256_storeu_ps(slot.lt.as_mut_ptr(), lt);
+                }
+                bits
+            };
             for lend in &tabs.lend {
                 let mut rb = _mm256_setzero_si256();
                 let (mut rw, mut rwd) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+                // Flushes are recorded and replayed after the pass (in order, so each lane's
+                // bins see the same adds): no call in the loop keeps the sums in registers.
+                let mut n_events = 0;
                 for j in 0..nrows {
                     let yq = y0 + st * j;
-                    let hrow = &lend[yq * width..(yq + 1) * width];
-                    let brow = &base[j * ucols * LANES..(j + 1) * ucols * LANES];
-                    for u in u_lo..=u_hi {
-                        let h = hrow[xq_of(u)];
+                    let lenders = lend[yq * width + xq_of(u_lo)..=yq * width + xq_of(u_hi)]
+                        .iter()
+                        .step_by(st);
+                    let brow = &base[(j * ucols + u_lo) * LANES..(j * ucols + u_hi + 1) * LANES];
+                    for ((h, bw), &cols) in lenders
+                        .zip(brow.chunks_exact(LANES))
+                        .zip(&tabs.colbits[u_lo..=u_hi])
+                    {
                         if !(h.w > 0.0) {
                             continue;
                         }
-                        // Lane 0's target position 4 x0 + shift = p m0 + r4, 0 <= r4 < p.
-                        let c = carry_from + h.qb;
-                        let carry = i32::from(c >= pi);
-                        let m0 = (LANES * g) as i32 + h.qa + carry;
-                        let r4 = c - carry * pi;
-                        let kv = _mm256_add_epi32(_mm256_set1_epi32(pi * m0 + r4), lanes_p);
-                        let kmask = _mm256_and_si256(
-                            _mm256_cmpgt_epi32(kv, minus_one),
-                            _mm256_cmpgt_epi32(len_v, kv),
-                        );
-                        let mask = _mm256_and_ps(_mm256_castsi256_ps(kmask), colmask[u]);
-                        let bits = _mm256_movemask_ps(mask);
+                        let slot = h.sidx as usize % SLOTS;
+                        let key = group << 32 | u64::from(h.sidx);
+                        if keys[slot].0 != key {
+                            keys[slot] = (key, fill(h.sidx, &mut cache[slot]));
+                        }
+                        // Lanes whose window holds the lender and whose target position is
+                        // in the row; the others get v = 0 (their lt or spatial weight is 0).
+                        let bits = keys[slot].1 & cols;
                         if bits == 0 {
                             continue;
                         }
-                        // A valid lane i has 0 <= m0 + i < mcount, so the load stays inside
-                        // the part's LANES-wide margins.
-                        let at = r4 as usize * rs + (LANES as i32 + m0) as usize;
-                        let t8 = {
-                            let s = &split[at..at + LANES];
-                            // SAFETY: `s` holds eight u32.
-                            unsafe { _mm256_loadu_si256(s.as_ptr().cast()) }
+                        let at = &cache[slot];
+                        // SAFETY: the slot holds eight u32 and eight f32 (64-byte aligned),
+                        // `bw` eight f32.
+                        let (t8, lt, bw) = unsafe {
+                            (
+                                _mm256_load_si256(at.t.as_ptr().cast()),
+                                _mm256_load_ps(at.lt.as_ptr()),
+                                _mm256_loadu_ps(bw.as_ptr()),
+                            )
                         };
                         let lc = lookup(&plan.lut_c, sad(t8, _mm256_set1_epi32(h.col as i32)));
-                        let lt = lookup(&plan.lut_t, sad(cp8, t8));
-                        // SAFETY: `brow` holds eight f32 per union column.
-                        let bw = unsafe { _mm256_loadu_ps(brow[u * LANES..].as_ptr()) };
                         let v = _mm256_mul_ps(
                             _mm256_mul_ps(_mm256_mul_ps(bw, _mm256_set1_ps(h.w)), lc),
                             lt,
                         );
-                        let v = _mm256_and_ps(v, mask);
                         let bin = _mm256_set1_epi32(h.bin);
-                        let other = _mm256_castsi256_ps(_mm256_cmpeq_epi32(rb, bin));
-                        let change = bits & !_mm256_movemask_ps(other);
+                        let same = _mm256_castsi256_ps(_mm256_cmpeq_epi32(rb, bin));
+                        let change = bits & !_mm256_movemask_ps(same);
                         if change != 0 {
-                            bins.flush(change, rb, rw, rwd);
+                            events[n_events].record(change, rb, rw, rwd);
+                            n_events += 1;
                             let sel = mask_of(change);
                             rb = _mm256_castps_si256(_mm256_blendv_ps(
                                 _mm256_castsi256_ps(rb),
@@ -367,7 +456,10 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
                         rwd = _mm256_add_ps(rwd, _mm256_mul_ps(v, _mm256_set1_ps(h.d)));
                     }
                 }
-                bins.flush(0xff, rb, rw, rwd);
+                events[n_events].record(0xff, rb, rw, rwd);
+                for e in &events[..=n_events] {
+                    e.replay(&mut bins);
+                }
             }
             for i in 0..n_lanes {
                 let x = x0 + st * i;
