@@ -251,7 +251,7 @@ pub fn solve(
 
 /// Second-difference stencils (compact ids, ascending) whose three control points all belong to
 /// the set, along u and along v.
-fn penalty_stencils(compact: &[u32], shape: (usize, usize)) -> Vec<[u32; 3]> {
+pub(crate) fn penalty_stencils(compact: &[u32], shape: (usize, usize)) -> Vec<[u32; 3]> {
     let mut out = Vec::new();
     let (w, h) = shape;
     for j in 0..h {
@@ -276,7 +276,7 @@ fn penalty_stencils(compact: &[u32], shape: (usize, usize)) -> Vec<[u32; 3]> {
 
 /// Least-squares `a + b·gu + c·gv` per channel from the moments, in coordinates centred on the
 /// set (a tiny ridge on the slopes keeps a one-pixel-wide line well-posed).
-fn linear_coef(normal: &Normal, grid: &KnotGrid, offset: &[f64]) -> (Vec<f64>, f64) {
+pub(crate) fn linear_coef(normal: &Normal, grid: &KnotGrid, offset: &[f64]) -> (Vec<f64>, f64) {
     let m = &normal.moments;
     let g = m.geo;
     let n = m.n as f64;

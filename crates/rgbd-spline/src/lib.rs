@@ -16,6 +16,7 @@ pub mod normal;
 pub mod seam;
 pub mod segments;
 pub mod surface;
+pub mod union;
 
 pub use basis::{uniform_basis, Basis, BasisError, MAX_DEGREE};
 pub use curvature::{curvature, Curvature};
@@ -25,7 +26,7 @@ pub use height::{depth_curvatures, fit_height, view_curvatures, HeightGrid, Heig
 pub use maps::{surface_maps, SurfaceMaps};
 pub use normal::Region;
 pub use seam::{NoiseModel, SeamTest, KINECT_V1_NOISE};
-pub use segments::{Criterion, SegmentFits};
+pub use segments::{Criterion, PreparedMerge, SegmentFits};
 pub use surface::{GridSurface, Jet, MAX_CHANNELS};
 
 /// Errors of the spline kernels: the workspace's one error enum (`rgbd-error`).

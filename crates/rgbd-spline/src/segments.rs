@@ -9,6 +9,7 @@ use crate::local::{box_union, cell_box, local_union_delta, CellBox};
 use crate::maps::{surface_maps, SurfaceMaps};
 use crate::normal::{accumulate, Normal, Region};
 use crate::seam::{seam_pixels, SeamTest};
+use crate::union::solve_one_channel;
 use rgbd_error::{invalid, RgbdError};
 
 /// Which number `fit_error` reports.
@@ -69,6 +70,20 @@ pub struct SegmentFits {
     test: Option<TestFits>,
     /// False when built by [`SegmentFits::test_only`]: no surface fits, only the seam test.
     surfaces: bool,
+    /// Merges applied so far (a [`PreparedMerge`] is valid for one generation).
+    generation: usize,
+}
+
+/// The union fits of a merge, solved by [`SegmentFits::prepare_merge`] and applied by
+/// [`SegmentFits::apply_merge`].
+#[derive(Debug, Clone)]
+pub struct PreparedMerge {
+    slots: (usize, usize),
+    /// The label of the absorbed segment (for the error its slot reports afterwards).
+    absorbed: usize,
+    generation: usize,
+    surface: Option<(Normal, Fit)>,
+    tested: Option<(Normal, Fit)>,
 }
 
 impl SegmentFits {
@@ -232,6 +247,7 @@ impl SegmentFits {
             parent: (0..n_labels).collect(),
             test,
             surfaces,
+            generation: 0,
         })
     }
 
@@ -329,7 +345,7 @@ impl SegmentFits {
         let Some(t) = &self.test else { return Ok(None) };
         let (a, b) = (&t.normals[si], &t.normals[sj]);
         let u = a.union(b);
-        let fit = solve(&u, &t.grid, self.lambda, &t.offset, false)?;
+        let fit = solve_one_channel(&u, &t.grid, self.lambda, &t.offset)?;
         Ok(Some((u, fit)))
     }
 
@@ -428,6 +444,14 @@ impl SegmentFits {
     /// Merges live segment `j` into `i`; returns the error of the merged segment
     /// ([`Self::fit_error`] of `i` afterwards).
     pub fn merge(&mut self, i: usize, j: usize) -> Result<f64, RgbdError> {
+        let prepared = self.prepare_merge(i, j)?;
+        self.apply_merge(prepared)
+    }
+
+    /// The solving half of [`Self::merge`] (`&self`: other queries, e.g. union tests of other
+    /// segments, may run beside it): the normal equations and fits of the union of live segments
+    /// `i` and `j`. [`Self::apply_merge`] then joins them.
+    pub fn prepare_merge(&self, i: usize, j: usize) -> Result<PreparedMerge, RgbdError> {
         let surface = if self.surfaces {
             Some(self.union_fit(i, j)?)
         } else {
@@ -435,6 +459,35 @@ impl SegmentFits {
         };
         let tested = self.test_union(i, j)?;
         let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
+        Ok(PreparedMerge {
+            slots: (si, sj),
+            absorbed: j,
+            generation: self.generation,
+            surface,
+            tested,
+        })
+    }
+
+    /// Joins the segments of `prepared` (made by [`Self::prepare_merge`] on these fits with no
+    /// merge since); returns the error of the merged segment, as [`Self::merge`].
+    pub fn apply_merge(&mut self, prepared: PreparedMerge) -> Result<f64, RgbdError> {
+        let PreparedMerge {
+            slots: (si, sj),
+            absorbed: j,
+            generation,
+            surface,
+            tested,
+        } = prepared;
+        if generation != self.generation {
+            return Err(invalid(
+                "prepared",
+                format!(
+                    "a merge prepared before {} other merges",
+                    self.generation - generation
+                ),
+                "a merge prepared on the current fits",
+            ));
+        }
         let n = (self.count(si) + self.count(sj)) as f64;
         let mut e = f64::NAN;
         if let (Some((tu, tfit)), Some(t)) = (tested, self.test.as_mut()) {
@@ -461,6 +514,7 @@ impl SegmentFits {
             self.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
         }
         self.parent[sj] = si;
+        self.generation += 1;
         Ok(e)
     }
 
