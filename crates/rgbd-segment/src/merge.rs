@@ -449,16 +449,15 @@ impl Live {
     }
 }
 
-/// The next live couples of `heap` (queue order, at most [`LOOKAHEAD`]) that involve neither
-/// `a` nor `b` and whose test is not cached: the tests worth running beside the work on
-/// `(a, b)`. Stale entries met on the way are dropped (the loop would skip them anyway); the
-/// others go back.
+/// The next live couples of `heap` (queue order, at most [`LOOKAHEAD`]) whose test is not
+/// cached and that involve neither segment of `merging` (about to change): the tests worth
+/// running beside the work on the popped couple. Stale entries met on the way are dropped (the
+/// loop would skip them anyway); the others go back.
 fn upcoming(
     heap: &mut BinaryHeap<Entry>,
     live: &Live,
     cache: &HashMap<TestKey, Option<bool>>,
-    a: usize,
-    b: usize,
+    merging: Option<(usize, usize)>,
 ) -> Vec<TestKey> {
     let mut popped = Vec::new();
     let mut out: Vec<TestKey> = Vec::new();
@@ -468,10 +467,8 @@ fn upcoming(
             continue;
         }
         let key = (e.a, e.b, e.va, e.vb);
-        if ![e.a, e.b].iter().any(|&s| s == a || s == b)
-            && !cache.contains_key(&key)
-            && !out.contains(&key)
-        {
+        let changes = merging.is_some_and(|(a, b)| [e.a, e.b].iter().any(|&s| s == a || s == b));
+        if !changes && !cache.contains_key(&key) && !out.contains(&key) {
             out.push(key);
         }
         popped.push(e);
@@ -601,7 +598,9 @@ fn merge_loop<M: FitModel>(
             let accepted = match cache.remove(&(a, b, e.va, e.vb)) {
                 Some(r) => r,
                 None => {
-                    let keys = upcoming(&mut heap, &live, &cache, a, b);
+                    // Every other live couple is worth testing: the tested one may be
+                    // rejected, and then couples of `a` or `b` stay as they are.
+                    let keys = upcoming(&mut heap, &live, &cache, None);
                     let m = &*model;
                     beside(m, &keys, &mut cache, || soft(m.accepts(a, b)))?
                 }
@@ -614,7 +613,7 @@ fn merge_loop<M: FitModel>(
             continue;
         };
         let keys = if similarity {
-            upcoming(&mut heap, &live, &cache, a, b)
+            upcoming(&mut heap, &live, &cache, Some((a, b)))
         } else {
             Vec::new()
         };

@@ -18,10 +18,14 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::band::BandMatrix;
+use crate::basis::MAX_DEGREE;
 use crate::fit::{Fit, RIDGE};
 use crate::grid::KnotGrid;
 use crate::normal::Normal;
 use rgbd_error::{invalid, RgbdError};
+
+/// Most control points a cell's basis touches, `(p + 1)²`.
+const MAX_K: usize = (MAX_DEGREE + 1) * (MAX_DEGREE + 1);
 
 /// Cell box `((u_lo, v_lo), (u_hi, v_hi))` of a pixel set's cells.
 pub type CellBox = ((usize, usize), (usize, usize));
@@ -178,16 +182,23 @@ pub fn local_union_delta(
     let by_rows = hi.0 - lo.0 <= hi.1 - lo.1;
     let mut id = vec![u32::MAX; pw * ph];
     let mut n_free = 0u32;
-    let order: Box<dyn Iterator<Item = (usize, usize)>> = if by_rows {
-        Box::new((lo.1..=hi.1).flat_map(|y| (lo.0..=hi.0).map(move |x| (x, y))))
-    } else {
-        Box::new((lo.0..=hi.0).flat_map(|x| (lo.1..=hi.1).map(move |y| (x, y))))
-    };
-    for (x, y) in order {
-        let q = y * pw + x;
+    let mut number = |q: usize| {
         if near[q] && flags[q] != 0 {
             id[q] = n_free;
             n_free += 1;
+        }
+    };
+    if by_rows {
+        for y in lo.1..=hi.1 {
+            for x in lo.0..=hi.0 {
+                number(y * pw + x);
+            }
+        }
+    } else {
+        for x in lo.0..=hi.0 {
+            for y in lo.1..=hi.1 {
+                number(y * pw + x);
+            }
         }
     }
     let n_free = n_free as usize;
@@ -215,9 +226,14 @@ pub fn local_union_delta(
             };
         }
     }
-    let touches = |e: &Entry| (0..k).any(|a| id[(e.v + a / k1) * pw + e.u + a % k1] != u32::MAX);
-    let cell_pts =
-        |e: &Entry| -> Vec<usize> { (0..k).map(|a| (e.v + a / k1) * pw + e.u + a % k1).collect() };
+    // A cell's control points: its corner plus these offsets (no allocation per cell).
+    let mut offs = [0usize; MAX_K];
+    for (a, o) in offs.iter_mut().enumerate().take(k) {
+        *o = (a / k1) * pw + a % k1;
+    }
+    let offs = &offs[..k];
+    let corner = |e: &Entry| e.v * pw + e.u;
+    let touches = |e: &Entry| offs.iter().any(|&o| id[corner(e) + o] != u32::MAX);
     // Penalty stencils of the union with a freed point (three points in the union support).
     let mut stencils: Vec<[usize; 3]> = Vec::new();
     for y in 0..ph {
@@ -252,13 +268,13 @@ pub fn local_union_delta(
             (b - a) as usize
         }
     };
-    let active: Vec<(&Entry, Vec<usize>)> = entries
+    let active: Vec<(&Entry, usize)> = entries
         .iter()
         .filter(|e| touches(e))
-        .map(|e| (e, cell_pts(e)))
+        .map(|e| (e, corner(e)))
         .collect();
-    for (_, pts) in &active {
-        bw = bw.max(span(&mut pts.iter().copied()));
+    for &(_, q0) in &active {
+        bw = bw.max(span(&mut offs.iter().map(|&o| q0 + o)));
     }
     for s in &stencils {
         bw = bw.max(span(&mut s.iter().copied()));
@@ -266,7 +282,11 @@ pub fn local_union_delta(
     // Assemble: minimise over the freed points with the others held.
     let mut mat = BandMatrix::zeros(n_free, bw);
     let mut rhs = vec![0.0; n_free];
-    for (e, pts) in &active {
+    let mut pts = [0usize; MAX_K];
+    for &(e, q0) in &active {
+        for (p, &o) in pts.iter_mut().zip(offs) {
+            *p = q0 + o;
+        }
         let blk = block(e);
         let (gram, rest) = blk.split_at(k * k);
         for a in 0..k {
@@ -323,14 +343,14 @@ pub fn local_union_delta(
     let mut delta = 0.0;
     let mut cp = vec![0.0; k];
     let mut d = vec![0.0; k];
-    for (e, pts) in &active {
+    for &(e, q0) in &active {
         let blk = block(e);
         let (gram, rest) = blk.split_at(k * k);
         let lx = |a: usize| (e.u + a % k1, e.v + a / k1);
         for a in 0..k {
             let (x, y) = lx(a);
             cp[a] = coef(e.part, x, y);
-            let i = id[pts[a]];
+            let i = id[q0 + offs[a]];
             d[a] = if i == u32::MAX {
                 // Held at the owning part's value: this part's.
                 0.0
@@ -338,8 +358,11 @@ pub fn local_union_delta(
                 rhs[i as usize] - cp[a]
             };
         }
-        // A is stored as its lower triangle.
+        // A is stored as its lower triangle. A held point's row adds d[a] · (…) = 0.
         for a in 0..k {
+            if id[q0 + offs[a]] == u32::MAX {
+                continue;
+            }
             let mut acp = 0.0;
             let mut ad = 0.0;
             for b in 0..k {
