@@ -307,11 +307,14 @@ fn fuse_with(
         .par_chunks_mut(width)
         .zip(plausibility.par_chunks_mut(width))
         .enumerate()
-        .try_for_each(|(y, (d_row, p_row))| {
-            check_interrupt()?;
-            plan.row(y, d_row, p_row);
-            Ok(())
-        })?;
+        .try_for_each_init(
+            || plan.scratch(),
+            |scratch, (y, (d_row, p_row))| {
+                check_interrupt()?;
+                plan.row(scratch, y, d_row, p_row);
+                Ok(())
+            },
+        )?;
     Ok(LcOutput {
         disparity,
         plausibility,
@@ -337,6 +340,17 @@ impl Kernel {
         let _ = nbins;
         Self::Scalar
     }
+}
+
+/// Per-worker buffers of the row kernels, reused across rows (each pixel's bins are cleared
+/// after its winner is read).
+enum Scratch {
+    Scalar {
+        bins: Bins,
+        base: Vec<f32>,
+    },
+    #[cfg(target_arch = "x86_64")]
+    Avx2(Box<avx2::Scratch>),
 }
 
 /// Everything the row kernels share, built once per call.
@@ -416,26 +430,47 @@ impl Plan {
         }
     }
 
-    /// Fuses row `y` into `d_row` / `p_row` with the selected kernel.
-    fn row(&self, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
+    /// Buffers for one worker of the selected kernel.
+    fn scratch(&self) -> Scratch {
         #[cfg(target_arch = "x86_64")]
         if let Some(tabs) = &self.simd {
-            // SAFETY: the tables exist only when `Kernel::select` detected AVX2 on this CPU.
-            unsafe { avx2::row(self, tabs, y, d_row, p_row) };
-            return;
+            return Scratch::Avx2(Box::new(avx2::Scratch::new(self, tabs)));
         }
-        self.row_scalar(y, d_row, p_row);
+        Scratch::Scalar {
+            bins: Bins::new(self.nbins),
+            base: vec![0.0; self.side * self.side],
+        }
     }
 
-    /// The portable kernel: one receiving pixel at a time.
-    fn row_scalar(&self, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
+    /// Fuses row `y` into `d_row` / `p_row` with the kernel `scratch` was made for.
+    fn row(&self, scratch: &mut Scratch, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
+        match scratch {
+            #[cfg(target_arch = "x86_64")]
+            Scratch::Avx2(s) => {
+                if let Some(tabs) = &self.simd {
+                    // SAFETY: the tables exist only when `Kernel::select` detected AVX2 on
+                    // this CPU.
+                    unsafe { avx2::row(self, tabs, s, y, d_row, p_row) };
+                }
+            }
+            Scratch::Scalar { bins, base } => self.row_scalar(bins, base, y, d_row, p_row),
+        }
+    }
+
+    /// The portable kernel: one receiving pixel at a time. `base` holds the spatial x
+    /// reference-colour weight of each window pixel, computed once per p and shared by all
+    /// sources.
+    fn row_scalar(
+        &self,
+        bins: &mut Bins,
+        base: &mut [f32],
+        y: usize,
+        d_row: &mut [f32],
+        p_row: &mut [f32],
+    ) {
         let (width, side, st) = (self.width, self.side, self.st);
         let (refc, spatial) = (&self.refc, &self.spatial);
         let (lut_c, lut_t) = (&self.lut_c, &self.lut_t);
-        let mut bins = Bins::new(self.nbins);
-        // Spatial x reference-colour weight of each window pixel, computed once per p and
-        // shared by all sources.
-        let mut base = vec![0.0f32; side * side];
         let trow = &self.t4[y * self.len..(y + 1) * self.len];
         let (y0, y1) = span(y, self.radius, st, self.height);
         for x in 0..width {

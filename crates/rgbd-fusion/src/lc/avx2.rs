@@ -288,17 +288,66 @@ impl Flush {
     }
 }
 
+/// One worker's buffers, reused across its rows.
+pub(super) struct Scratch {
+    /// The target row split by position modulo `p = 4 s`, LANES zeros either side of each
+    /// part: `split[r * rs + LANES + m] = t4[y][r + p m]` (positions past the row stay 0).
+    split: Vec<u32>,
+    /// Spatial x reference-colour weights of the group's (window row, union column, lane).
+    base: Vec<f32>,
+    bins: LaneBins,
+    /// Cache slots and their keys (group number << 32 | shift index, with the lanes' validity
+    /// bits); group numbers start at 1 and never repeat, so no key matches a stale slot.
+    cache: Box<[AtShift; SLOTS]>,
+    keys: Box<[(u64, i32); SLOTS]>,
+    group: u64,
+    /// At most one flush per lender of a pass, and the final one.
+    events: Vec<Flush>,
+}
+
+impl Scratch {
+    pub(super) fn new(plan: &Plan, tabs: &Tables) -> Self {
+        let p = PHASES as usize * plan.st;
+        let rows = 2 * tabs.kk + 1;
+        Self {
+            split: vec![0; p * (plan.len.div_ceil(p) + 2 * LANES)],
+            base: vec![0.0; rows * tabs.ucols * LANES],
+            bins: LaneBins {
+                acc: vec![0.0; (plan.nbins + 2) * LANES],
+                accd: vec![0.0; (plan.nbins + 2) * LANES],
+                touched: Default::default(),
+            },
+            cache: Box::new([AtShift::default(); SLOTS]),
+            keys: Box::new([(0, 0); SLOTS]),
+            group: 0,
+            events: vec![Flush::default(); rows * tabs.ucols + 1],
+        }
+    }
+}
+
 /// Fuses row `y` (the portable kernel's `row_scalar`, eight receivers per step).
 #[target_feature(enable = "avx2")]
-pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
+pub(super) fn row(
+    plan: &Plan,
+    tabs: &Tables,
+    scratch: &mut Scratch,
+    y: usize,
+    d_row: &mut [f32],
+    p_row: &mut [f32],
+) {
     let (width, st, len) = (plan.width, plan.st, plan.len);
     let (kk, ucols) = (tabs.kk, tabs.ucols);
     let p = PHASES as usize * st;
-    // The target row split by position modulo p, LANES zeros either side of each part:
-    // split[r * rs + LANES + m] = t4[y][r + p m].
-    let mcount = len.div_ceil(p);
-    let rs = mcount + 2 * LANES;
-    let mut split = vec![0u32; p * rs];
+    let Scratch {
+        split,
+        base,
+        bins,
+        cache,
+        keys,
+        group,
+        events,
+    } = scratch;
+    let rs = len.div_ceil(p) + 2 * LANES;
     for (k, &t) in plan.t4[y * len..(y + 1) * len].iter().enumerate() {
         split[(k % p) * rs + LANES + k / p] = pack(t);
     }
@@ -306,19 +355,6 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
     let nrows = (y1 - y0) / st + 1;
     // sp8 row of y0.
     let jj0 = kk - (y - y0) / st;
-    let mut base = vec![0.0f32; nrows * ucols * LANES];
-    let mut bins = LaneBins {
-        acc: vec![0.0; (plan.nbins + 2) * LANES],
-        accd: vec![0.0; (plan.nbins + 2) * LANES],
-        touched: Default::default(),
-    };
-    // Cache slots and their keys (group number << 32 | shift index, with the lanes' validity
-    // bits); group numbers start at 1 so no key matches before its slot is filled.
-    let mut cache = Box::new([AtShift::default(); SLOTS]);
-    let mut keys = Box::new([(0u64, 0i32); SLOTS]);
-    // At most one flush per lender of a pass, and the final one.
-    let mut events = vec![Flush::default(); nrows * ucols + 1];
-    let mut group = 0u64;
     let pi = p as i32;
     let lanes_p = _mm256_mullo_epi32(
         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
@@ -331,7 +367,7 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
         // Receivers rho, rho + st, ...: groups of LANES.
         let count = (width - 1 - rho) / st + 1;
         for g in 0..count.div_ceil(LANES) {
-            group += 1;
+            *group += 1;
             let x0 = rho + st * LANES * g;
             let n_lanes = (count - LANES * g).min(LANES);
             let exists = (1i32 << n_lanes) - 1;
@@ -412,7 +448,7 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
                             continue;
                         }
                         let slot = h.sidx as usize % SLOTS;
-                        let key = group << 32 | u64::from(h.sidx);
+                        let key = *group << 32 | u64::from(h.sidx);
                         if keys[slot].0 != key {
                             keys[slot] = (key, fill(h.sidx, &mut cache[slot]));
                         }
@@ -458,7 +494,7 @@ pub(super) fn row(plan: &Plan, tabs: &Tables, y: usize, d_row: &mut [f32], p_row
                 }
                 events[n_events].record(0xff, rb, rw, rwd);
                 for e in &events[..=n_events] {
-                    e.replay(&mut bins);
+                    e.replay(bins);
                 }
             }
             for i in 0..n_lanes {
