@@ -18,7 +18,12 @@
 //! (WTA) is the bin maximising the sum over itself and its two neighbours, and the output is the
 //! weighted mean disparity of those three bins (sub-pixel). `plausibility` is the winner's share
 //! of everything p received (the per-pixel normalisation). Memory is O(pixels x sources) plus
-//! one bin array per worker; the window is never materialised.
+//! the bin arrays of each worker; the window is never materialised.
+//!
+//! Two row kernels give the same bits: the portable one (`Plan::row_scalar`, one receiving pixel
+//! at a time) and, on x86-64 CPUs with AVX2 (detected at run time), the one in `lc/avx2.rs`,
+//! which weighs each lender's hypothesis for eight receiving pixels of the row at once and
+//! keeps every pixel's sums in the portable kernel's order (eight bin arrays per worker).
 //!
 //! Not done here: the target-view accumulation `Ω^T` and its cross-check product (eq. 2.18);
 //! the target-view colour and matching terms of eq. 2.16 are kept.
