@@ -657,10 +657,13 @@ fn merge_loop<M: FitModel>(
         union.retain(|&k| k != a && k != b);
         nb[a] = union;
         let (p, m) = (&priority, &*model);
-        let fresh: Vec<(usize, Option<f64>)> = nb[a]
-            .par_iter()
-            .map(|&k| Ok((k, score(p, m, a.min(k), a.max(k))?)))
-            .collect::<Result<_>>()?;
+        let rescore = |&k: &usize| Ok((k, score(p, m, a.min(k), a.max(k))?));
+        // Similarities are a few multiply-adds each: not worth a parallel job.
+        let fresh: Vec<(usize, Option<f64>)> = if similarity {
+            nb[a].iter().map(rescore).collect::<Result<_>>()?
+        } else {
+            nb[a].par_iter().map(rescore).collect::<Result<_>>()?
+        };
         for (k, s) in fresh {
             if let Some(score) = s {
                 let (x, y) = (a.min(k), a.max(k));
