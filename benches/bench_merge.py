@@ -7,14 +7,17 @@ fits of every segment, eq. 4.8 queue) and with class PDFs (Algorithm 1; PDFs mad
 ground-truth labels, blurred, so the similarity gate has realistic work). The peer:
 `skimage.graph.rag_mean_color` + `merge_hierarchical` (mean-colour merging, the skimage example's
 threshold 35). They do different things; the timing is the point (what a user pays per frame for
-a region-merging stage). Wall: medians after a warm-up; CPU: process time (all threads) per call,
-mean over the same runs (on a shared machine the wall time also counts other processes).
+a region-merging stage). Ours: wall and CPU (process time, all threads) per call in the same runs
+after a warm-up, median and minimum (on a shared machine the wall time also counts waiting for
+other processes; the merging tests upcoming couples on a second core when one is free, so its CPU
+time may exceed its wall time). The peer: median wall.
 
     python benches/bench_merge.py
 """
 
 from __future__ import annotations
 
+import statistics
 import time
 from collections.abc import Callable
 
@@ -27,7 +30,7 @@ from rgbd_rs.segmentation.merge import adjacency, merge_regions
 from rgbd_rs.surface import SegmentFits
 
 FRAMES = ("0001", "0009")
-REPEATS = 5
+REPEATS = 9
 
 
 def _merge_mean_color(graph, src, dst):  # type: ignore[no-untyped-def]
@@ -43,18 +46,23 @@ def _weight_mean_color(graph, src, dst, n):  # type: ignore[no-untyped-def]
     return {"weight": diff}
 
 
-def cpu_ms(fn: Callable[[], object], repeats: int) -> float:
-    """Mean CPU time of ``fn`` (all threads of this process), ms."""
+def both(fn: Callable[[], object], repeats: int) -> tuple[float, float, float, float]:
+    """Wall and CPU time (process time: all threads) of ``fn`` per call, ms, in the same runs
+    after one warm-up: (median wall, min wall, median CPU, min CPU)."""
     fn()
-    t = time.process_time()
+    walls, cpus = [], []
     for _ in range(repeats):
+        w, c = time.perf_counter(), time.process_time()
         fn()
-    return (time.process_time() - t) / repeats * 1e3
+        walls.append(time.perf_counter() - w)
+        cpus.append(time.process_time() - c)
+    med = statistics.median
+    return med(walls) * 1e3, min(walls) * 1e3, med(cpus) * 1e3, min(cpus) * 1e3
 
 
-def both(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
-    """(median wall ms, mean CPU ms) of ``fn``."""
-    return timeit(fn, repeats), cpu_ms(fn, repeats)
+def cell(t: tuple[float, float, float, float]) -> str:
+    """``median wall / CPU (min wall / CPU)``."""
+    return f"{t[0]:.0f} / {t[2]:.0f} ({t[1]:.0f} / {t[3]:.0f}) ms"
 
 
 def row(idx: str, cam: object) -> str:
@@ -73,10 +81,10 @@ def row(idx: str, cam: object) -> str:
     onehot = np.eye(14, dtype=np.float32)[gt]
     pdfs = cv2.GaussianBlur(onehot, (31, 31), 0) * 0.9 + 0.1 / 14
     pdfs /= pdfs.sum(axis=2, keepdims=True)
-    fit_only, fit_cpu = both(lambda: merge_regions(labels, pts, lab=lab), REPEATS)
-    with_pdf, pdf_cpu = both(lambda: merge_regions(labels, pts, lab=lab, pdfs=pdfs), REPEATS)
-    fits, fits_cpu = both(lambda: SegmentFits(pts, labels, surfaces=False), REPEATS)
-    adj, adj_cpu = both(lambda: adjacency(labels, points=pts, lab=lab), REPEATS)
+    fit_only = both(lambda: merge_regions(labels, pts, lab=lab), REPEATS)
+    with_pdf = both(lambda: merge_regions(labels, pts, lab=lab, pdfs=pdfs), REPEATS)
+    fits = both(lambda: SegmentFits(pts, labels, surfaces=False), REPEATS)
+    adj = both(lambda: adjacency(labels, points=pts, lab=lab), REPEATS)
 
     def peer() -> object:
         g = skgraph.rag_mean_color(rgb, labels)
@@ -93,9 +101,9 @@ def row(idx: str, cam: object) -> str:
     sk = timeit(peer, 2)
     n = int(labels.max()) + 1
     return (
-        f"| {idx} | {n} | {fit_only:.0f} / {fit_cpu:.0f} ms | {with_pdf:.0f} / {pdf_cpu:.0f} ms "
-        f"| {fits:.0f} / {fits_cpu:.0f} ms (adjacency {adj:.0f} / {adj_cpu:.0f} ms) | {sk:.0f} ms "
-        f"| {sk / fit_only:.1f}x / {sk / with_pdf:.1f}x |"
+        f"| {idx} | {n} | {cell(fit_only)} | {cell(with_pdf)} "
+        f"| {cell(fits)}, adjacency {cell(adj)} | {sk:.0f} ms "
+        f"| {sk / fit_only[0]:.1f}x / {sk / with_pdf[0]:.1f}x |"
     )
 
 
@@ -103,9 +111,9 @@ def main() -> None:
     from rgbd_rs.data import NYUV2_CAMERA as cam
 
     print(
-        "| frame | segments | rgbd_rs fit-only (wall / CPU) | rgbd_rs with PDFs (wall / CPU) "
-        "| seam-test fits (wall / CPU) | skimage RAG+merge_hierarchical (wall) "
-        "| speed-up, wall (fit-only / PDFs) |"
+        "| frame | segments | rgbd_rs fit-only, wall / CPU (min) "
+        "| rgbd_rs with PDFs, wall / CPU (min) | seam-test fits and adjacency, wall / CPU (min) "
+        "| skimage RAG+merge_hierarchical (wall) | speed-up, median wall (fit-only / PDFs) |"
     )
     print("|---|---|---|---|---|---|---|")
     for idx in FRAMES:
