@@ -7,14 +7,12 @@
 //! including i* or j*" without searching the heap. Ties are broken by the smaller slot pair, so
 //! the result is deterministic.
 
-use std::any::Any;
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashMap};
-use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
+use std::collections::BinaryHeap;
 
 use rayon::prelude::*;
 use rgbd_error::{check_interrupt, invalid, Result, RgbdError};
-use rgbd_spline::{PreparedMerge, SegmentFits};
+use rgbd_spline::SegmentFits;
 
 /// Eq. 4.7: smallest Bhattacharyya similarity of a couple that enters the queue.
 pub const T_SIM: f64 = 0.77;
@@ -33,17 +31,6 @@ pub trait FitModel: Sync {
     /// Joins `b` into `a`; returns the error of the union.
     fn merge(&mut self, a: usize, b: usize) -> Result<f64>;
 
-    /// The read-only work of `merge(a, b)` (e.g. solving the union's fit), which may run beside
-    /// other queries; [`Self::commit`] finishes the merge. By default nothing is prepared.
-    fn prepare(&self, _a: usize, _b: usize) -> Result<Option<Prepared>> {
-        Ok(None)
-    }
-
-    /// Finishes `merge(a, b)` with what [`Self::prepare`] returned for it on the current state.
-    fn commit(&mut self, a: usize, b: usize, _prepared: Option<Prepared>) -> Result<f64> {
-        self.merge(a, b)
-    }
-
     /// Whether eq. 4.8 accepts the union of `a` and `b`, and its relative fit improvement
     /// `1 - e_ab (n_a + n_b) / (e_a n_a + e_b n_b)`. Implementations whose test is eq. 4.8 on
     /// [`Self::error`] and [`Self::union_error`] can answer with one union fit.
@@ -52,9 +39,6 @@ pub trait FitModel: Sync {
         Ok((accept, gain(self, a, b, self.union_error(a, b)?)?))
     }
 }
-
-/// What [`FitModel::prepare`] hands to [`FitModel::commit`].
-pub type Prepared = Box<dyn Any + Send>;
 
 /// The relative fit improvement of joining `a` and `b` given the union's error (0 when the
 /// parts fit exactly, so the ratio is undefined).
@@ -93,16 +77,6 @@ impl FitModel for LabelledFits<'_> {
     fn merge(&mut self, a: usize, b: usize) -> Result<f64> {
         let (la, lb) = (self.label(a), self.label(b));
         self.fits.merge(la, lb)
-    }
-    fn prepare(&self, a: usize, b: usize) -> Result<Option<Prepared>> {
-        let p = self.fits.prepare_merge(self.label(a), self.label(b))?;
-        Ok(Some(Box::new(p)))
-    }
-    fn commit(&mut self, a: usize, b: usize, prepared: Option<Prepared>) -> Result<f64> {
-        match prepared.and_then(|p| p.downcast::<PreparedMerge>().ok()) {
-            Some(p) => self.fits.apply_merge(*p),
-            None => self.merge(a, b),
-        }
     }
 
     /// One union fit: `SegmentFits::should_merge` is eq. 4.8 on `fit_error` and `union_error`
@@ -430,13 +404,6 @@ fn neighbours(n: usize, pairs: &[(usize, usize)]) -> Result<Vec<Vec<usize>>> {
     Ok(nb)
 }
 
-/// A couple's eq. 4.8 test, named by both slots and both versions (a test's outcome depends
-/// only on the two segments it reads, which change only when they merge).
-type TestKey = (usize, usize, u32, u32);
-
-/// How many upcoming couples are tested beside each merge or test of Algorithm 1.
-const LOOKAHEAD: usize = 8;
-
 /// The queue's bookkeeping: per slot whether it is live and its version.
 struct Live {
     alive: Vec<bool>,
@@ -449,92 +416,17 @@ impl Live {
     }
 }
 
-/// The next live couples of `heap` (queue order, at most [`LOOKAHEAD`]) whose test is not
-/// cached and that involve neither segment of `merging` (about to change): the tests worth
-/// running beside the work on the popped couple. Stale entries met on the way are dropped (the
-/// loop would skip them anyway); the others go back.
-fn upcoming(
-    heap: &mut BinaryHeap<Entry>,
-    live: &Live,
-    cache: &HashMap<TestKey, Option<bool>>,
-    merging: Option<(usize, usize)>,
-) -> Vec<TestKey> {
-    let mut popped = Vec::new();
-    let mut out: Vec<TestKey> = Vec::new();
-    while out.len() < LOOKAHEAD && popped.len() < 4 * LOOKAHEAD {
-        let Some(e) = heap.pop() else { break };
-        if !live.valid(&e) {
-            continue;
-        }
-        let key = (e.a, e.b, e.va, e.vb);
-        let changes = merging.is_some_and(|(a, b)| [e.a, e.b].iter().any(|&s| s == a || s == b));
-        if !changes && !cache.contains_key(&key) && !out.contains(&key) {
-            out.push(key);
-        }
-        popped.push(e);
-    }
-    heap.extend(popped);
-    out
-}
-
-/// Eq. 4.8 on the couples of `keys` in order until `done` is set (an interrupt stops it too:
-/// the loop reports it at its next check).
-fn speculate<M: FitModel>(
-    m: &M,
-    keys: &[TestKey],
-    done: &AtomicBool,
-) -> Vec<(TestKey, Option<bool>)> {
-    let mut out = Vec::new();
-    for &key in keys {
-        if done.load(AtomicOrdering::Relaxed) {
-            break;
-        }
-        match soft(m.accepts(key.0, key.1)) {
-            Ok(r) => out.push((key, r)),
-            Err(_) => break,
-        }
-    }
-    out
-}
-
-/// Runs `work` and, on another thread of the pool when one is free, the tests of `keys` until
-/// `work` is done; the tests' outcomes go to `cache`.
-fn beside<M: FitModel, T: Send>(
-    m: &M,
-    keys: &[TestKey],
-    cache: &mut HashMap<TestKey, Option<bool>>,
-    work: impl FnOnce() -> T + Send,
-) -> T {
-    if keys.is_empty() {
-        return work();
-    }
-    let done = AtomicBool::new(false);
-    let (out, tested) = rayon::join(
-        || {
-            let out = work();
-            done.store(true, AtomicOrdering::Relaxed);
-            out
-        },
-        || speculate(m, keys, &done),
-    );
-    cache.extend(tested);
-    out
-}
-
 /// Runs Algorithm 1 (or the fit-only baseline) on `n` segments with the adjacent couples
 /// `pairs`. `model` ends holding the merged fits.
-///
-/// Algorithm 1 is sequential, but a test of eq. 4.8 reads only its two segments: while a couple
-/// is tested or merged, a second thread tests the next couples of the queue that do not involve
-/// it, and their outcomes wait (keyed by the segments' versions) until they are popped. The
-/// merges are those of the plain loop.
 pub fn merge_regions<M: FitModel + Send>(
     n: usize,
     pairs: &[(usize, usize)],
     priority: Priority,
     model: &mut M,
 ) -> Result<Merged> {
-    // On a thread of the pool, so that the joins of the loop are cheap.
+    // On a thread of the pool: the loop's parallel scorings then start without waking a pool
+    // from outside (tested: testing upcoming couples on the second thread beside each merge
+    // cost more CPU than it saved wall time, and is not done).
     rayon::scope(|_| merge_loop(n, pairs, priority, model))
 }
 
@@ -585,7 +477,6 @@ fn merge_loop<M: FitModel>(
         alive: vec![true; n],
         version: vec![0u32; n],
     };
-    let mut cache: HashMap<TestKey, Option<bool>> = HashMap::new();
     let mut parent: Vec<usize> = (0..n).collect();
     let mut history = Vec::new();
     while let Some(e) = heap.pop() {
@@ -594,34 +485,13 @@ fn merge_loop<M: FitModel>(
             continue;
         }
         check_interrupt()?;
-        if similarity {
-            let accepted = match cache.remove(&(a, b, e.va, e.vb)) {
-                Some(r) => r,
-                None => {
-                    // Every other live couple is worth testing: the tested one may be
-                    // rejected, and then couples of `a` or `b` stay as they are.
-                    let keys = upcoming(&mut heap, &live, &cache, None);
-                    let m = &*model;
-                    beside(m, &keys, &mut cache, || soft(m.accepts(a, b)))?
-                }
-            };
-            if accepted != Some(true) {
-                continue;
-            }
+        if similarity && soft(model.accepts(a, b))? != Some(true) {
+            continue;
         }
         let (Some(ea), Some(eb)) = (soft(model.error(a))?, soft(model.error(b))?) else {
             continue;
         };
-        let keys = if similarity {
-            upcoming(&mut heap, &live, &cache, Some((a, b)))
-        } else {
-            Vec::new()
-        };
-        let m = &*model;
-        let Some(prepared) = beside(m, &keys, &mut cache, || soft(m.prepare(a, b)))? else {
-            continue;
-        };
-        let Some(eu) = soft(model.commit(a, b, prepared))? else {
+        let Some(eu) = soft(model.merge(a, b))? else {
             continue;
         };
         history.push(MergeStep {
@@ -860,69 +730,6 @@ mod tests {
         assert_eq!(majority_of_votes(&d.votes, 2), vec![1, 0, -1]);
         d.join(1, 0);
         assert_eq!(d.votes[2..4], [2, 2]);
-    }
-
-    /// [`Line`] whose eq. 4.8 test takes a while, so that the second thread has time to test
-    /// upcoming couples beside each merge and test.
-    struct SlowLine(Line);
-
-    impl FitModel for SlowLine {
-        fn size(&self, s: usize) -> Result<usize> {
-            self.0.size(s)
-        }
-        fn error(&self, s: usize) -> Result<f64> {
-            self.0.error(s)
-        }
-        fn union_error(&self, a: usize, b: usize) -> Result<f64> {
-            self.0.union_error(a, b)
-        }
-        /// Also rejects unions of more than three segments: a test's outcome changes when one
-        /// of its segments has merged (a stale outcome would merge differently).
-        fn accepts(&self, a: usize, b: usize) -> Result<bool> {
-            std::thread::sleep(std::time::Duration::from_micros(200));
-            let small = self.0.members[a].len() + self.0.members[b].len() <= 3;
-            Ok(small && self.0.accepts(a, b)?)
-        }
-        fn merge(&mut self, a: usize, b: usize) -> Result<f64> {
-            self.0.merge(a, b)
-        }
-        fn prepare(&self, _a: usize, _b: usize) -> Result<Option<Prepared>> {
-            std::thread::sleep(std::time::Duration::from_micros(300));
-            Ok(Some(Box::new(())))
-        }
-    }
-
-    #[test]
-    fn tests_beside_the_loop_change_nothing() {
-        // 60 segments on a line, surfaces of 4 segments, scattered PDFs: couples merge in no
-        // particular order along the line, so a segment keeps couples across its merges.
-        let n = 60;
-        let surface: Vec<usize> = (0..n).map(|s| s / 4).collect();
-        let slots: Vec<i32> = (0..n as i32).collect();
-        let pdfs: Vec<f32> = (0..n)
-            .flat_map(|s| {
-                let x = ((s * 37) % 11) as f32 / 10.0;
-                [x, 1.0 - x]
-            })
-            .collect();
-        let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                let p = Priority::Similarity {
-                    descriptors: Descriptors::new(&slots, n, &pdfs, 2).unwrap(),
-                    t_sim: T_SIM,
-                };
-                let mut m = SlowLine(Line::new(surface.clone()));
-                merge_regions(n, &chain(n), p, &mut m).unwrap()
-            })
-        };
-        let alone = run(1);
-        assert!(alone.history.len() > 10, "{}", alone.history.len());
-        assert_eq!(run(2), alone);
-        assert_eq!(run(4), alone);
     }
 
     #[test]
