@@ -137,18 +137,20 @@ def main() -> None:
             fused, _ = lc_fuse(
                 s.right, s.left, disps, confs, params=LcParams(radius=10, stride=stride)
             )
-            gs = LcParams(radius=10).resolved(960)[1]
+            lp = LcParams(radius=10)
+            gs = lp.resolved(960)[1]
             t = time.perf_counter()
+            # The defaults' constants and bin width (not literals: they follow LcParams).
             ref_out = numpy_lc(
                 s.right,
                 s.left,
                 list(zip(disps, confs, strict=True)),
                 10,
                 gs,
-                30.0,
-                25.0,
-                69.0,
-                0.25,
+                lp.gamma_c,
+                lp.gamma_t,
+                lp.truncation,
+                lp.bin_width,
                 stride,
                 1,
                 strip,
