@@ -156,28 +156,30 @@ def numpy_oversegment(
 
 
 def run_one(which: str, frame: int) -> dict[str, object]:
-    from rgbd_rs import _rgbd_rs
     import importlib
 
-    O = importlib.import_module("rgbd_rs.segmentation.oversegment")
+    from rgbd_rs import _rgbd_rs
+
+    # By name: the package exports a function called ``oversegment`` that shadows the module.
+    ov = importlib.import_module("rgbd_rs.segmentation.oversegment")
 
     f, _, _ = nyu_features(frame)
 
     def ours() -> np.ndarray:
-        return O.oversegment(f)
+        return ov.oversegment(f)
 
     def ref() -> np.ndarray:
         return numpy_oversegment(
             f,
-            O.DEFAULT_N_SEGMENTS,
-            O.DEFAULT_SIGMA,
-            O.DEFAULT_N_SAMPLES,
-            O.DEFAULT_N_VECTORS,
-            O.DEFAULT_FEATURE_WEIGHT,
-            O.DEFAULT_SPATIAL_WEIGHT,
+            ov.DEFAULT_N_SEGMENTS,
+            ov.DEFAULT_SIGMA,
+            ov.DEFAULT_N_SAMPLES,
+            ov.DEFAULT_N_VECTORS,
+            ov.DEFAULT_FEATURE_WEIGHT,
+            ov.DEFAULT_SPATIAL_WEIGHT,
             _rgbd_rs.OVERSEG_DEFAULT_FIT_POINTS,
             20,  # the k-means iteration cap of rgbd-segment (DEFAULT_MAX_ITER)
-            O.default_channel_weights(f.shape[2]),
+            ov.default_channel_weights(f.shape[2]),
         )
 
     run = ours if which == "ours" else ref
