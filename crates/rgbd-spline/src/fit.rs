@@ -3,6 +3,7 @@
 
 use crate::band::BandMatrix;
 use crate::grid::KnotGrid;
+use crate::local::cell_box;
 use crate::normal::Normal;
 use crate::surface::GridSurface;
 use rgbd_error::{invalid, RgbdError};
@@ -55,18 +56,6 @@ impl Fit {
     }
 }
 
-/// Bounding box of the cells of `normal`.
-fn cell_box(normal: &Normal, grid: &KnotGrid) -> ((usize, usize), (usize, usize)) {
-    let mut lo = (usize::MAX, usize::MAX);
-    let mut hi = (0, 0);
-    for &c in &normal.cells {
-        let (cu, cv) = (c as usize % grid.cells_u, c as usize / grid.cells_u);
-        lo = (lo.0.min(cu), lo.1.min(cv));
-        hi = (hi.0.max(cu), hi.1.max(cv));
-    }
-    (lo, hi)
-}
-
 /// Fits the pixel set of `normal` (values were accumulated minus `offset`).
 pub fn solve(
     normal: &Normal,
@@ -95,55 +84,17 @@ pub fn solve(
         });
     }
     let c = normal.channels;
-    let p = grid.degree;
-    let k1 = p + 1;
     let k = normal.k;
-    let shape = (hi.0 - lo.0 + 1 + p, hi.1 - lo.1 + 1 + p);
+    let layout = Layout::new(normal, grid, lo, hi);
+    let Layout {
+        shape,
+        ref compact,
+        n_ids,
+        bw,
+        ref stencils,
+        ..
+    } = layout;
     let rect = shape.0 * shape.1;
-    // Compact numbering (row-major) of the control points the set touches.
-    let mut compact = vec![u32::MAX; rect];
-    let block_ids = |cell: u32| {
-        let (cu, cv) = (
-            cell as usize % grid.cells_u - lo.0,
-            cell as usize / grid.cells_u - lo.1,
-        );
-        (0..k).map(move |a| (cv + a / k1) * shape.0 + cu + a % k1)
-    };
-    for &cell in &normal.cells {
-        for r in block_ids(cell) {
-            compact[r] = 0;
-        }
-    }
-    // Numbered along the shorter side of the box: the band half-width is about p times that
-    // side, and the band Cholesky costs n·bw² (a wide wall segment: several times less).
-    let mut n_ids = 0u32;
-    if shape.0 <= shape.1 {
-        for x in compact.iter_mut().filter(|x| **x == 0) {
-            *x = n_ids;
-            n_ids += 1;
-        }
-    } else {
-        for i in 0..shape.0 {
-            for j in 0..shape.1 {
-                let x = &mut compact[j * shape.0 + i];
-                if *x == 0 {
-                    *x = n_ids;
-                    n_ids += 1;
-                }
-            }
-        }
-    }
-    let n_ids = n_ids as usize;
-    let mut bw = 0;
-    for &cell in &normal.cells {
-        let first = compact[block_ids(cell).next().unwrap_or(0)];
-        let last = compact[block_ids(cell).next_back().unwrap_or(0)];
-        bw = bw.max((last - first) as usize);
-    }
-    let stencils = penalty_stencils(&compact, shape);
-    for s in &stencils {
-        bw = bw.max((s[2] - s[0]) as usize);
-    }
     // Assemble the centred system: rhs_c = Aᵀ(x - mean) = Aᵀx - mean · Aᵀ1.
     let mean = m.mean();
     let bl = normal.block_len();
@@ -152,7 +103,7 @@ pub fn solve(
     let mut rhs_ridge = vec![0.0; n_ids * c];
     let mut ids = vec![0usize; k];
     for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
-        for (slot, r) in ids.iter_mut().zip(block_ids(*cell)) {
+        for (slot, r) in ids.iter_mut().zip(layout.block_ids(*cell)) {
             *slot = compact[r] as usize;
         }
         let (gram, rest) = block.split_at(k * k);
@@ -168,18 +119,7 @@ pub fn solve(
     }
     // The data Gram matrix alone is needed for the residual and the degrees of freedom.
     let gram_band = a.clone();
-    let stencil = [1.0, -2.0, 1.0];
-    for s in &stencils {
-        for x in 0..3 {
-            for y in 0..=x {
-                a.add(
-                    s[x] as usize,
-                    s[y] as usize,
-                    lambda * stencil[x] * stencil[y],
-                );
-            }
-        }
-    }
+    add_penalty(&mut a, stencils, lambda);
     let target = GridSurface::linear(grid, lo, hi, &lin);
     for (r, &id) in compact.iter().enumerate() {
         if id != u32::MAX {
@@ -224,7 +164,7 @@ pub fn solve(
         tr
     });
     let mut ctrl = Vec::with_capacity(rect * c);
-    for &id in &compact {
+    for &id in compact {
         for ch in 0..c {
             let centred = if id == u32::MAX {
                 0.0
@@ -247,6 +187,112 @@ pub fn solve(
         sse: sse.max(0.0),
         dof,
     })
+}
+
+/// The control points a pixel set touches, in the set's cell box grown by the degree, numbered
+/// compactly, and what the band system over them needs (shared by [`solve`] and the merge's
+/// one-channel union fit, `crate::union::solve_one_channel`).
+pub(crate) struct Layout {
+    /// Control points of the box, `(u, v)`.
+    pub shape: (usize, usize),
+    /// Compact id of each control point of the box (row-major), `u32::MAX` where untouched.
+    pub compact: Vec<u32>,
+    /// Number of touched control points.
+    pub n_ids: usize,
+    /// Band half-width of the Gram matrix plus the penalty.
+    pub bw: usize,
+    /// [`penalty_stencils`] of the compact numbering.
+    pub stencils: Vec<[u32; 3]>,
+    lo: (usize, usize),
+    cells_u: usize,
+    k: usize,
+    k1: usize,
+}
+
+impl Layout {
+    pub(crate) fn new(
+        normal: &Normal,
+        grid: &KnotGrid,
+        lo: (usize, usize),
+        hi: (usize, usize),
+    ) -> Self {
+        let p = grid.degree;
+        let shape = (hi.0 - lo.0 + 1 + p, hi.1 - lo.1 + 1 + p);
+        let mut layout = Self {
+            shape,
+            compact: vec![u32::MAX; shape.0 * shape.1],
+            n_ids: 0,
+            bw: 0,
+            stencils: Vec::new(),
+            lo,
+            cells_u: grid.cells_u,
+            k: normal.k,
+            k1: p + 1,
+        };
+        for &cell in &normal.cells {
+            for r in layout.block_ids(cell) {
+                layout.compact[r] = 0;
+            }
+        }
+        // Numbered along the shorter side of the box: the band half-width is about p times that
+        // side, and the band Cholesky costs n·bw² (a wide wall segment: several times less).
+        let mut n_ids = 0u32;
+        if shape.0 <= shape.1 {
+            for x in layout.compact.iter_mut().filter(|x| **x == 0) {
+                *x = n_ids;
+                n_ids += 1;
+            }
+        } else {
+            for i in 0..shape.0 {
+                for j in 0..shape.1 {
+                    let x = &mut layout.compact[j * shape.0 + i];
+                    if *x == 0 {
+                        *x = n_ids;
+                        n_ids += 1;
+                    }
+                }
+            }
+        }
+        layout.n_ids = n_ids as usize;
+        let mut bw = 0;
+        for &cell in &normal.cells {
+            let first = layout.compact[layout.block_ids(cell).next().unwrap_or(0)];
+            let last = layout.compact[layout.block_ids(cell).next_back().unwrap_or(0)];
+            bw = bw.max((last - first) as usize);
+        }
+        layout.stencils = penalty_stencils(&layout.compact, shape);
+        for s in &layout.stencils {
+            bw = bw.max((s[2] - s[0]) as usize);
+        }
+        layout.bw = bw;
+        layout
+    }
+
+    /// Box indices of the `k` control points of grid cell `cell`, in the block order.
+    pub(crate) fn block_ids(&self, cell: u32) -> impl DoubleEndedIterator<Item = usize> {
+        let (cu, cv) = (
+            cell as usize % self.cells_u - self.lo.0,
+            cell as usize / self.cells_u - self.lo.1,
+        );
+        let (k1, w) = (self.k1, self.shape.0);
+        (0..self.k).map(move |a| (cv + a / k1) * w + cu + a % k1)
+    }
+}
+
+/// Adds `lambda` times the second-difference penalty of `stencils` to `a`.
+pub(crate) fn add_penalty(a: &mut BandMatrix, stencils: &[[u32; 3]], lambda: f64) {
+    let stencil = [1.0, -2.0, 1.0];
+    for s in stencils {
+        for x in 0..3 {
+            for y in 0..=x {
+                a.add(
+                    s[x] as usize,
+                    s[y] as usize,
+                    lambda * stencil[x] * stencil[y],
+                );
+            }
+        }
+    }
 }
 
 /// Second-difference stencils (compact ids, ascending) whose three control points all belong to

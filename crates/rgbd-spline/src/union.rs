@@ -11,7 +11,7 @@
 //! (checked by the tests below); the single-surface fits of `fit::solve` are untouched.
 
 use crate::band::{avx2_fma, BandMatrix};
-use crate::fit::{linear_coef, penalty_stencils, Fit, FitKind, RIDGE};
+use crate::fit::{add_penalty, linear_coef, Fit, FitKind, Layout, RIDGE};
 use crate::grid::KnotGrid;
 use crate::local::cell_box;
 use crate::normal::Normal;
@@ -255,61 +255,25 @@ pub fn solve_one_channel(
         // Several channels or the linear fallback: nothing to factor.
         return crate::fit::solve(normal, grid, lambda, offset, false);
     }
-    let p = grid.degree;
-    let k1 = p + 1;
     let k = normal.k;
     let (lo, hi) = cell_box(normal, grid);
     let (lin, _) = linear_coef(normal, grid, offset);
-    let shape = (hi.0 - lo.0 + 1 + p, hi.1 - lo.1 + 1 + p);
-    let rect = shape.0 * shape.1;
-    let mut compact = vec![u32::MAX; rect];
-    let block_ids = |cell: u32| {
-        let (cu, cv) = (
-            cell as usize % grid.cells_u - lo.0,
-            cell as usize / grid.cells_u - lo.1,
-        );
-        (0..k).map(move |a| (cv + a / k1) * shape.0 + cu + a % k1)
-    };
-    for &cell in &normal.cells {
-        for r in block_ids(cell) {
-            compact[r] = 0;
-        }
-    }
-    let mut n_ids = 0u32;
-    if shape.0 <= shape.1 {
-        for x in compact.iter_mut().filter(|x| **x == 0) {
-            *x = n_ids;
-            n_ids += 1;
-        }
-    } else {
-        for i in 0..shape.0 {
-            for j in 0..shape.1 {
-                let x = &mut compact[j * shape.0 + i];
-                if *x == 0 {
-                    *x = n_ids;
-                    n_ids += 1;
-                }
-            }
-        }
-    }
-    let n_ids = n_ids as usize;
-    let mut bw = 0;
-    for &cell in &normal.cells {
-        let first = compact[block_ids(cell).next().unwrap_or(0)];
-        let last = compact[block_ids(cell).next_back().unwrap_or(0)];
-        bw = bw.max((last - first) as usize);
-    }
-    let stencils = penalty_stencils(&compact, shape);
-    for s in &stencils {
-        bw = bw.max((s[2] - s[0]) as usize);
-    }
+    let layout = Layout::new(normal, grid, lo, hi);
+    let Layout {
+        shape,
+        ref compact,
+        n_ids,
+        bw,
+        ref stencils,
+        ..
+    } = layout;
     let mean = m.mean()[0];
     let bl = normal.block_len();
     let mut gram = BandMatrix::zeros(n_ids, bw);
     let mut rhs = vec![0.0; n_ids];
     let mut ids = vec![0usize; k];
     for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
-        for (slot, r) in ids.iter_mut().zip(block_ids(*cell)) {
+        for (slot, r) in ids.iter_mut().zip(layout.block_ids(*cell)) {
             *slot = compact[r] as usize;
         }
         let (g, rest) = block.split_at(k * k);
@@ -322,18 +286,7 @@ pub fn solve_one_channel(
         }
     }
     let mut a = gram.clone();
-    let stencil = [1.0, -2.0, 1.0];
-    for s in &stencils {
-        for x in 0..3 {
-            for y in 0..=x {
-                a.add(
-                    s[x] as usize,
-                    s[y] as usize,
-                    lambda * stencil[x] * stencil[y],
-                );
-            }
-        }
-    }
+    add_penalty(&mut a, stencils, lambda);
     let target = GridSurface::linear(grid, lo, hi, &lin);
     let mut sol = rhs.clone();
     for (r, &id) in compact.iter().enumerate() {
