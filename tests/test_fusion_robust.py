@@ -3,6 +3,7 @@ outputs, implausible ToF depths, swapped images, either output camera, the calib
 
 from __future__ import annotations
 
+import importlib
 import json
 import warnings
 from pathlib import Path
@@ -19,8 +20,11 @@ from rgbd_rs.fusion.stereo import (
     DISPARITY_STEP,
     MAX_RANGE_FRACTION,
     max_search,
+    predict_search_range,
+    same_search,
     search_range,
 )
+from rgbd_rs.fusion.upsample import reproject_tof
 
 RIG = synth3_rig(0.25)  # 480 x 270
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -132,6 +136,34 @@ def test_search_range_clamps_and_falls_back() -> None:
         search_range(near[0])
     with pytest.raises(InvalidArgumentError, match=r"^width: got 1"):
         search_range(near, width=1)
+
+
+def test_search_range_predicted_from_the_sparse_tof(
+    scene: SynthSample, fused: FusionResult
+) -> None:
+    sparse = reproject_tof(scene.tof_depth, scene.tof_amplitude, RIG)
+    disp = RIG.stereo.baseline * RIG.stereo.focal / sparse.depth
+    assert abs(predict_search_range(disp) - fused.max_disparity) <= 2
+    assert same_search(16, 1) and same_search(33, 48) and not same_search(48, 49)
+    with pytest.raises(ShapeMismatchError, match=r"^sparse_disparity: got shape"):
+        predict_search_range(disp[0])
+
+
+@pytest.mark.parametrize("guess", [16, 120])
+def test_fuse_reruns_sgm_when_the_predicted_range_misses(
+    scene: SynthSample, fused: FusionResult, guess: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # SGM starts early with the range predicted from the sparse ToF; a prediction in another
+    # SGBM step than the upsampled ToF's range is redone, so the output never depends on it.
+    fuse_module = importlib.import_module("rgbd_rs.fusion.fuse")  # the name is also the function
+    assert not same_search(guess, fused.max_disparity)
+    monkeypatch.setattr(fuse_module, "predict_search_range", lambda *_: guess)
+    out = fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG)
+    assert out.max_disparity == fused.max_disparity
+    np.testing.assert_array_equal(out.stereo_disparity, fused.stereo_disparity)
+    np.testing.assert_array_equal(out.disparity, fused.disparity)
+    expect = sgm(scene.left, scene.right, max_disparity=fused.max_disparity)
+    np.testing.assert_array_equal(out.stereo_disparity, expect)
 
 
 # -- 3. SGBM's parked outputs --------------------------------------------------------------------

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import sys
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, TypeGuard
 
@@ -25,9 +26,9 @@ from rgbd_rs.fusion._inputs import (
 )
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.stereo import search_range, sgm
-from rgbd_rs.fusion.upsample import ToFOnReference, tof_to_reference
-from rgbd_rs.geometry import disparity_to_depth
+from rgbd_rs.fusion.stereo import predict_search_range, same_search, search_range, sgm
+from rgbd_rs.fusion.upsample import ToFOnReference, densify_tof, reproject_tof
+from rgbd_rs.geometry import depth_to_disparity, disparity_to_depth
 
 if TYPE_CHECKING:  # torch is imported only when the ConvNet runs
     from rgbd_rs.nn.confidence import ConfidenceEstimator
@@ -201,7 +202,22 @@ def fuse(
         max_disparity = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        tof = tof_to_reference(tof_depth, tof_amplitude, r, ref_img)
+        sparse = reproject_tof(tof_depth, tof_amplitude, r)
+    # SGM runs on a worker thread (OpenCV releases the GIL) while the ToF is upsampled here (the
+    # native filter releases it too): with the range predicted from the sparse ToF, re-run in
+    # the rare scene where the upsampled ToF's range asks for another SGBM step.
+    if max_disparity is None:
+        sparse_disp = depth_to_disparity(sparse.depth, r.stereo.baseline, r.stereo.focal)
+        guess = predict_search_range(sparse_disp, w)
+    else:
+        guess = max_disparity
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        early = pool.submit(sgm, lft, rgt, reference=r.reference, max_disparity=guess)
+        tof = densify_tof(sparse, r, ref_img)
+        dmax = search_range(tof.disparity, w) if max_disparity is None else max_disparity
+        stereo = early.result()
+    if not same_search(guess, dmax):
+        stereo = sgm(lft, rgt, reference=r.reference, max_disparity=dmax)
     no_tof = not np.isfinite(tof.disparity).any()
     if no_tof:
         warnings.warn(
@@ -217,8 +233,6 @@ def fuse(
         implausible = tof_depth_warning(map2d("tof_depth", tof_depth, tof_shape), r)
         if implausible is not None:
             warnings.warn(implausible, RuntimeWarning, stacklevel=2)
-    dmax = search_range(tof.disparity, w) if max_disparity is None else max_disparity
-    stereo = sgm(lft, rgt, reference=r.reference, max_disparity=dmax)
     swapped = _swap_warning(lft, rgt, r.reference, stereo, tof.disparity, dmax)
     if swapped is not None:
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)

@@ -171,31 +171,60 @@ def tof_to_reference(
         radius: filter window half-size; default scales 5 px at 960 px width.
     """
     r = rig_arg(rig)
-    ref = r.reference_camera
-    img = rgb8("image", image, ref.size)
+    img = rgb8("image", image, r.reference_camera.size)
+    return densify_tof(reproject_tof(tof_depth, tof_amplitude, r), r, img, labels, radius)
+
+
+@dataclass(frozen=True)
+class SparseToF:
+    """The ToF samples splatted onto the reference lattice (``H x W`` float32, NaN = none):
+    the first half of :func:`tof_to_reference`, for callers that start work on it early."""
+
+    depth: F32
+    amplitude: F32
+
+
+def reproject_tof(tof_depth: npt.ArrayLike, tof_amplitude: npt.ArrayLike, rig: object) -> SparseToF:
+    """The reprojection step of :func:`tof_to_reference` (warns when no ToF pixel is valid)."""
+    r = rig_arg(rig)
     tof_shape = (r.tof.height, r.tof.width)
     z = map2d("tof_depth", tof_depth, tof_shape)
     amp = map2d("tof_amplitude", tof_amplitude, tof_shape)
-    lab = segment_mean_shift(img) if labels is None else labels
-    if radius is None:
-        radius = max(2, round(UPSAMPLE_RADIUS * ref.width / 960))
     valid = np.isfinite(z) & (z > 0)
     if not valid.any():
         warnings.warn(
             "tof_depth: no valid pixel; the ToF maps on the reference camera are all NaN",
             RuntimeWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
-    rep = reproject_depth(np.where(valid, z, np.nan), r.tof, ref, r.tof_to_reference, channels=amp)
+    rep = reproject_depth(
+        np.where(valid, z, np.nan), r.tof, r.reference_camera, r.tof_to_reference, channels=amp
+    )
     assert rep.channels is not None
     with np.errstate(invalid="ignore"):
         landed = np.isfinite(rep.depth) & (rep.channels > 0)
     sparse_amp = np.where(landed, rep.channels, np.nan).astype(np.float32)
+    return SparseToF(rep.depth, sparse_amp)
+
+
+def densify_tof(
+    sparse: SparseToF,
+    rig: object,
+    image: npt.ArrayLike,
+    labels: npt.ArrayLike | None = None,
+    radius: int | None = None,
+) -> ToFOnReference:
+    """The upsampling step of :func:`tof_to_reference` (same arguments)."""
+    r = rig_arg(rig)
+    img = rgb8("image", image, r.reference_camera.size)
+    lab = segment_mean_shift(img) if labels is None else labels
+    if radius is None:
+        radius = max(2, round(UPSAMPLE_RADIUS * r.reference_camera.width / 960))
     # One pass: the amplitude rides on the depth's weights (a second filter run on the amplitude
     # would apply the depth-relative range term to amplitude differences).
     dense, dense_amp = _upsample(
-        rep.depth, sparse_amp, img, lab, radius, SIGMA_SPATIAL, SIGMA_COLOR, SIGMA_RANGE
+        sparse.depth, sparse.amplitude, img, lab, radius, SIGMA_SPATIAL, SIGMA_COLOR, SIGMA_RANGE
     )
     assert dense_amp is not None
     disp = depth_to_disparity(dense, r.stereo.baseline, r.stereo.focal)
-    return ToFOnReference(rep.depth, dense, disp, dense_amp, np.asarray(lab, dtype=np.int32))
+    return ToFOnReference(sparse.depth, dense, disp, dense_amp, np.asarray(lab, dtype=np.int32))
