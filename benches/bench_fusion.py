@@ -97,6 +97,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--markdown", action="store_true")
     ap.add_argument("--stages", action="store_true", help="only the fuse() stage table")
+    ap.add_argument(
+        "--scenes", type=int, default=6, help="fuse() also on this many more test scenes"
+    )
     args = ap.parse_args()
     from rgbd_rs import _rgbd_rs
     from rgbd_rs.data.synth import generate, synth3_rig
@@ -280,6 +283,9 @@ def main() -> None:
     assert rep_amp.channels is not None
     sparse = rep_amp.depth
     fuse_args = (s.left, s.right, s.tof_depth, s.tof_amplitude, rig)
+    # The stages at the search range fuse() derives on this scene (SGBM's time is linear in it).
+    dmax = fuse(*fuse_args).max_disparity
+    st_f = sgm(s.left, s.right, max_disparity=dmax)
     stages = [
         (
             "mean-shift filter (pyrMeanShiftFiltering, sp 8, sr 16)",
@@ -308,10 +314,24 @@ def main() -> None:
             lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right),
             old_path(lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right)),
         ),
-        ("SGBM (8 paths, 7x7, LR check)", lambda: sgm(s.left, s.right, max_disparity=96), None),
+        (
+            f"SGBM (8 paths, 7x7, LR check; the scene's range {dmax} px)",
+            lambda: sgm(s.left, s.right, max_disparity=dmax),
+            None,
+        ),
+        (
+            "tof_to_reference beside SGBM (fuse()'s first phase, two threads)",
+            lambda: overlapped(
+                lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right),
+                lambda: sgm(s.left, s.right, max_disparity=dmax),
+            ),
+            None,
+        ),
         (
             "confidence ConvNet (default; shipped width)",
-            lambda: estimator(s.right, s.left, tof.disparity, tof.amplitude, st, reference="right"),
+            lambda: estimator(
+                s.right, s.left, tof.disparity, tof.amplitude, st_f, reference="right"
+            ),
             None,
         ),
         (
@@ -326,13 +346,13 @@ def main() -> None:
         ),
         (
             "stereo cost curve (heuristic confidence only)",
-            lambda: _rgbd_rs.cost_curve_stats(grey_r, grey_l, st, 1, 96, 7),
-            lambda: _cost_curve_stats_numpy(grey_r, grey_l, st, 1, 96, 7),
+            lambda: _rgbd_rs.cost_curve_stats(grey_r, grey_l, st_f, 1, dmax, 7),
+            lambda: _cost_curve_stats_numpy(grey_r, grey_l, st_f, 1, dmax, 7),
         ),
         (
             "stereo confidence (cost curve + ratios)",
-            lambda: stereo_confidence(s.right, s.left, st, max_disparity=96),
-            old_path(lambda: conf_mod.stereo_confidence(s.right, s.left, st, max_disparity=96)),
+            lambda: stereo_confidence(s.right, s.left, st_f, max_disparity=dmax),
+            old_path(lambda: conf_mod.stereo_confidence(s.right, s.left, st_f, max_disparity=dmax)),
         ),
         ("ToF confidence", lambda: tof_confidence(tof.disparity, tof.amplitude), None),
         (
@@ -350,6 +370,12 @@ def main() -> None:
         (name, timed(fn, REPEATS), None if old is None else timed(old, REPEATS))
         for name, fn, old in stages
     ]
+    # fuse() on more generated test scenes: its time follows the scene's disparity range.
+    scene_rows = []
+    for seed in range(1, args.scenes + 1):
+        sc, _ = generate(seed, "test", 1, rig)
+        sargs = (sc.left, sc.right, sc.tof_depth, sc.tof_amplitude, rig)
+        scene_rows.append((seed, fuse(*sargs).max_disparity, timed(lambda a=sargs: fuse(*a), 1)))
     if args.markdown:
         print("| stage | rgbd_rs (ms) | reference (ms) | vs reference | note |")
         print("|---|---:|---:|---:|---|")
@@ -367,6 +393,14 @@ def main() -> None:
         for name, (w, c), old in stage_rows:
             o = "- | -" if old is None else f"{old[0]:.0f} | {old[1]:.0f}"
             print(f"| {name} | {w:.0f} | {c:.0f} | {o} |")
+        if scene_rows:
+            print(
+                "\n| fuse() (ConvNet), generated test scene | search range (px) | wall ms"
+                " | CPU ms |"
+            )
+            print("|---|---:|---:|---:|")
+            for seed, rng, (w, c) in scene_rows:
+                print(f"| seed {seed} | {rng} | {w:.0f} | {c:.0f} |")
     else:
         for name, ms, ref, note in rows:
             x = f"  numpy {ref:.0f} ms ({ref / ms:.0f}x)" if ref else ""
@@ -380,6 +414,21 @@ def main() -> None:
                 else f"   (OpenCV/numpy path: wall {old[0]:6.0f}, CPU {old[1]:6.0f})"
             )
             print(f"  fuse() stage: {name:58s} wall {w:6.0f} ms, CPU {c:6.0f} ms{o}")
+        for seed, rng, (w, c) in scene_rows:
+            print(
+                f"  fuse() on test scene seed {seed}: range {rng:3d} px, "
+                f"wall {w:6.0f}, CPU {c:6.0f} ms"
+            )
+
+
+def overlapped(first, second):  # type: ignore[no-untyped-def]
+    """``first()`` here while ``second()`` runs on a worker thread, as fuse() does."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        later = pool.submit(second)
+        first()
+        later.result()
 
 
 def timed(fn, repeats):  # type: ignore[no-untyped-def]
