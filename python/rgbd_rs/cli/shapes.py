@@ -75,8 +75,9 @@ def _cache(commands: Commands) -> None:
     p = sub.add_parser(
         "cache",
         help="precompute the ConvNet inputs of a shape dataset",
-        description="Compute every shape's depth views and voxel density profiles (and "
-        "curvature maps once available) into DIR: one memory-mappable float16 .npy per "
+        description="Compute every shape's depth views, voxel density profiles and (with "
+        "--representations ...,curvature) curvature maps into DIR: one memory-mappable float16 "
+        ".npy per "
         "representation. Resumable (re-run to continue; done shapes are skipped) and sharded: "
         "--shard i/n computes every n-th shape from i, so n scheduler tasks fill one cache.",
     )
