@@ -12,8 +12,11 @@
 //! - gravity pointing exactly away from the initial guess rotates about the x axis (the Rodrigues
 //!   axis is undefined there).
 //!
-//! Window sums come from one `f64` summed-area table of the nine per-pixel moments, shared by
-//! both window sizes; every pixel's 3x3 system is solved from four table lookups per moment.
+//! Window sums: per column, five f64 sums slide down the rows of a band; along a row, the nine
+//! moments of every window are sums of power-of-two runs, in absolute pixel coordinates (the
+//! point counts and coordinate moments are integers, exact). Each pixel's 3x3 system is set up
+//! about the pixel itself and solved by its adjugate, as the reference. The loops run over
+//! whole rows (structure of arrays) and are compiled for AVX2 when the CPU has it.
 
 use rayon::prelude::*;
 use rgbd_error::{check_interrupt, check_len, image_len, invalid, Result};
@@ -137,9 +140,6 @@ pub fn check_depth(arg: &'static str, depth: &[f32], width: usize, height: usize
     Ok(())
 }
 
-/// Number of per-pixel moments: `[a², ab, a, b², b, 1, a/z, b/z, 1/z]` with `a = x/z, b = y/z`.
-const M: usize = 9;
-
 /// The normalised image coordinates `a = (x - cx) / fx` of every column and `b` of every row.
 struct Rays {
     a: Vec<f64>,
@@ -163,48 +163,282 @@ fn inverse_depth(depth: &[f32], raw: Option<&[f32]>) -> Vec<f64> {
         Some(r) => depth
             .par_iter()
             .zip(r.par_iter())
+            .with_min_len(4096)
             .map(|(&z, &q)| if is_valid(q) { inv(z) } else { 0.0 })
             .collect(),
-        None => depth.par_iter().map(|&z| inv(z)).collect(),
+        None => depth
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&z| inv(z))
+            .collect(),
     }
 }
 
-/// Adds the moments of row `enter` and subtracts those of row `leave` (either may be absent)
-/// in one pass over `acc` (`W` entries); `iz` is [`inverse_depth`].
-#[inline]
-fn slide_row_moments(
-    acc: &mut [[f64; M]],
-    enter: Option<usize>,
-    leave: Option<usize>,
-    iz: &[f64],
-    rays: &Rays,
-    zeros: &[f64],
-) {
-    let width = acc.len();
-    let row = |y: Option<usize>| match y {
-        Some(y) => (rays.b[y], &iz[y * width..][..width]),
-        None => (0.0, zeros),
+/// Runs `body` compiled for AVX-512F or AVX2 when the CPU has it (the loops are written to
+/// vectorise), else for the baseline. Only elementwise IEEE operations run in these loops (no
+/// fused multiply-add, no reassociation), so every version gives the same bits.
+macro_rules! simd_dispatch {
+    ($(#[$meta:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? $body:block) => {
+        $(#[$meta])*
+        #[allow(clippy::too_many_arguments)]
+        fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[allow(clippy::too_many_arguments)]
+            #[inline(always)]
+            fn generic($($arg: $ty),*) $(-> $ret)? $body
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[allow(clippy::too_many_arguments)]
+                #[target_feature(enable = "avx2")]
+                fn avx2($($arg: $ty),*) $(-> $ret)? {
+                    generic($($arg),*)
+                }
+                #[allow(clippy::too_many_arguments)]
+                #[target_feature(enable = "avx512f")]
+                fn avx512($($arg: $ty),*) $(-> $ret)? {
+                    generic($($arg),*)
+                }
+                if std::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU has AVX-512F (checked just above).
+                    return unsafe { avx512($($arg),*) };
+                }
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2 (checked just above).
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            generic($($arg),*)
+        }
     };
-    let ((b_in, q_in), (b_out, q_out)) = (row(enter), row(leave));
-    for (((v, &qi), &qo), &a) in acc.iter_mut().zip(q_in).zip(q_out).zip(&rays.a) {
-        // Branch-free: a pixel that does not take part adds zeros.
-        let wi = if qi > 0.0 { 1.0 } else { 0.0 };
-        let wo = if qo > 0.0 { 1.0 } else { 0.0 };
-        let (dw, wb) = (wi - wo, wi * b_in - wo * b_out);
-        let (dq, qb) = (qi - qo, qi * b_in - qo * b_out);
-        let m = [
-            dw * a * a,
-            wb * a,
-            dw * a,
-            wi * b_in * b_in - wo * b_out * b_out,
-            wb,
-            dw,
-            dq * a,
-            qb,
-            dq,
-        ];
-        for k in 0..M {
-            v[k] += m[k];
+}
+
+simd_dispatch! {
+    fn slide_columns(
+        cols: &mut [Vec<f64>; 5],
+        r: usize,
+        enter: (&[f64], f64),
+        leave: (&[f64], f64),
+    ) {
+        let [cw, cwy, cwyy, cq, cqy] = cols;
+        let n = enter.0.len();
+        let (cw, cwy, cwyy) = (&mut cw[r..r + n], &mut cwy[r..r + n], &mut cwyy[r..r + n]);
+        let (cq, cqy) = (&mut cq[r..r + n], &mut cqy[r..r + n]);
+        let ((q_in, y_in), (q_out, y_out)) = (enter, leave);
+        let (q_out, yy_in, yy_out) = (&q_out[..n], y_in * y_in, y_out * y_out);
+        for i in 0..n {
+            let (qi, qo) = (q_in[i], q_out[i]);
+            // Branch-free: a pixel that does not take part has q = 0 and adds nothing.
+            let wi = if qi > 0.0 { 1.0 } else { 0.0 };
+            let wo = if qo > 0.0 { 1.0 } else { 0.0 };
+            cw[i] += wi - wo;
+            cwy[i] += wi * y_in - wo * y_out;
+            cwyy[i] += wi * yy_in - wo * yy_out;
+            cq[i] += qi - qo;
+            cqy[i] += qi * y_in - qo * y_out;
+        }
+    }
+}
+
+/// The nine window sums of a row, from absolute pixel coordinates `(x, y)` of the points:
+/// `Σw, Σwx, Σwx², Σwy, Σwxy, Σwy², Σq, Σqx, Σqy` (`w` = 1 where the pixel takes part, `q` =
+/// `1/z` or 0). The `w` sums are integers, exact in f64.
+const SUMS: usize = 9;
+
+/// The window sums of the `q` moments (`Σq, Σqx, Σqy`, sums 6 to 8) of a row from the column
+/// sums `cq, cqy`: prefix sums along the row, two columns per step (the dependency chain is half
+/// as long), then differences `n` apart.
+#[inline(always)]
+fn q_window_sums(
+    cq: &[f64],
+    cqy: &[f64],
+    xs_pad: &[f64],
+    n: usize,
+    prefix: &mut [Vec<f64>; SUMS],
+    sums: &mut [Vec<f64>; SUMS],
+) {
+    let len = cq.len();
+    let (cqy, xs_pad) = (&cqy[..len], &xs_pad[..len]);
+    let [.., p6, p7, p8] = prefix.each_mut().map(|p| {
+        p.resize(len + 1, 0.0);
+        &mut p[..len + 1]
+    });
+    let value = |j: usize| [cq[j], cq[j] * xs_pad[j], cqy[j]];
+    let mut acc = [0.0f64; 3];
+    let mut j = 0;
+    while j + 2 <= len {
+        let (v0, v1) = (value(j), value(j + 1));
+        p6[j + 1] = acc[0] + v0[0];
+        p7[j + 1] = acc[1] + v0[1];
+        p8[j + 1] = acc[2] + v0[2];
+        for k in 0..3 {
+            acc[k] += v0[k] + v1[k];
+        }
+        p6[j + 2] = acc[0];
+        p7[j + 2] = acc[1];
+        p8[j + 2] = acc[2];
+        j += 2;
+    }
+    if j < len {
+        let v0 = value(j);
+        p6[j + 1] = acc[0] + v0[0];
+        p7[j + 1] = acc[1] + v0[1];
+        p8[j + 1] = acc[2] + v0[2];
+    }
+    let w = len + 1 - n;
+    for (p, out) in prefix[6..].iter().zip(sums[6..].iter_mut()) {
+        let (lo, hi, out) = (&p[..w], &p[n..n + w], &mut out[..w]);
+        for i in 0..w {
+            out[i] = hi[i] - lo[i];
+        }
+    }
+}
+
+simd_dispatch! {
+    /// The nine window sums ([`SUMS`]) of a row of windows `n` wide from the column sums
+    /// `cols`: prefix sums along the row, then differences `n` apart (the `w` sums are
+    /// integers, exact in any order).
+    fn window_row(
+        cols: &[Vec<f64>; 5],
+        xs_pad: &[f64],
+        n: usize,
+        prefix: &mut [Vec<f64>; SUMS],
+        sums: &mut [Vec<f64>; SUMS],
+    ) {
+        let [cw, cwy, cwyy, cq, cqy] = cols.each_ref().map(|c| c.as_slice());
+        let len = cw.len();
+        let (cwy, cwyy, xs_pad) = (&cwy[..len], &cwyy[..len], &xs_pad[..len]);
+        {
+            let [p0, p1, p2, p3, p4, p5, ..] = prefix.each_mut().map(|p| {
+                p.resize(len + 1, 0.0);
+                &mut p[..len + 1]
+            });
+            let mut acc = [0.0f64; 6];
+            for j in 0..len {
+                let x = xs_pad[j];
+                let v = [cw[j], cw[j] * x, cw[j] * x * x, cwy[j], cwy[j] * x, cwyy[j]];
+                for k in 0..6 {
+                    acc[k] += v[k];
+                }
+                p0[j + 1] = acc[0];
+                p1[j + 1] = acc[1];
+                p2[j + 1] = acc[2];
+                p3[j + 1] = acc[3];
+                p4[j + 1] = acc[4];
+                p5[j + 1] = acc[5];
+            }
+        }
+        let w = len + 1 - n;
+        for (p, out) in prefix[..6].iter().zip(sums[..6].iter_mut()) {
+            let (lo, hi, out) = (&p[..w], &p[n..n + w], &mut out[..w]);
+            for i in 0..w {
+                out[i] = hi[i] - lo[i];
+            }
+        }
+        q_window_sums(cq, cqy, xs_pad, n, prefix, sums);
+    }
+}
+
+/// `(count, Σ i, Σ i²)` over the integers `lo..=hi` (as f64: exact for the image sizes here).
+fn run_moments(lo: usize, hi: usize) -> [f64; 3] {
+    // Σ_{i <= m} i² = m (m + 1) (2m + 1) / 6.
+    let squares = |m: u128| m * (m + 1) * (2 * m + 1) / 6;
+    let (l, h) = (lo as u128, hi as u128);
+    let below = if lo == 0 { 0 } else { squares(l - 1) };
+    [
+        (h + 1 - l) as f64,
+        ((l + h) * (h + 1 - l) / 2) as f64,
+        (squares(h) - below) as f64,
+    ]
+}
+
+simd_dispatch! {
+    /// [`window_row`] for a row whose window rows are all taking part: the point counts and
+    /// coordinate moments are products of the row moments `rows` (of the window's rows, see
+    /// [`run_moments`]) and the column moments `columns` (per pixel, of its clipped columns),
+    /// the same integers as [`window_row`] sums; only the `q` sums are summed along the row.
+    fn window_row_full(
+        cols: &[Vec<f64>; 5],
+        xs_pad: &[f64],
+        n: usize,
+        rows: [f64; 3],
+        columns: &[Vec<f64>; 3],
+        prefix: &mut [Vec<f64>; SUMS],
+        sums: &mut [Vec<f64>; SUMS],
+    ) {
+        q_window_sums(&cols[3], &cols[4], xs_pad, n, prefix, sums);
+        let w = cols[3].len() + 1 - n;
+        let [nc, sx1, sx2] = columns.each_ref().map(|c| &c[..w]);
+        let [nr, sy1, sy2] = rows;
+        let [s0, s1, s2, s3, s4, s5, ..] = sums.each_mut().map(|s| &mut s[..w]);
+        for i in 0..w {
+            s0[i] = nr * nc[i];
+            s1[i] = nr * sx1[i];
+            s2[i] = nr * sx2[i];
+            s3[i] = nc[i] * sy1;
+            s4[i] = sx1[i] * sy1;
+            s5[i] = nc[i] * sy2;
+        }
+    }
+}
+
+simd_dispatch! {
+    fn solve_row(
+        sums: &[Vec<f64>; SUMS],
+        xs: &[f64],
+        y: f64,
+        depth: &[f32],
+        cam: &Pinhole,
+        normals: &mut [Vec<f64>; 3],
+    ) {
+        let n = xs.len();
+        let [b0, b1, b2, b3, b4, b5, b6, b7, b8] = sums;
+        let (b0, b1, b2, b3, b4) = (&b0[..n], &b1[..n], &b2[..n], &b3[..n], &b4[..n]);
+        let (b5, b6, b7, b8, depth) = (&b5[..n], &b6[..n], &b7[..n], &b8[..n], &depth[..n]);
+        let [nx, ny, nz] = normals;
+        let (nx, ny, nz) = (&mut nx[..n], &mut ny[..n], &mut nz[..n]);
+        let (fx, fy, dy) = (cam.fx, cam.fy, cam.cy - y);
+        for i in 0..n {
+            let x = xs[i];
+            // Moments about the window's own pixel (u = x' - x, v = y' - y): exact integers.
+            let s1 = b0[i];
+            let su = b1[i] - x * s1;
+            let sv = b3[i] - y * s1;
+            let suu = b2[i] - 2.0 * x * b1[i] + x * x * s1;
+            let suv = b4[i] - x * b3[i] - y * b1[i] + x * y * s1;
+            let svv = b5[i] - 2.0 * y * b3[i] + y * y * s1;
+            let t1 = b6[i];
+            let tu = b7[i] - x * t1;
+            let tv = b8[i] - y * t1;
+            // Adjugate of the normal matrix of q = α u + β v + γ (as the reference's
+            // `invertIt`/`mutiplyIt`, in pixel units about the pixel).
+            let c0 = svv * s1 - sv * sv;
+            let c1 = -suv * s1 + su * sv;
+            let c2 = suv * sv - su * svv;
+            let c3 = suu * s1 - su * su;
+            let c4 = -suu * sv + suv * su;
+            let c5 = suu * svv - suv * suv;
+            // det = s1³ x det(covariance of (u, v)): the spread of the points in the image.
+            let det = suu * c0 + suv * c1 + su * c2;
+            let alpha = c0 * tu + c1 * tv + c2 * t1;
+            let beta = c1 * tu + c3 * tv + c4 * t1;
+            let gamma = c2 * tu + c4 * tv + c5 * t1;
+            // With a = (x - cx) / fx: q = n . (a, b, 1), n = (α fx, β fy, γ + α (cx - x) +
+            // β (cy - y)), and n . (a, b, 1) at the pixel itself is γ.
+            let (n0, n1) = (alpha * fx, beta * fy);
+            let n2 = gamma + alpha * (cam.cx - x) + beta * dy;
+            let norm2 = n0 * n0 + n1 * n1 + n2 * n2;
+            let defined = s1 >= 2.5
+                && det >= MIN_SPREAD_PX4 * s1 * s1 * s1
+                && norm2 > 0.0
+                && norm2 < f64::INFINITY;
+            // Oriented as the reference: n_z >= 0, then n . p >= 0 where the depth is valid.
+            let up = if n2 < 0.0 { -1.0 } else { 1.0 };
+            let z = depth[i];
+            let flip = z > 0.0 && z < f32::INFINITY && up * gamma < 0.0;
+            let s = if flip { -up } else { up } / norm2.sqrt();
+            let nan = f64::NAN;
+            nx[i] = if defined { s * n0 } else { nan };
+            ny[i] = if defined { s * n1 } else { nan };
+            nz[i] = if defined { s * n2 } else { nan };
         }
     }
 }
@@ -212,50 +446,51 @@ fn slide_row_moments(
 /// Rows per block of the sliding-window sums (fixed, so results do not depend on threads).
 const BAND: usize = 48;
 
-/// The unit normal of the plane `n . (a, b, 1) = 1/z` fitted to window sums `s`, or NaN when the
-/// window's points do not define a plane. `min_det` is the determinant of the normal matrix
-/// below which the points count as collinear (for `s1` points: `s1³ MIN_SPREAD_PX4 / (fx fy)²`).
-#[inline(always)]
-fn solve_plane(s: [f64; M], min_det_per_point3: f64) -> [f64; 3] {
-    const NAN: [f64; 3] = [f64::NAN; 3];
-    let [saa, sab, sa, sbb, sb, s1, ta, tb, t1] = s;
-    if s1 < 2.5 {
-        return NAN;
+/// The window sums of one band for half-size `r`, and the normals of its current row.
+struct Window {
+    /// Per column, sums over the rows of the window, padded with `r` zeros on both sides:
+    /// `Σw, Σwy, Σwy², Σq, Σqy`.
+    cols: [Vec<f64>; 5],
+    /// `x` of every padded column (`-r` first).
+    xs_pad: Vec<f64>,
+    sums: [Vec<f64>; SUMS],
+    prefix: [Vec<f64>; SUMS],
+    /// [`run_moments`] of every pixel's clipped window columns (count, Σx, Σx²).
+    columns: [Vec<f64>; 3],
+    /// The current row's unit normals (x, y, z components), NaN where undefined, oriented as
+    /// the reference (`n . p >= 0`).
+    n: [Vec<f64>; 3],
+}
+
+impl Window {
+    fn new(r: usize, width: usize) -> Self {
+        let padded = width + 2 * r;
+        Self {
+            cols: std::array::from_fn(|_| vec![0.0; padded]),
+            xs_pad: (0..padded).map(|j| j as f64 - r as f64).collect(),
+            sums: std::array::from_fn(|_| vec![0.0; width]),
+            prefix: std::array::from_fn(|_| vec![0.0; padded + 1]),
+            columns: {
+                let m: Vec<[f64; 3]> = (0..width)
+                    .map(|x| run_moments(x.saturating_sub(r), (x + r).min(width - 1)))
+                    .collect();
+                std::array::from_fn(|k| m.iter().map(|v| v[k]).collect())
+            },
+            n: std::array::from_fn(|_| vec![0.0; width]),
+        }
     }
-    // Adjugate of the symmetric normal matrix, as the reference (`invertIt`, `mutiplyIt`).
-    let c0 = sbb * s1 - sb * sb;
-    let c1 = -sab * s1 + sa * sb;
-    let c2 = sab * sb - sa * sbb;
-    let c3 = saa * s1 - sa * sa;
-    let c4 = -saa * sb + sab * sa;
-    let c5 = saa * sbb - sab * sab;
-    // det = s1³ x det(covariance of (a, b)): the spread of the points in the image.
-    let det = saa * c0 + sab * c1 + sa * c2;
-    if det < min_det_per_point3 * s1 * s1 * s1 {
-        return NAN;
-    }
-    let n = [
-        c0 * ta + c1 * tb + c2 * t1,
-        c1 * ta + c3 * tb + c4 * t1,
-        c2 * ta + c4 * tb + c5 * t1,
-    ];
-    let norm2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-    if !(norm2.is_finite() && norm2 > 0.0) {
-        return NAN;
-    }
-    let inv = 1.0 / norm2.sqrt();
-    [n[0] * inv, n[1] * inv, n[2] * inv]
 }
 
 /// What the normals are computed from.
 struct Support<'a> {
     depth: &'a [f32],
     iz: Vec<f64>,
-    rays: Rays,
+    /// `partial_rows[y]`: how many of the rows above `y` have a pixel that takes no part.
+    partial_rows: Vec<usize>,
+    zeros: Vec<f64>,
     width: usize,
     height: usize,
-    /// [`MIN_SPREAD_PX4`] in normalised units (see [`solve_plane`]).
-    min_det: f64,
+    cam: Pinhole,
 }
 
 impl<'a> Support<'a> {
@@ -266,14 +501,23 @@ impl<'a> Support<'a> {
         height: usize,
         cam: &Pinhole,
     ) -> Self {
-        let f2 = cam.fx * cam.fy;
+        let iz = inverse_depth(depth, raw);
+        let partial: Vec<bool> = iz
+            .par_chunks(width.max(1))
+            .map(|row| row.iter().any(|&q| q <= 0.0))
+            .collect();
+        let mut partial_rows = vec![0; height + 1];
+        for (y, &p) in partial.iter().enumerate() {
+            partial_rows[y + 1] = partial_rows[y] + usize::from(p);
+        }
         Self {
             depth,
-            iz: inverse_depth(depth, raw),
-            rays: Rays::new(width, height, cam),
+            iz,
+            partial_rows,
+            zeros: vec![0.0; width],
             width,
             height,
-            min_det: MIN_SPREAD_PX4 / (f2 * f2),
+            cam: *cam,
         }
     }
 
@@ -281,95 +525,58 @@ impl<'a> Support<'a> {
         self.height.div_ceil(BAND)
     }
 
-    /// Normals of the rows of band `band` for windows of half-size `r`, passed to
-    /// `emit(x, row in band, n)` where defined. Sliding box sums: `col` holds the vertical window
-    /// sums of the current row for every column, `s` slides along the row. Oriented as the
-    /// reference: first `n_z >= 0`, then `n . p >= 0` where the pixel's depth is valid (`n . p`
-    /// has the sign of `n . (a, b, 1)`); `flip = -1` reverses them all.
+    /// The `1/z` row `y` with its `y`, or zeros when there is no such row.
+    fn row(&self, y: Option<usize>) -> (&[f64], f64) {
+        match y {
+            Some(y) => (&self.iz[y * self.width..][..self.width], y as f64),
+            None => (&self.zeros, 0.0),
+        }
+    }
+
+    /// Normals of the rows of band `band` for windows of half-size `r`: `emit(row in band,
+    /// window)` with the row's normals in `window.n`. Per column, `cols` slides down the
+    /// rows; along the row, window sums come from runs of power-of-two length. Each normal is
+    /// solved from the moments about its own pixel, oriented as the reference: first
+    /// `n_z >= 0`, then `n . p >= 0` where the pixel's depth is valid.
     fn band(
         &self,
         band: usize,
         r: usize,
-        flip: f64,
-        mut emit: impl FnMut(usize, usize, [f64; 3]),
+        mut emit: impl FnMut(usize, &Window) -> Result<()>,
     ) -> Result<()> {
-        let (width, height, rays) = (self.width, self.height, &self.rays);
+        let (width, height) = (self.width, self.height);
+        let mut win = Window::new(r, width);
         let y_start = band * BAND;
-        let mut col = vec![[0.0f64; M]; width];
-        let zeros = vec![0.0f64; width];
+        let xs = &win.xs_pad[r..r + width].to_vec();
         for yy in y_start.saturating_sub(r)..(y_start + r).min(height) {
-            slide_row_moments(&mut col, Some(yy), None, &self.iz, rays, &zeros);
+            slide_columns(&mut win.cols, r, self.row(Some(yy)), self.row(None));
         }
         for y in y_start..(y_start + BAND).min(height) {
             check_interrupt()?;
             // Enter row y + r, leave row y - r - 1.
             let enter = (y + r < height).then_some(y + r);
             let leave = (y > y_start && y > r).then(|| y - r - 1);
-            slide_row_moments(&mut col, enter, leave, &self.iz, rays, &zeros);
-            let mut s = [0.0f64; M];
-            for c in &col[..r.min(width)] {
-                for k in 0..M {
-                    s[k] += c[k];
-                }
+            slide_columns(&mut win.cols, r, self.row(enter), self.row(leave));
+            let Window {
+                cols,
+                xs_pad,
+                sums,
+                n,
+                prefix,
+                columns,
+            } = &mut win;
+            let (lo, hi) = (y.saturating_sub(r), (y + r).min(height - 1));
+            if self.partial_rows[hi + 1] == self.partial_rows[lo] {
+                let rows = run_moments(lo, hi);
+                window_row_full(cols, xs_pad, 2 * r + 1, rows, columns, prefix, sums);
+            } else {
+                window_row(cols, xs_pad, 2 * r + 1, prefix, sums);
             }
-            let b = rays.b[y];
-            let d = &self.depth[y * width..][..width];
-            for x in 0..width {
-                if x + r < width {
-                    for k in 0..M {
-                        s[k] += col[x + r][k];
-                    }
-                }
-                if x > r {
-                    for k in 0..M {
-                        s[k] -= col[x - r - 1][k];
-                    }
-                }
-                let n = solve_plane(s, self.min_det);
-                if n[0].is_nan() {
-                    continue;
-                }
-                let mut sign = if n[2] < 0.0 { -1.0 } else { 1.0 };
-                if is_valid(d[x]) && sign * (n[0] * rays.a[x] + n[1] * b + n[2]) < 0.0 {
-                    sign = -sign;
-                }
-                sign *= flip;
-                emit(x, y - y_start, [sign * n[0], sign * n[1], sign * n[2]]);
-            }
+            let depth = &self.depth[y * width..][..width];
+            solve_row(sums, xs, y as f64, depth, &self.cam, n);
+            emit(y - y_start, &win)?;
         }
         Ok(())
-    }
-
-    /// The normal field for half-size `r`, `H x W`, `undefined` where there is no normal.
-    fn field<T: Copy + Send>(
-        &self,
-        r: usize,
-        flip: f64,
-        undefined: T,
-        conv: impl Fn([f64; 3]) -> T + Sync,
-    ) -> Result<Vec<T>> {
-        let width = self.width;
-        let mut field = vec![undefined; width * self.height];
-        field
-            .par_chunks_mut(BAND * width)
-            .enumerate()
-            .try_for_each(|(band, out)| {
-                self.band(band, r, flip, |x, dy, n| out[dy * width + x] = conv(n))
-            })?;
-        Ok(field)
-    }
-
-    /// The defined normals for half-size `r`, in row-major order (orientation as [`band`]).
-    fn defined(&self, r: usize) -> Result<Vec<[f32; 3]>> {
-        let parts: Vec<Vec<[f32; 3]>> = (0..self.bands())
-            .into_par_iter()
-            .map(|band| {
-                let mut v = Vec::with_capacity(BAND * self.width);
-                self.band(band, r, 1.0, |_, _, n| v.push(n.map(|c| c as f32)))?;
-                Ok(v)
-            })
-            .collect::<Result<_>>()?;
-        Ok(parts.concat())
     }
 }
 
@@ -406,8 +613,20 @@ pub fn normals(
     }
     let flip = if toward_camera { -1.0 } else { 1.0 };
     let support = Support::new(depth, raw, width, height, cam);
-    let field = support.field(radius, flip, [f32::NAN; 3], |n| n.map(|v| v as f32))?;
-    Ok(field.into_iter().flatten().collect())
+    let mut out = vec![0.0f32; 3 * width * height];
+    out.par_chunks_mut(3 * BAND * width)
+        .enumerate()
+        .try_for_each(|(band, out)| {
+            support.band(band, radius, |dy, win| {
+                let row = &mut out[3 * dy * width..][..3 * width];
+                let [nx, ny, nz] = &win.n;
+                for (((o, &x), &y), &z) in row.chunks_exact_mut(3).zip(nx).zip(ny).zip(nz) {
+                    o.copy_from_slice(&[(flip * x) as f32, (flip * y) as f32, (flip * z) as f32]);
+                }
+                Ok(())
+            })
+        })?;
+    Ok(out)
 }
 
 /// Eigenvalues and eigenvectors (columns of the second matrix) of a symmetric 3x3 matrix, by
@@ -490,129 +709,71 @@ fn smallest_direction(a: [[f64; 3]; 3], prev: [f64; 3]) -> [f64; 3] {
 }
 
 /// Normals summed side by side in f32 lanes before each f64 accumulation of the gravity sums.
-const LANES: usize = 4;
+const LANES: usize = 8;
 /// Normals per f32 partial sum (then added to the f64 totals).
 const BLOCK: usize = 64 * LANES;
 
-/// `Σ w n nᵀ` (upper triangle: xx, xy, xz, yy, yz, zz) over the normals `(xs, ys, zs)` (a
-/// multiple of [`LANES`] long), with `w = +1` for wall-like (`|n.y| < sin θ`), `-1` for
-/// floor-like (`|n.y| > cos θ`) normals and 0 otherwise. Partial sums of [`BLOCK`] normals are
-/// f32, 4 lanes wide; their totals f64.
-#[cfg(target_arch = "x86_64")]
-fn gravity_sums(
-    xs: &[f32],
-    ys: &[f32],
-    zs: &[f32],
-    y: [f32; 3],
-    cos_t: f32,
-    sin_t: f32,
-) -> [f64; 6] {
-    use std::arch::x86_64::*;
-    assert!(xs.len() == ys.len() && xs.len() == zs.len() && xs.len().is_multiple_of(LANES));
-    let mut total = [0.0f64; 6];
-    // SAFETY: SSE2 is part of the x86_64 baseline; every load reads 4 floats at an index
-    // `i < len` with `len` a multiple of 4 (asserted above), so it stays in bounds.
-    unsafe {
-        let (y0, y1, y2) = (_mm_set1_ps(y[0]), _mm_set1_ps(y[1]), _mm_set1_ps(y[2]));
-        let (cos_v, sin_v, one) = (_mm_set1_ps(cos_t), _mm_set1_ps(sin_t), _mm_set1_ps(1.0));
-        let abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fff_ffff));
-        let mut start = 0;
-        while start < xs.len() {
-            let end = (start + BLOCK).min(xs.len());
-            let mut acc = [_mm_setzero_ps(); 6];
-            let mut i = start;
-            while i < end {
-                let x = _mm_loadu_ps(xs.as_ptr().add(i));
-                let yy = _mm_loadu_ps(ys.as_ptr().add(i));
-                let z = _mm_loadu_ps(zs.as_ptr().add(i));
-                let dot = _mm_add_ps(
-                    _mm_add_ps(_mm_mul_ps(x, y0), _mm_mul_ps(yy, y1)),
-                    _mm_mul_ps(z, y2),
-                );
-                let c = _mm_and_ps(dot, abs_mask);
-                let wall = _mm_and_ps(_mm_cmplt_ps(c, sin_v), one);
-                let floor = _mm_and_ps(_mm_cmpgt_ps(c, cos_v), one);
-                let w = _mm_sub_ps(wall, floor);
-                let (wx, wy, wz) = (_mm_mul_ps(w, x), _mm_mul_ps(w, yy), _mm_mul_ps(w, z));
-                acc[0] = _mm_add_ps(acc[0], _mm_mul_ps(wx, x));
-                acc[1] = _mm_add_ps(acc[1], _mm_mul_ps(wx, yy));
-                acc[2] = _mm_add_ps(acc[2], _mm_mul_ps(wx, z));
-                acc[3] = _mm_add_ps(acc[3], _mm_mul_ps(wy, yy));
-                acc[4] = _mm_add_ps(acc[4], _mm_mul_ps(wy, z));
-                acc[5] = _mm_add_ps(acc[5], _mm_mul_ps(wz, z));
-                i += LANES;
+simd_dispatch! {
+    /// `Σ w n nᵀ` (upper triangle: xx, xy, xz, yy, yz, zz) over the normals `(xs, ys, zs)` (a
+    /// multiple of [`LANES`] long), with `w = +1` for wall-like (`|n.y| < sin θ`), `-1` for
+    /// floor-like (`|n.y| > cos θ`) normals and 0 otherwise. Partial sums of [`BLOCK`] normals
+    /// are f32, [`LANES`] wide; their totals f64.
+    fn gravity_sums(
+        xs: &[f32],
+        ys: &[f32],
+        zs: &[f32],
+        y: [f32; 3],
+        cos_t: f32,
+        sin_t: f32,
+    ) -> [f64; 6] {
+        let mut total = [0.0f64; 6];
+        for ((bx, by), bz) in xs.chunks(BLOCK).zip(ys.chunks(BLOCK)).zip(zs.chunks(BLOCK)) {
+            let mut acc = [[0.0f32; LANES]; 6];
+            let lanes = bx
+                .chunks_exact(LANES)
+                .zip(by.chunks_exact(LANES))
+                .zip(bz.chunks_exact(LANES));
+            for ((lx, ly), lz) in lanes {
+                for l in 0..LANES {
+                    let (x, yy, z) = (lx[l], ly[l], lz[l]);
+                    let c = (x * y[0] + yy * y[1] + z * y[2]).abs();
+                    let w = if c < sin_t { 1.0 } else { 0.0 } - if c > cos_t { 1.0 } else { 0.0 };
+                    let (wx, wy, wz) = (w * x, w * yy, w * z);
+                    acc[0][l] += wx * x;
+                    acc[1][l] += wx * yy;
+                    acc[2][l] += wx * z;
+                    acc[3][l] += wy * yy;
+                    acc[4][l] += wy * z;
+                    acc[5][l] += wz * z;
+                }
             }
             for (t, a) in total.iter_mut().zip(acc) {
-                let mut lanes = [0.0f32; LANES];
-                _mm_storeu_ps(lanes.as_mut_ptr(), a);
-                *t += lanes.iter().map(|&v| f64::from(v)).sum::<f64>();
+                *t += a.iter().map(|&v| f64::from(v)).sum::<f64>();
             }
-            start = end;
         }
+        total
     }
-    total
 }
 
-/// Portable version of the x86_64 [`gravity_sums`] (same lanes and blocks, same result).
-#[cfg(not(target_arch = "x86_64"))]
-fn gravity_sums(
-    xs: &[f32],
-    ys: &[f32],
-    zs: &[f32],
-    y: [f32; 3],
-    cos_t: f32,
-    sin_t: f32,
-) -> [f64; 6] {
-    let mut total = [0.0f64; 6];
-    for ((bx, by), bz) in xs.chunks(BLOCK).zip(ys.chunks(BLOCK)).zip(zs.chunks(BLOCK)) {
-        let mut acc = [[0.0f32; LANES]; 6];
-        for i in 0..bx.len() {
-            let (x, yy, z, l) = (bx[i], by[i], bz[i], i % LANES);
-            let c = (x * y[0] + yy * y[1] + z * y[2]).abs();
-            let w = f32::from(u8::from(c < sin_t)) - f32::from(u8::from(c > cos_t));
-            let (wx, wy, wz) = (w * x, w * yy, w * z);
-            acc[0][l] += wx * x;
-            acc[1][l] += wx * yy;
-            acc[2][l] += wx * z;
-            acc[3][l] += wy * yy;
-            acc[4][l] += wy * z;
-            acc[5][l] += wz * z;
-        }
-        for (t, a) in total.iter_mut().zip(acc) {
-            *t += a.iter().map(|&v| f64::from(v)).sum::<f64>();
-        }
-    }
-    total
-}
-
-/// Gravity from a normal field (the reference's `getYDir`): starting from `(0, 1, 0)`, for each
+/// Gravity from normal fields (the reference's `getYDir`): starting from `(0, 1, 0)`, for each
 /// (threshold, iterations) of [`GRAVITY_SCHEDULE`] take the smallest eigenvector of
 /// `Σ_wall n nᵀ − Σ_floor n nᵀ`, where floor normals have `|n.y| > cos θ` and wall normals
-/// `|n.y| < sin θ`.
-fn gravity(normals: &[[f32; 3]]) -> Result<[f64; 3]> {
-    /// Normals per partial sum (a multiple of [`BLOCK`]); the partial sums are added in order,
-    /// so the estimate does not depend on the thread count.
-    const CHUNK: usize = 16 * BLOCK;
-    // Structure of arrays, padded with zero normals (weight 0, they add nothing).
-    let n = normals.len().div_ceil(LANES) * LANES;
-    let (mut xs, mut ys, mut zs) = (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
-    for (i, v) in normals.iter().enumerate() {
-        (xs[i], ys[i], zs[i]) = (v[0], v[1], v[2]);
-    }
+/// `|n.y| < sin θ`. `parts` are the normals of each band as structure of arrays, a multiple of
+/// [`LANES`] long, zero where undefined (a zero normal adds nothing); their sums are added in
+/// band order, so the estimate does not depend on the thread count.
+fn gravity(parts: &[[Vec<f32>; 3]]) -> Result<[f64; 3]> {
     let mut y = [0.0, 1.0, 0.0];
     for (deg, iters) in GRAVITY_SCHEDULE {
         let (cos_t, sin_t) = (deg.to_radians().cos() as f32, deg.to_radians().sin() as f32);
         for _ in 0..iters {
             check_interrupt()?;
             let yf = y.map(|v| v as f32);
-            let parts: Vec<[f64; 6]> = xs
-                .par_chunks(CHUNK)
-                .zip(ys.par_chunks(CHUNK))
-                .zip(zs.par_chunks(CHUNK))
-                .map(|((cx, cy), cz)| gravity_sums(cx, cy, cz, yf, cos_t, sin_t))
+            let sums: Vec<[f64; 6]> = parts
+                .par_iter()
+                .map(|[xs, ys, zs]| gravity_sums(xs, ys, zs, yf, cos_t, sin_t))
                 .collect();
             let mut s = [0.0f64; 6];
-            for part in &parts {
+            for part in &sums {
                 for k in 0..6 {
                     s[k] += part[k];
                 }
@@ -662,7 +823,7 @@ fn rotation_to(yf: [f64; 3]) -> [[f64; 3]; 3] {
 }
 
 /// MATLAB's `uint8(v)`: round half away from zero, saturate; NaN gives 0.
-#[inline]
+#[inline(always)]
 fn to_u8(v: f64) -> u8 {
     // `as` saturates and maps NaN to 0; adding 0.5 then truncating rounds half up for v >= 0
     // (below 0.5 everything gives 0).
@@ -670,6 +831,102 @@ fn to_u8(v: f64) -> u8 {
         (v + 0.5).min(255.0) as u8
     } else {
         0
+    }
+}
+
+/// The angle channel's value, `uint8(acos(d) in degrees + ANGLE_OFFSET)`, of a clamped cosine.
+fn angle_u8(d: f64) -> u8 {
+    to_u8(d.acos().to_degrees() + ANGLE_OFFSET)
+}
+
+/// Coefficients of `acos(x) ≈ sqrt(1 - x) Σ c_k x^k` on `[0, 1]`, absolute error <= 2e-8 rad
+/// (Abramowitz & Stegun 4.4.46).
+const ACOS_POLY: [f64; 8] = [
+    1.570_796_305_0,
+    -0.214_598_801_6,
+    0.088_978_987_4,
+    -0.050_174_304_6,
+    0.030_891_881_0,
+    -0.017_088_125_6,
+    0.006_670_090_1,
+    -0.001_262_491_1,
+];
+
+/// Rounded angles whose polynomial value lies closer than this (degrees) to a rounding boundary
+/// are recomputed with `acos` (the polynomial is within 1.2e-6 degrees).
+const ANGLE_MARGIN_DEG: f64 = 1e-4;
+
+/// Height channel: `z (k_a a + k_b)` cm is a pixel's height (see [`hha`]).
+struct RowGeometry<'a> {
+    /// `a` of every column.
+    a: &'a [f64],
+    /// `(up_x, up_y b + ..., up_z)`: the height of `p = z (a, b, 1)` is `z (up_x a + up_y b + up_z)`.
+    up: [f64; 3],
+    b: f64,
+    floor_cm: f64,
+    gravity: [f64; 3],
+}
+
+simd_dispatch! {
+    /// One row of the HHA image (`3 W` u8) and of the normals handed back (`3 W` f32, toward
+    /// the camera) from the row's depth and its [`ANGLE_RADIUS`] normals (reference
+    /// orientation, NaN where undefined). The angle's `acos` is a polynomial, recomputed with
+    /// `acos` where the rounding is within [`ANGLE_MARGIN_DEG`] of a boundary: the values are
+    /// those of `to_u8(acos(d).to_degrees() + ANGLE_OFFSET)`.
+    fn encode_row(
+        depth: &[f32],
+        normals: &[Vec<f64>; 3],
+        geo: &RowGeometry<'_>,
+        image: &mut [u8],
+        out: &mut [f32],
+        near: &mut [bool],
+    ) {
+        let w = depth.len();
+        let [nx, ny, nz] = normals;
+        let (nx, ny, nz, a) = (&nx[..w], &ny[..w], &nz[..w], &geo.a[..w]);
+        let (image, out, near) = (&mut image[..3 * w], &mut out[..3 * w], &mut near[..w]);
+        let (up, b, floor_cm, g) = (geo.up, geo.b, geo.floor_cm, geo.gravity);
+        let to_deg = 180.0 / std::f64::consts::PI;
+        for x in 0..w {
+            let z = depth[x];
+            let valid = z > 0.0 && z < f32::INFINITY;
+            let zf = z as f64;
+            let z_cm = (zf * 100.0).max(MIN_DEPTH_CM);
+            let disparity = to_u8(DISPARITY_SCALE / z_cm);
+            let height = to_u8(zf * (up[0] * a[x] + up[1] * b + up[2]) - floor_cm);
+            image[3 * x] = if valid { disparity } else { 0 };
+            image[3 * x + 1] = if valid { height } else { 0 };
+            let n = [nx[x], ny[x], nz[x]];
+            out[3 * x] = -n[0] as f32;
+            out[3 * x + 1] = -n[1] as f32;
+            out[3 * x + 2] = -n[2] as f32;
+            let d = n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
+            let d = d.clamp(-1.0, 1.0);
+            let t = d.abs();
+            let mut poly = ACOS_POLY[7];
+            for &c in ACOS_POLY[..7].iter().rev() {
+                poly = poly * t + c;
+            }
+            let rad = poly * (1.0 - t).sqrt();
+            let rad = if d < 0.0 { std::f64::consts::PI - rad } else { rad };
+            // uint8(v) = floor(v + 0.5) for v = degrees + offset >= 0.5.
+            let v = rad * to_deg + (ANGLE_OFFSET + 0.5);
+            let frac = v - v.floor();
+            let undefined = n[0].is_nan();
+            image[3 * x + 2] = if undefined {
+                to_u8(NO_NORMAL_ANGLE + ANGLE_OFFSET)
+            } else {
+                v as u8
+            };
+            let clear = frac > ANGLE_MARGIN_DEG && frac < 1.0 - ANGLE_MARGIN_DEG;
+            near[x] = !(undefined || clear);
+        }
+        for x in 0..w {
+            if near[x] {
+                let d = nx[x] * g[0] + ny[x] * g[1] + nz[x] * g[2];
+                image[3 * x + 2] = angle_u8(d.clamp(-1.0, 1.0));
+            }
+        }
     }
 }
 
@@ -694,8 +951,27 @@ pub fn hha(
         )?;
     }
     let support = Support::new(depth, raw, width, height, cam);
-    let angle_normals = support.field(ANGLE_RADIUS, 1.0, [f64::NAN; 3], |n| n)?;
-    let g = gravity(&support.defined(GRAVITY_RADIUS)?)?;
+    // The GRAVITY_RADIUS normals of each band, as f32 structure of arrays.
+    let parts: Vec<[Vec<f32>; 3]> = (0..support.bands())
+        .into_par_iter()
+        .map(|band| {
+            let rows = BAND.min(height - band * BAND);
+            let len = (rows * width).div_ceil(LANES) * LANES;
+            let mut soa: [Vec<f32>; 3] = std::array::from_fn(|_| Vec::with_capacity(len));
+            support.band(band, GRAVITY_RADIUS, |_, win| {
+                for (out, n) in soa.iter_mut().zip(&win.n) {
+                    out.extend(n.iter().map(|&v| if v.is_nan() { 0.0 } else { v as f32 }));
+                }
+                Ok(())
+            })?;
+            for out in &mut soa {
+                out.resize(len, 0.0);
+            }
+            Ok(soa)
+        })
+        .collect::<Result<_>>()?;
+    let g = gravity(&parts)?;
+    drop(parts);
     let r = rotation_to(g);
     // Height is -(Rᵀ p).y = -(column 1 of R) . p, in cm; p = z (a, b, 1).
     let up = [-r[0][1] * 100.0, -r[1][1] * 100.0, -r[2][1] * 100.0];
@@ -723,41 +999,36 @@ pub fn hha(
     } else {
         lowest
     };
+    // The ANGLE_RADIUS normals, band by band, straight into the image and the normals handed
+    // back (toward the camera, f32).
     let mut image = vec![0u8; width * height * 3];
-    // The normals handed back (toward the camera, f32) are written in the same pass.
     let mut normals = vec![0.0f32; width * height * 3];
     image
-        .par_chunks_mut(width * 3)
-        .zip(normals.par_chunks_mut(width * 3))
+        .par_chunks_mut(3 * BAND * width)
+        .zip(normals.par_chunks_mut(3 * BAND * width))
         .enumerate()
-        .for_each(|(y, (row, nrow))| {
-            for ((x, px), out) in row
-                .chunks_exact_mut(3)
-                .enumerate()
-                .zip(nrow.chunks_exact_mut(3))
-            {
-                let i = y * width + x;
-                let z = depth[i];
-                if is_valid(z) {
-                    let z_cm = (z as f64 * 100.0).max(MIN_DEPTH_CM);
-                    px[0] = to_u8(DISPARITY_SCALE / z_cm);
-                    px[1] = to_u8(height_of(x, y, z) - floor_cm);
-                }
-                let n = angle_normals[i];
-                for (o, v) in out.iter_mut().zip(n) {
-                    *o = -v as f32;
-                }
-                let angle = if n[0].is_nan() {
-                    NO_NORMAL_ANGLE
-                } else {
-                    (n[0] * g[0] + n[1] * g[1] + n[2] * g[2])
-                        .clamp(-1.0, 1.0)
-                        .acos()
-                        .to_degrees()
+        .try_for_each(|(band, (img, nrm))| {
+            let mut near = vec![false; width];
+            support.band(band, ANGLE_RADIUS, |dy, win| {
+                let y = band * BAND + dy;
+                let geo = RowGeometry {
+                    a: &rays.a,
+                    up,
+                    b: rays.b[y],
+                    floor_cm,
+                    gravity: g,
                 };
-                px[2] = to_u8(angle + ANGLE_OFFSET);
-            }
-        });
+                encode_row(
+                    &depth[y * width..][..width],
+                    &win.n,
+                    &geo,
+                    &mut img[3 * dy * width..][..3 * width],
+                    &mut nrm[3 * dy * width..][..3 * width],
+                    &mut near,
+                );
+                Ok(())
+            })
+        })?;
     Ok(Hha {
         image,
         gravity: g,
@@ -941,56 +1212,132 @@ mod tests {
         }
     }
 
-    /// Window sums by brute force, for comparison with the sliding sums.
+    /// The reference's normal by brute force: moments `[a², ab, a, b², b, 1, a/z, b/z, 1/z]` of
+    /// the window's valid points in normalised coordinates, the adjugate solve, then the
+    /// orientation (`n_z >= 0`, then `n . p >= 0` where the depth is valid).
     fn naive_normal(depth: &[f32], w: usize, h: usize, x: usize, y: usize, r: usize) -> [f64; 3] {
         let rays = Rays::new(w, h, &CAM);
-        let iz = inverse_depth(depth, None);
-        let mut s = [0.0f64; M];
+        let mut s = [0.0f64; 9];
         for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
-            let mut row = vec![[0.0f64; M]; w];
-            slide_row_moments(&mut row, Some(yy), None, &iz, &rays, &vec![0.0; w]);
-            for c in &row[x.saturating_sub(r)..(x + r + 1).min(w)] {
-                for k in 0..M {
-                    s[k] += c[k];
+            for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
+                let z = depth[yy * w + xx];
+                if !is_valid(z) {
+                    continue;
+                }
+                let (a, b, q) = (rays.a[xx], rays.b[yy], 1.0 / z as f64);
+                let m = [a * a, a * b, a, b * b, b, 1.0, q * a, q * b, q];
+                for k in 0..9 {
+                    s[k] += m[k];
                 }
             }
         }
+        let [saa, sab, sa, sbb, sb, s1, ta, tb, t1] = s;
+        let c0 = sbb * s1 - sb * sb;
+        let c1 = -sab * s1 + sa * sb;
+        let c2 = sab * sb - sa * sbb;
+        let c3 = saa * s1 - sa * sa;
+        let c4 = -saa * sb + sab * sa;
+        let c5 = saa * sbb - sab * sab;
+        let det = saa * c0 + sab * c1 + sa * c2;
         let f2 = CAM.fx * CAM.fy;
-        solve_plane(s, MIN_SPREAD_PX4 / (f2 * f2))
+        if s1 < 2.5 || det < MIN_SPREAD_PX4 / (f2 * f2) * s1 * s1 * s1 {
+            return [f64::NAN; 3];
+        }
+        let n = [
+            c0 * ta + c1 * tb + c2 * t1,
+            c1 * ta + c3 * tb + c4 * t1,
+            c2 * ta + c4 * tb + c5 * t1,
+        ];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let mut sign = if n[2] < 0.0 { -1.0 } else { 1.0 };
+        let at_pixel = n[0] * rays.a[x] + n[1] * rays.b[y] + n[2];
+        if is_valid(depth[y * w + x]) && sign * at_pixel < 0.0 {
+            sign = -sign;
+        }
+        n.map(|v| sign * v / len)
+    }
+
+    /// A wavy surface (`w x h`), with holes where `hole(x, y)`.
+    fn wavy(w: usize, h: usize, hole: impl Fn(usize, usize) -> bool) -> Vec<f32> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if hole(x, y) {
+                    f32::NAN
+                } else {
+                    2.0 + 0.3 * (x as f32 * 0.2).sin() + 0.01 * y as f32 + 0.1 * (y as f32).cos()
+                }
+            })
+            .collect()
     }
 
     #[test]
     fn sliding_sums_match_brute_force_with_holes() {
         let (w, h) = (37, 101); // more than two bands, odd sizes
-        let depth: Vec<f32> = (0..w * h)
-            .map(|i| {
-                let (x, y) = ((i % w) as f32, (i / w) as f32);
-                let hole = (i * 7919) % 13 < 4 || (y > 60.0 && y < 75.0 && x < 20.0);
-                if hole {
-                    f32::NAN
-                } else {
-                    2.0 + 0.3 * (x * 0.2).sin() + 0.01 * y
-                }
-            })
-            .collect();
-        for r in [1, 3, 10, 40] {
-            let out = normals(&depth, None, w, h, &CAM, r, false).unwrap();
+                                // Holes everywhere; in a few rows only (rows whose windows are whole take the
+                                // closed-form path); none.
+        let scattered = wavy(w, h, |x, y| {
+            (y * w + x) * 7919 % 13 < 4 || (y > 60 && y < 75 && x < 20)
+        });
+        let few_rows = wavy(w, h, |x, y| (y == 30 || y == 77) && x % 3 == 0);
+        let none = wavy(w, h, |_, _| false);
+        for (depth, r) in [1, 3, 10, 40]
+            .into_iter()
+            .flat_map(|r| [(&scattered, r), (&few_rows, r), (&none, r)])
+        {
+            let out = normals(depth, None, w, h, &CAM, r, false).unwrap();
             for y in 0..h {
                 for x in 0..w {
-                    let n = naive_normal(&depth, w, h, x, y, r);
+                    let n = naive_normal(depth, w, h, x, y, r);
                     let got = &out[(y * w + x) * 3..][..3];
                     if n[0].is_nan() {
                         assert!(got[0].is_nan(), "({x}, {y}) r {r}");
                         continue;
                     }
-                    let dot: f64 = (0..3).map(|k| got[k] as f64 * n[k]).sum();
-                    assert!(
-                        (dot.abs() - 1.0).abs() < 1e-5,
-                        "({x}, {y}) r {r}: {got:?} {n:?}"
-                    );
+                    for k in 0..3 {
+                        assert!(
+                            (got[k] as f64 - n[k]).abs() < 1e-5,
+                            "({x}, {y}) r {r}: {got:?} {n:?}"
+                        );
+                    }
                 }
             }
         }
+    }
+
+    #[test]
+    fn whole_windows_give_the_same_sums_both_ways() {
+        let (w, h, r) = (53, 40, 4);
+        let depth = wavy(w, h, |_, _| false);
+        let support = Support::new(&depth, None, w, h, &CAM);
+        let mut win = Window::new(r, w);
+        for yy in 0..=2 * r {
+            slide_columns(&mut win.cols, r, support.row(Some(yy)), support.row(None));
+        }
+        let y = r; // the window covers rows 0..=2r, all whole
+        let mut general = win.sums.clone();
+        window_row(
+            &win.cols,
+            &win.xs_pad,
+            2 * r + 1,
+            &mut win.prefix,
+            &mut general,
+        );
+        let rows = run_moments(0, 2 * r);
+        let mut full = win.sums.clone();
+        let n = 2 * r + 1;
+        window_row_full(
+            &win.cols,
+            &win.xs_pad,
+            n,
+            rows,
+            &win.columns,
+            &mut win.prefix,
+            &mut full,
+        );
+        assert_eq!(general, full, "row {y}");
+        assert_eq!(full[0][0], ((r + 1) * n) as f64); // clipped at the left border
+        assert_eq!(full[0][w / 2], (n * n) as f64);
     }
 
     #[test]
