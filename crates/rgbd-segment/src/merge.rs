@@ -115,6 +115,31 @@ fn argmax<T: PartialOrd + Copy>(p: &[T]) -> usize {
     best
 }
 
+/// The [`argmax`] of each of the (at most [`PDF_GROUP`]) pixels of `ps` (`classes` values
+/// each) into `best`, the pixels side by side so that their dependency chains overlap.
+#[inline]
+fn argmax_group(ps: &[f32], classes: usize, best: &mut [usize; PDF_GROUP]) {
+    if ps.len() < PDF_GROUP * classes {
+        for (b, p) in best.iter_mut().zip(ps.chunks_exact(classes)) {
+            *b = argmax(p);
+        }
+        return;
+    }
+    let mut top = [0.0f32; PDF_GROUP];
+    for g in 0..PDF_GROUP {
+        (best[g], top[g]) = (0, ps[g * classes]);
+    }
+    for c in 1..classes {
+        for g in 0..PDF_GROUP {
+            let v = ps[g * classes + c];
+            // As `argmax`: a NaN never wins, and a NaN first value is never beaten.
+            if v > top[g] {
+                (best[g], top[g]) = (c, v);
+            }
+        }
+    }
+}
+
 /// Per segment of `votes` (`n x classes`), the class with the most votes (the smaller on
 /// ties), `-1` for a segment without votes.
 pub fn majority_of_votes(votes: &[u32], classes: usize) -> Vec<i32> {
@@ -150,12 +175,16 @@ impl Descriptors {
             .par_chunks(chunk)
             .zip(pdfs.par_chunks(chunk * classes))
             .fold(zero, |(mut sums, mut counts, mut votes), (ls, ps)| {
-                for (&s, p) in ls.iter().zip(ps.chunks_exact(classes)) {
-                    if s >= 0 {
-                        let row = &mut sums[s as usize * classes..][..classes];
-                        row.iter_mut().zip(p).for_each(|(a, &b)| *a += f64::from(b));
-                        counts[s as usize] += 1.0;
-                        votes[s as usize * classes + argmax(p)] += 1;
+                let mut best = [0usize; PDF_GROUP];
+                for (ls, ps) in ls.chunks(PDF_GROUP).zip(ps.chunks(PDF_GROUP * classes)) {
+                    argmax_group(ps, classes, &mut best);
+                    for ((&s, p), &c) in ls.iter().zip(ps.chunks_exact(classes)).zip(&best) {
+                        if s >= 0 {
+                            let row = &mut sums[s as usize * classes..][..classes];
+                            row.iter_mut().zip(p).for_each(|(a, &b)| *a += f64::from(b));
+                            counts[s as usize] += 1.0;
+                            votes[s as usize * classes + c] += 1;
+                        }
                     }
                 }
                 (sums, counts, votes)
@@ -211,6 +240,9 @@ pub struct PdfStats {
     pub worst_sum: f64,
 }
 
+/// Pixels whose PDF sums [`pdf_stats`] takes side by side.
+const PDF_GROUP: usize = 8;
+
 /// [`PdfStats`] of `H x W x classes` PDFs.
 pub fn pdf_stats(pdfs: &[f32], classes: usize) -> Result<PdfStats> {
     if classes == 0 || !pdfs.len().is_multiple_of(classes) {
@@ -229,29 +261,48 @@ pub fn pdf_stats(pdfs: &[f32], classes: usize) -> Result<PdfStats> {
     Ok(pdfs
         .par_chunks(chunk)
         .map(|block| {
-            let mut st = zero();
-            for px in block.chunks_exact(classes) {
-                // Branch-free for the usual all-finite pixel; the rare other one is recounted.
-                let (mut sum, mut low, mut finite) = (0.0f64, f32::INFINITY, true);
-                for &v in px {
-                    sum += f64::from(v);
-                    low = low.min(v);
-                    finite &= v.is_finite();
-                }
-                if finite {
-                    st.min = st.min.min(f64::from(low));
-                    st.worst_sum = st.worst_sum.max((sum - 1.0).abs());
-                } else {
-                    for &v in px {
-                        if v.is_finite() {
-                            st.min = st.min.min(f64::from(v));
-                        } else {
-                            st.non_finite += 1;
-                        }
-                    }
+            // Non-finite count and minimum: elementwise, LANES values side by side.
+            const LANES: usize = 16;
+            let (mut low, mut bad) = ([f32::INFINITY; LANES], [0usize; LANES]);
+            let mut lanes = block.chunks_exact(LANES);
+            for vs in &mut lanes {
+                for l in 0..LANES {
+                    let (v, fin) = (vs[l], vs[l].is_finite());
+                    low[l] = if fin && v < low[l] { v } else { low[l] };
+                    bad[l] += usize::from(!fin);
                 }
             }
-            st
+            for (l, &v) in lanes.remainder().iter().enumerate() {
+                let fin = v.is_finite();
+                low[l] = if fin && v < low[l] { v } else { low[l] };
+                bad[l] += usize::from(!fin);
+            }
+            // Per-pixel sums in class order (f64: finite exactly when all its values are),
+            // PDF_GROUP pixels side by side so that their dependency chains overlap.
+            let mut worst = 0.0f64;
+            let mut check = |sum: f64| {
+                if sum.is_finite() {
+                    worst = worst.max((sum - 1.0).abs());
+                }
+            };
+            let mut groups = block.chunks_exact(PDF_GROUP * classes);
+            for group in &mut groups {
+                let mut sum = [0.0f64; PDF_GROUP];
+                for c in 0..classes {
+                    for (g, s) in sum.iter_mut().enumerate() {
+                        *s += f64::from(group[g * classes + c]);
+                    }
+                }
+                sum.into_iter().for_each(&mut check);
+            }
+            for px in groups.remainder().chunks_exact(classes) {
+                check(px.iter().fold(0.0f64, |s, &v| s + f64::from(v)));
+            }
+            PdfStats {
+                non_finite: bad.iter().sum(),
+                min: low.iter().fold(f64::INFINITY, |m, &v| m.min(f64::from(v))),
+                worst_sum: worst,
+            }
         })
         .reduce(zero, |a, b| PdfStats {
             non_finite: a.non_finite + b.non_finite,
@@ -697,6 +748,56 @@ mod tests {
             assert_eq!(accept, expected[k], "couple ({a}, {b})");
             assert_eq!(accept, g > 0.0);
         }
+    }
+
+    #[test]
+    fn pdf_stats_of_grouped_pixels_match_one_by_one() {
+        // 37 pixels of 3 classes (four groups of 8 and 5 more), a NaN, an inf and a negative.
+        let mut pdfs: Vec<f32> = (0..37 * 3)
+            .map(|i| ((i * 7919) % 101) as f32 / 150.0)
+            .collect();
+        pdfs[20] = f32::NAN;
+        pdfs[58] = f32::INFINITY;
+        pdfs[90] = -0.25;
+        let (mut non_finite, mut min, mut worst) = (0, f64::INFINITY, 0.0f64);
+        for px in pdfs.chunks_exact(3) {
+            if px.iter().all(|v| v.is_finite()) {
+                let sum: f64 = px.iter().map(|&v| f64::from(v)).sum();
+                worst = worst.max((sum - 1.0).abs());
+            }
+            for &v in px {
+                if v.is_finite() {
+                    min = min.min(f64::from(v));
+                } else {
+                    non_finite += 1;
+                }
+            }
+        }
+        let st = pdf_stats(&pdfs, 3).unwrap();
+        assert_eq!(st.non_finite, non_finite);
+        assert_eq!(st.min, min);
+        assert_eq!(st.worst_sum, worst);
+        // Grouped argmax = argmax, ties (first wins) and NaN included; a whole group and a
+        // short one.
+        pdfs[3..6].copy_from_slice(&[0.4, 0.4, 0.2]);
+        pdfs[6..9].copy_from_slice(&[f32::NAN, 0.9, 0.1]);
+        for part in [
+            &pdfs[..PDF_GROUP * 3],
+            &pdfs[PDF_GROUP * 3..PDF_GROUP * 3 + 15],
+        ] {
+            let mut best = [usize::MAX; PDF_GROUP];
+            argmax_group(part, 3, &mut best);
+            for (g, p) in part.chunks_exact(3).enumerate() {
+                assert_eq!(best[g], argmax(p), "pixel {g}");
+            }
+        }
+        // The descriptors' votes are the majority's.
+        let slots: Vec<i32> = (0..37).map(|i| i % 4 - 1).collect();
+        let d = Descriptors::new(&slots, 3, &pdfs, 3).unwrap();
+        assert_eq!(
+            majority_of_votes(&d.votes, 3),
+            majority(&slots, 3, &pdfs, 3).unwrap()
+        );
     }
 
     #[test]

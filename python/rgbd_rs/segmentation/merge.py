@@ -138,7 +138,30 @@ def adjacency(
     does not vote in that test, and a test without votes fails. ``touching=True`` skips the
     tests (every touching couple is adjacent: the thesis' faster option).
     """
-    lab32 = _labels(labels)
+    return _adjacency(
+        _labels(labels),
+        points=points,
+        lab=lab,
+        normals=normals,
+        touching=touching,
+        max_depth_step=max_depth_step,
+        max_color_distance=max_color_distance,
+        max_normal_angle=max_normal_angle,
+    )
+
+
+def _adjacency(
+    lab32: np.ndarray,
+    *,
+    points: npt.ArrayLike | None,
+    lab: npt.ArrayLike | None,
+    normals: npt.ArrayLike | None,
+    touching: bool,
+    max_depth_step: float,
+    max_color_distance: float,
+    max_normal_angle: float,
+) -> np.ndarray:
+    """:func:`adjacency` of labels already checked by ``_labels``."""
     shape = (lab32.shape[0], lab32.shape[1])
     depth = None
     if points is not None:
@@ -250,7 +273,7 @@ def merge_regions(
             "fits: got fits of another segmentation, expected SegmentFits(points, labels) built "
             "on these labels and not merged yet"
         )
-    pairs = adjacency(
+    pairs = _adjacency(
         lab32,
         points=pts,
         lab=lab,
