@@ -20,10 +20,12 @@
 //! of everything p received (the per-pixel normalisation). Memory is O(pixels x sources) plus
 //! the bin arrays of each worker; the window is never materialised.
 //!
-//! Two row kernels give the same bits: the portable one (`Plan::row_scalar`, one receiving pixel
-//! at a time) and, on x86-64 CPUs with AVX2 (detected at run time), the one in `lc/avx2.rs`,
-//! which weighs each lender's hypothesis for eight receiving pixels of the row at once and
-//! keeps every pixel's sums in the portable kernel's order (eight bin arrays per worker).
+//! Three kernels give the same bits, the fastest the CPU supports chosen at run time: the
+//! portable one (`Plan::row_scalar`, one receiving pixel at a time); with AVX2, `lc/avx2.rs`,
+//! which weighs each lender's hypothesis for eight receiving pixels of a row at once; with
+//! AVX-512 F and BW, `lc/avx512.rs`, which does so for a 4 x 4 block of receiving pixels
+//! (sixteen lanes, fewer of them idle on the edges of the block's window union). Both SIMD
+//! kernels keep every pixel's sums in the portable kernel's order (one bin array per lane).
 //!
 //! Not done here: the target-view accumulation `Ω^T` and its cross-check product (eq. 2.18);
 //! the target-view colour and matching terms of eq. 2.16 are kept.
@@ -37,6 +39,8 @@ use crate::color::{exp_table, sum_abs};
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 
 /// Quarter-pixel resampling of the target rows.
 pub const PHASES: i64 = 4;
@@ -308,15 +312,16 @@ fn fuse_with(
     );
     let mut disparity = vec![f32::NAN; n];
     let mut plausibility = vec![f32::NAN; n];
+    let rows = plan.rows_per_task();
     disparity
-        .par_chunks_mut(width)
-        .zip(plausibility.par_chunks_mut(width))
+        .par_chunks_mut(width * rows)
+        .zip(plausibility.par_chunks_mut(width * rows))
         .enumerate()
         .try_for_each_init(
             || plan.scratch(),
-            |scratch, (y, (d_row, p_row))| {
+            |scratch, (k, (d_rows, p_rows))| {
                 check_interrupt()?;
-                plan.row(scratch, y, d_row, p_row);
+                plan.rows(scratch, k * rows, d_rows, p_rows);
                 Ok(())
             },
         )?;
@@ -326,18 +331,25 @@ fn fuse_with(
     })
 }
 
-/// Which row kernel runs: the portable one, or eight receiving pixels per step ([`avx2`]).
+/// Which kernel runs: the portable one, eight receiving pixels of a row per step ([`avx2`]), or
+/// a 4 x 4 block of them ([`avx512`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kernel {
     Scalar,
     #[cfg(target_arch = "x86_64")]
     Avx2,
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
 }
 
 impl Kernel {
-    /// The fastest kernel the running CPU supports for `nbins` bins (the AVX2 one keeps eight
-    /// bin arrays per worker, so a huge range falls back to the portable kernel).
+    /// The fastest kernel the running CPU supports for `nbins` bins (the SIMD ones keep a bin
+    /// array per lane and worker, so a huge range falls back to a narrower kernel).
     fn select(nbins: usize) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if nbins <= avx512::MAX_BINS && avx512::available() {
+            return Self::Avx512;
+        }
         #[cfg(target_arch = "x86_64")]
         if nbins <= avx2::MAX_BINS && avx2::available() {
             return Self::Avx2;
@@ -356,6 +368,8 @@ enum Scratch {
     },
     #[cfg(target_arch = "x86_64")]
     Avx2(Box<avx2::Scratch>),
+    #[cfg(target_arch = "x86_64")]
+    Avx512(Box<avx512::Scratch>),
 }
 
 /// Everything the row kernels share, built once per call.
@@ -380,6 +394,9 @@ struct Plan {
     /// The AVX2 kernel's tables when it runs.
     #[cfg(target_arch = "x86_64")]
     simd: Option<avx2::Tables>,
+    /// The AVX-512 kernel's tables when it runs.
+    #[cfg(target_arch = "x86_64")]
+    simd512: Option<avx512::Tables>,
 }
 
 impl Plan {
@@ -424,12 +441,19 @@ impl Plan {
             lut_t: padded(exp_table(params.gamma_t, params.truncation)),
             #[cfg(target_arch = "x86_64")]
             simd: None,
+            #[cfg(target_arch = "x86_64")]
+            simd512: None,
         };
         match kernel {
             Kernel::Scalar => plan,
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2 => Self {
                 simd: Some(avx2::Tables::new(&plan)),
+                ..plan
+            },
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => Self {
+                simd512: Some(avx512::Tables::new(&plan)),
                 ..plan
             },
         }
@@ -441,13 +465,18 @@ impl Plan {
         if let Some(tabs) = &self.simd {
             return Scratch::Avx2(Box::new(avx2::Scratch::new(self, tabs)));
         }
+        #[cfg(target_arch = "x86_64")]
+        if let Some(tabs) = &self.simd512 {
+            return Scratch::Avx512(Box::new(avx512::Scratch::new(self, tabs)));
+        }
         Scratch::Scalar {
             bins: Bins::new(self.nbins),
             base: vec![0.0; self.side * self.side],
         }
     }
 
-    /// Fuses row `y` into `d_row` / `p_row` with the kernel `scratch` was made for.
+    /// Fuses row `y` into `d_row` / `p_row` with the kernel `scratch` was made for (the AVX-512
+    /// kernel works on blocks of rows and runs from [`Plan::rows`] only).
     fn row(&self, scratch: &mut Scratch, y: usize, d_row: &mut [f32], p_row: &mut [f32]) {
         match scratch {
             #[cfg(target_arch = "x86_64")]
@@ -458,7 +487,36 @@ impl Plan {
                     unsafe { avx2::row(self, tabs, s, y, d_row, p_row) };
                 }
             }
+            #[cfg(target_arch = "x86_64")]
+            Scratch::Avx512(_) => {}
             Scratch::Scalar { bins, base } => self.row_scalar(bins, base, y, d_row, p_row),
+        }
+    }
+
+    /// Image rows one parallel task fuses: the AVX-512 kernel takes blocks of rows.
+    fn rows_per_task(&self) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if self.simd512.is_some() {
+            return avx512::rows_per_block(self.st);
+        }
+        1
+    }
+
+    /// Fuses the rows from `y` on into `d_rows` / `p_rows` ([`Plan::rows_per_task`] at most).
+    fn rows(&self, scratch: &mut Scratch, y: usize, d_rows: &mut [f32], p_rows: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if let (Scratch::Avx512(s), Some(tabs)) = (&mut *scratch, &self.simd512) {
+            // SAFETY: the tables exist only when `Kernel::select` detected AVX-512F and BW on
+            // this CPU.
+            unsafe { avx512::block(self, tabs, s, y, d_rows, p_rows) };
+            return;
+        }
+        for (i, (d_row, p_row)) in d_rows
+            .chunks_mut(self.width)
+            .zip(p_rows.chunks_mut(self.width))
+            .enumerate()
+        {
+            self.row(scratch, y + i, d_row, p_row);
         }
     }
 

@@ -31,17 +31,17 @@ pub(super) fn available() -> bool {
     std::arch::is_x86_feature_detected!("avx2")
 }
 
-/// A hypothesis in the form the lane loop reads.
+/// A hypothesis in the form the lane loops read (this kernel's and the AVX-512 one's).
 #[derive(Debug, Clone, Copy, Default)]
-struct Lend {
+pub(super) struct Lend {
     /// Quarter-pixel shift minus the smallest one ([`Tables::smin`]).
-    sidx: u32,
-    bin: i32,
-    d: f32,
+    pub(super) sidx: u32,
+    pub(super) bin: i32,
+    pub(super) d: f32,
     /// Confidence; 0 marks "no hypothesis".
-    w: f32,
+    pub(super) w: f32,
     /// Target colour at the lender's own target position, RGB in the low three bytes.
-    col: u32,
+    pub(super) col: u32,
 }
 
 /// Per-call tables of the AVX2 kernel.
@@ -61,42 +61,48 @@ pub(super) struct Tables {
     colbits: Vec<i32>,
 }
 
-fn pack(c: [u8; 3]) -> u32 {
+pub(super) fn pack(c: [u8; 3]) -> u32 {
     u32::from_le_bytes([c[0], c[1], c[2], 0])
+}
+
+/// The sources' hypotheses as [`Lend`]s, and the smallest quarter-pixel shift they index from.
+pub(super) fn lenders(plan: &Plan) -> (Vec<Vec<Lend>>, i32) {
+    let smin = plan
+        .hyps
+        .iter()
+        .flat_map(|hs| hs.iter().filter(|h| h.w > 0.0).map(|h| h.shift))
+        .min()
+        .unwrap_or(0);
+    let lend = plan
+        .hyps
+        .iter()
+        .map(|hs| {
+            hs.par_iter()
+                .map(|h| {
+                    if h.w > 0.0 {
+                        Lend {
+                            sidx: h.shift.abs_diff(smin),
+                            bin: h.bin as i32,
+                            d: h.d,
+                            w: h.w,
+                            col: pack(h.col),
+                        }
+                    } else {
+                        Lend::default()
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    (lend, smin)
 }
 
 impl Tables {
     pub(super) fn new(plan: &Plan) -> Self {
         let st = plan.st;
-        let smin = plan
-            .hyps
-            .iter()
-            .flat_map(|hs| hs.iter().filter(|h| h.w > 0.0).map(|h| h.shift))
-            .min()
-            .unwrap_or(0);
+        let (lend, smin) = lenders(plan);
         let kk = plan.radius / st;
         let ucols = 2 * kk + LANES;
-        let lend = plan
-            .hyps
-            .iter()
-            .map(|hs| {
-                hs.par_iter()
-                    .map(|h| {
-                        if h.w > 0.0 {
-                            Lend {
-                                sidx: h.shift.abs_diff(smin),
-                                bin: h.bin as i32,
-                                d: h.d,
-                                w: h.w,
-                                col: pack(h.col),
-                            }
-                        } else {
-                            Lend::default()
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
         let (r, side) = (plan.radius as isize, plan.side);
         let mut sp8 = vec![0.0f32; (2 * kk + 1) * ucols * LANES];
         let mut colbits = vec![0i32; ucols];
@@ -510,8 +516,20 @@ mod tests {
     use super::super::{fuse_with, Kernel, LcParams, Source};
     use proptest::prelude::*;
 
-    /// Both kernels on one input: the outputs must be identical bit for bit. Returns how many
-    /// pixels received a disparity.
+    /// The SIMD kernels this CPU runs.
+    pub(super) fn simd_kernels() -> Vec<Kernel> {
+        let mut out = vec![];
+        if super::available() {
+            out.push(Kernel::Avx2);
+        }
+        if super::super::avx512::available() {
+            out.push(Kernel::Avx512);
+        }
+        out
+    }
+
+    /// The portable kernel and each SIMD one on one input: the outputs must be identical bit for
+    /// bit. Returns how many pixels received a disparity.
     fn same_bits(w: usize, h: usize, seed: u64, p: &LcParams, two: bool, sparse: u64) -> usize {
         let mut state = seed
             .wrapping_mul(6364136223846793005)
@@ -561,18 +579,21 @@ mod tests {
             });
         }
         let a = fuse_with(&r, &t, w, h, &sources, p, Some(Kernel::Scalar)).unwrap();
-        let b = fuse_with(&r, &t, w, h, &sources, p, Some(Kernel::Avx2)).unwrap();
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&a.disparity), bits(&b.disparity), "disparity");
-        assert_eq!(bits(&a.plausibility), bits(&b.plausibility), "plausibility");
+        for k in simd_kernels() {
+            let b = fuse_with(&r, &t, w, h, &sources, p, Some(k)).unwrap();
+            assert_eq!(bits(&a.disparity), bits(&b.disparity), "{k:?} disparity");
+            assert_eq!(
+                bits(&a.plausibility),
+                bits(&b.plausibility),
+                "{k:?} plausibility"
+            );
+        }
         a.disparity.iter().filter(|d| d.is_finite()).count()
     }
 
     #[test]
     fn defaults_at_the_fuse_window_are_bit_identical() {
-        if !super::available() {
-            return;
-        }
         for stride in [1, 2] {
             let p = LcParams {
                 stride,
@@ -585,7 +606,7 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(48))]
         #[test]
-        fn avx2_kernel_is_bit_identical_to_the_portable_one(
+        fn simd_kernels_are_bit_identical_to_the_portable_one(
             w in 2usize..70,
             h in 1usize..12,
             radius in 1usize..7,
@@ -596,16 +617,14 @@ mod tests {
             sparse in 0u64..60,
             seed in 0u64..1000,
         ) {
-            if super::available() {
-                let p = LcParams {
-                    radius,
-                    stride,
-                    bin_width,
-                    target_sign: if sign { 1 } else { -1 },
-                    ..LcParams::default()
-                };
-                same_bits(w, h, seed, &p, two, sparse);
-            }
+            let p = LcParams {
+                radius,
+                stride,
+                bin_width,
+                target_sign: if sign { 1 } else { -1 },
+                ..LcParams::default()
+            };
+            same_bits(w, h, seed, &p, two, sparse);
         }
     }
 }
@@ -698,12 +717,11 @@ mod timing {
                 }
             }
             let mut outs = vec![];
-            // LC_AVX2_ONLY=1 skips the portable kernel (A/B runs of the AVX2 one).
-            let kernels = if std::env::var("LC_AVX2_ONLY").is_ok() {
-                vec![Kernel::Avx2]
-            } else {
-                vec![Kernel::Scalar, Kernel::Avx2]
-            };
+            // LC_SIMD_ONLY=1 skips the portable kernel (A/B runs of the SIMD ones).
+            let mut kernels = super::tests::simd_kernels();
+            if std::env::var("LC_SIMD_ONLY").is_err() {
+                kernels.insert(0, Kernel::Scalar);
+            }
             // Rounds interleave the kernels, so a change of load hits them alike.
             let mut best = vec![(f64::INFINITY, 0.0); kernels.len()];
             let mut cpu_sum = vec![0.0; kernels.len()];
@@ -734,8 +752,10 @@ mod timing {
             }
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             let last = outs.len() - 1;
-            let same = bits(&outs[0].disparity) == bits(&outs[last].disparity)
-                && bits(&outs[0].plausibility) == bits(&outs[last].plausibility);
+            let same = outs.iter().all(|o| {
+                bits(&outs[0].disparity) == bits(&o.disparity)
+                    && bits(&outs[0].plausibility) == bits(&o.plausibility)
+            });
             println!("stride {stride}: kernels bit-identical: {same}");
             for (name, new) in [
                 ("d", &outs[last].disparity),
