@@ -174,6 +174,23 @@ fn inverse_depth(depth: &[f32], raw: Option<&[f32]>) -> Vec<f64> {
     }
 }
 
+/// Tests cap the SIMD level [`simd_dispatch!`] may pick (2 = AVX-512F, 1 = AVX2, 0 = baseline),
+/// to check that every path gives the same bits.
+#[cfg(test)]
+static SIMD_CAP: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(2);
+
+#[cfg(test)]
+#[inline]
+fn simd_allowed(level: u8) -> bool {
+    SIMD_CAP.load(std::sync::atomic::Ordering::Relaxed) >= level
+}
+
+#[cfg(not(test))]
+#[inline(always)]
+fn simd_allowed(_: u8) -> bool {
+    true
+}
+
 /// Runs `body` compiled for AVX-512F or AVX2 when the CPU has it (the loops are written to
 /// vectorise), else for the baseline. Only elementwise IEEE operations run in these loops (no
 /// fused multiply-add, no reassociation), so every version gives the same bits.
@@ -197,11 +214,11 @@ macro_rules! simd_dispatch {
                 fn avx512($($arg: $ty),*) $(-> $ret)? {
                     generic($($arg),*)
                 }
-                if std::is_x86_feature_detected!("avx512f") {
+                if simd_allowed(2) && std::is_x86_feature_detected!("avx512f") {
                     // SAFETY: the CPU has AVX-512F (checked just above).
                     return unsafe { avx512($($arg),*) };
                 }
-                if std::is_x86_feature_detected!("avx2") {
+                if simd_allowed(1) && std::is_x86_feature_detected!("avx2") {
                     // SAFETY: the CPU has AVX2 (checked just above).
                     return unsafe { avx2($($arg),*) };
                 }
@@ -1338,6 +1355,43 @@ mod tests {
         assert_eq!(general, full, "row {y}");
         assert_eq!(full[0][0], ((r + 1) * n) as f64); // clipped at the left border
         assert_eq!(full[0][w / 2], (n * n) as f64);
+    }
+
+    #[test]
+    fn every_simd_path_gives_the_same_bits() {
+        use std::sync::atomic::Ordering;
+        // Floor, wall and holes (both window paths), some pixels near angle rounding bounds.
+        let (w, h) = (64, 48);
+        let floor = plane([0.0, 1.0, 0.0], 1.2, w, h);
+        let wall = plane([0.05, 0.02, 1.0], 5.0, w, h);
+        let depth: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (f, wl) = (floor[i], wall[i]);
+                let z = if f > 0.0 && f < wl { f } else { wl };
+                if (i * 7919) % 97 < 3 && i / w > 30 {
+                    f32::NAN
+                } else {
+                    z * (1.0 + 0.002 * ((i % 7) as f32))
+                }
+            })
+            .collect();
+        let run = |cap: u8| {
+            SIMD_CAP.store(cap, Ordering::Relaxed);
+            let out = hha(&depth, None, w, h, &CAM).unwrap();
+            let n = normals(&depth, None, w, h, &CAM, 10, true).unwrap();
+            SIMD_CAP.store(2, Ordering::Relaxed);
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            (
+                out.image,
+                out.gravity,
+                out.floor_cm,
+                bits(&out.normals),
+                bits(&n),
+            )
+        };
+        let reference = run(0);
+        assert_eq!(run(1), reference);
+        assert_eq!(run(2), reference);
     }
 
     #[test]
