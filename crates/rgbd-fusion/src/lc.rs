@@ -719,3 +719,22 @@ fn winner_by(
     let d = (accd(b - 1) + accd(b) + accd(b + 1)) / s;
     (d, (s / total).min(1.0))
 }
+
+/// Winner of lane `i` of bins interleaved over `lanes` pixels (`acc[lanes * b + i]`), as
+/// `Bins::winner_and_clear`, then that lane's bins cleared (the SIMD kernels' lane bins).
+#[inline]
+fn lane_winner_and_clear(
+    acc: &mut [f32],
+    accd: &mut [f32],
+    touched: &mut Vec<u32>,
+    lanes: usize,
+    i: usize,
+) -> (f32, f32) {
+    let out = winner_by(touched, |b| acc[lanes * b + i], |b| accd[lanes * b + i]);
+    for &b in touched.iter() {
+        acc[lanes * b as usize + i] = 0.0;
+        accd[lanes * b as usize + i] = 0.0;
+    }
+    touched.clear();
+    out
+}

@@ -18,7 +18,7 @@ use std::arch::x86_64::*;
 
 use rayon::prelude::*;
 
-use super::{span, winner_by, Plan, PHASES};
+use super::{lane_winner_and_clear, span, Plan, PHASES};
 
 /// Receiving pixels per step.
 const LANES: usize = 8;
@@ -225,18 +225,8 @@ impl LaneBins {
 
     /// Winner of lane `i` (as `Bins::winner_and_clear`), then its bins cleared.
     fn winner_and_clear(&mut self, i: usize) -> (f32, f32) {
-        let (acc, accd) = (&self.acc, &self.accd);
-        let out = winner_by(
-            &self.touched[i],
-            |b| acc[LANES * b + i],
-            |b| accd[LANES * b + i],
-        );
-        for &b in &self.touched[i] {
-            self.acc[LANES * b as usize + i] = 0.0;
-            self.accd[LANES * b as usize + i] = 0.0;
-        }
-        self.touched[i].clear();
-        out
+        let touched = &mut self.touched[i];
+        lane_winner_and_clear(&mut self.acc, &mut self.accd, touched, LANES, i)
     }
 }
 

@@ -11,7 +11,7 @@
 use std::arch::x86_64::*;
 
 use super::avx2::{lenders, pack, Lend};
-use super::{winner_by, Plan, LUT_MASK, PHASES};
+use super::{lane_winner_and_clear, Plan, LUT_MASK, PHASES};
 
 /// Receiver rows and columns of a block.
 const R: usize = 4;
@@ -165,18 +165,8 @@ impl LaneBins {
 
     /// Winner of lane `i` (as `Bins::winner_and_clear`), then its bins cleared.
     fn winner_and_clear(&mut self, i: usize) -> (f32, f32) {
-        let (acc, accd) = (&self.acc, &self.accd);
-        let out = winner_by(
-            &self.touched[i],
-            |b| acc[LANES * b + i],
-            |b| accd[LANES * b + i],
-        );
-        for &b in &self.touched[i] {
-            self.acc[LANES * b as usize + i] = 0.0;
-            self.accd[LANES * b as usize + i] = 0.0;
-        }
-        self.touched[i].clear();
-        out
+        let touched = &mut self.touched[i];
+        lane_winner_and_clear(&mut self.acc, &mut self.accd, touched, LANES, i)
     }
 }
 
