@@ -140,6 +140,28 @@ pub fn check_depth(arg: &'static str, depth: &[f32], width: usize, height: usize
     Ok(())
 }
 
+/// The checks [`hha`] and [`normals`] share: the camera, the depth map ([`check_depth`]) and,
+/// if given, the raw depth's size.
+fn check_inputs(
+    depth: &[f32],
+    raw: Option<&[f32]>,
+    width: usize,
+    height: usize,
+    cam: &Pinhole,
+) -> Result<()> {
+    cam.validate()?;
+    check_depth("depth", depth, width, height)?;
+    if let Some(r) = raw {
+        check_len(
+            "raw_depth",
+            r,
+            width * height,
+            &format!("{height} x {width}"),
+        )?;
+    }
+    Ok(())
+}
+
 /// The normalised image coordinates `a = (x - cx) / fx` of every column and `b` of every row.
 struct Rays {
     a: Vec<f64>,
@@ -251,16 +273,7 @@ pub fn hha(
     height: usize,
     cam: &Pinhole,
 ) -> Result<Hha> {
-    cam.validate()?;
-    check_depth("depth", depth, width, height)?;
-    if let Some(r) = raw {
-        check_len(
-            "raw_depth",
-            r,
-            width * height,
-            &format!("{height} x {width}"),
-        )?;
-    }
+    check_inputs(depth, raw, width, height, cam)?;
     let support = Support::new(depth, raw, width, height, cam);
     // The GRAVITY_RADIUS normals of each band, as f32 structure of arrays.
     let parts: Vec<[Vec<f32>; 3]> = (0..support.bands())

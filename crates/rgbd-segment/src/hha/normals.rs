@@ -386,16 +386,7 @@ pub fn normals(
     radius: usize,
     toward_camera: bool,
 ) -> Result<Vec<f32>> {
-    cam.validate()?;
-    check_depth("depth", depth, width, height)?;
-    if let Some(r) = raw {
-        check_len(
-            "raw_depth",
-            r,
-            width * height,
-            &format!("{height} x {width}"),
-        )?;
-    }
+    check_inputs(depth, raw, width, height, cam)?;
     if radius == 0 || radius > width.max(height) {
         return Err(invalid(
             "radius",
