@@ -94,11 +94,12 @@ def test_convnet_drives_the_merging_and_labels_segments(frame, labeled) -> None:
     assert net is not None and net.min() >= 1, "never the unlabeled class"
     sem = labeled.semantic
     assert sem is not None
-    # Each final segment has one class: the most common per-pixel class among its pixels (§4.7).
+    # Each final segment has one class: the argmax of its pixels' mean PDF (§4.7, mean pooling).
+    assert labeled.pooling == "mean"
     for s in np.unique(labeled.labels[labeled.labels >= 0])[:20]:
         inside = labeled.labels == s
         assert np.unique(sem[inside]).size == 1
-        assert sem[inside][0] == np.bincount(net[inside], minlength=14).argmax()
+        assert sem[inside][0] == pdfs[inside].astype(np.float64).sum(axis=0).argmax()
 
 
 def test_labeler_none_is_fit_only_and_bad_labelers(frame) -> None:  # type: ignore[no-untyped-def]

@@ -63,6 +63,13 @@ def register(commands: Commands) -> None:
         action="store_true",
         help="every touching couple is adjacent (skip the boundary tests of eq. 4.3-4.5)",
     )
+    p.add_argument(
+        "--pooling",
+        choices=("mean", "majority"),
+        default="mean",
+        help="class of each final segment: argmax of its mean PDF (mean, default) or its most "
+        "common per-pixel class (majority)",
+    )
     p.add_argument("--frames", type=integer(1), help="write every N-th merge step as a PNG")
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed (0)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
@@ -94,6 +101,7 @@ def run_segment(args: argparse.Namespace) -> int:
         labeler=labeler,
         n_segments=n,
         touching=args.touching,
+        pooling=args.pooling,
         seed=args.seed,
         quiet=args.quiet,
     )

@@ -27,6 +27,7 @@ from rgbd_rs.segmentation.merge import (
 )
 from rgbd_rs.segmentation.oversegment import default_channel_weights, oversegment
 from rgbd_rs.segmentation.pipeline import Segmentation, segment
+from rgbd_rs.segmentation.refine import segment_classes
 from rgbd_rs.segmentation.semantic_data import (
     FrameFolder,
     LabeledFrame,
@@ -82,6 +83,7 @@ __all__ = [
     "oversegment",
     "score",
     "segment",
+    "segment_classes",
     "semantic_cues",
     "square_normals",
     "train_semantic",

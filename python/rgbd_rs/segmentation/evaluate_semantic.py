@@ -1,7 +1,8 @@
 """Semantic-labeling scores of the full method (thesis Tables 4.2 and 4.3) for
 ``rgbd eval segmentation``: pixel and mean class accuracy over NYUv2's 13 classes of the
 ConvNet's own per-pixel labels and of the labels after the segment refinement of §4.7 (each
-final segment takes its majority class), with the per-class accuracies of both.
+final segment takes one class, :mod:`rgbd_rs.segmentation.refine`), with the per-class accuracies
+of both.
 
 Unlabeled ground-truth pixels (label 0) are left out; a prediction is one of the 13 classes.
 Pixels without depth get the ConvNet's label in both rows (the merging has no segment there).
@@ -21,6 +22,7 @@ from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.nyuv2 import LABEL13_NAMES, UNLABELED
 from rgbd_rs.segmentation.labeling import weights_path
 from rgbd_rs.segmentation.pipeline import Segmentation, segment
+from rgbd_rs.segmentation.refine import DEFAULT_POOLING
 from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, resolve_labeler
 
 __all__ = ["LabelingScores", "ours_full"]
@@ -129,7 +131,7 @@ LAST_FULL = _LastResult()
 
 
 def ours_full(
-    *, n_segments: int, seed: int = 0, labeler: LabelerArg = AUTO
+    *, n_segments: int, seed: int = 0, labeler: LabelerArg = AUTO, pooling: str = DEFAULT_POOLING
 ) -> Callable[[U8, F32, PinholeCamera], Labels]:
     """The full method: the pipeline with the semantic ConvNet (``labeler``; the shipped weights
     by default). Raises AttributeError when no ConvNet is available (the evaluation then lists
@@ -143,7 +145,9 @@ def ours_full(
     def run(
         rgb: npt.NDArray[np.uint8], depth: npt.NDArray[np.float32], camera: PinholeCamera
     ) -> Labels:
-        result = segment(rgb, depth, camera, labeler=net, n_segments=n_segments, seed=seed)
+        result = segment(
+            rgb, depth, camera, labeler=net, n_segments=n_segments, pooling=pooling, seed=seed
+        )
         LAST_FULL.result = result
         return result.labels
 

@@ -22,6 +22,7 @@ from rgbd_rs.segmentation.features import Features, features
 from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
 from rgbd_rs.segmentation.merge import MergeResult, merge_regions
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
+from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS, segment_classes
 from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, class_pdfs, resolve_labeler
 from rgbd_rs.surface import SegmentFits
 
@@ -54,11 +55,12 @@ class Segmentation:
     seconds: dict[str, float] = field(default_factory=dict)
     #: ``H x W x C`` class PDFs the merging used (the ConvNet's or the caller's), else None.
     pdfs: np.ndarray | None = None
-
-    @property
-    def semantic(self) -> np.ndarray | None:
-        """``H x W`` int32 class per pixel of each final segment (with PDFs), else None."""
-        return self.merge.semantic
+    #: ``H x W`` int32 class of each final segment (§4.7 refinement with :attr:`pooling`), -1
+    #: where no segment is; None without PDFs.
+    semantic: np.ndarray | None = None
+    #: How :attr:`semantic` pools each segment's PDFs (see
+    #: :func:`rgbd_rs.segmentation.refine.segment_classes`).
+    pooling: str = DEFAULT_POOLING
 
     @property
     def network_labels(self) -> np.ndarray | None:
@@ -85,6 +87,7 @@ def segment(
     labeler: LabelerArg = AUTO,
     n_segments: int = DEFAULT_N_SEGMENTS,
     touching: bool = False,
+    pooling: str = DEFAULT_POOLING,
     seed: int = 0,
     quiet: bool = True,
 ) -> Segmentation:
@@ -99,13 +102,16 @@ def segment(
     the number of normalized-cuts clusters of the over-segmentation (disconnected clusters are
     split, so the over-segmentation has somewhat more segments); ``touching=True`` treats every
     pair of touching segments as adjacent (the thesis' faster option) instead of the boundary
-    tests of eq. 4.3-4.5. Deterministic given ``seed``.
+    tests of eq. 4.3-4.5. ``pooling`` is how each final segment's class comes from its pixels'
+    PDFs: ``"mean"`` (argmax of the mean PDF) or ``"majority"`` (most common per-pixel class);
+    see :mod:`rgbd_rs.segmentation.refine`. Deterministic given ``seed``.
     """
     if not isinstance(camera, PinholeCamera):
         raise InvalidArgumentError(
             f"camera: got {type(camera).__name__}, expected a rgbd_rs.PinholeCamera"
         )
     n = _validate.integer("n_segments", n_segments, minimum=2)
+    pooling = _validate.choice("pooling", pooling, POOLINGS)
     seconds: dict[str, float] = {}
     t = time.perf_counter()
 
@@ -134,6 +140,15 @@ def segment(
     merged = merge_regions(
         over, f.points, pdfs=pdfs, lab=f.lab, normals=normals, touching=touching, fits=fits
     )
+    used = None if merged.mode == "fit" else np.asarray(pdfs, np.float32)
+    semantic = None
+    if used is not None:
+        # The native merge already counted majority votes; mean pooling needs the PDF sums.
+        semantic = (
+            merged.semantic
+            if pooling == "majority"
+            else segment_classes(merged.labels, used, pooling)
+        )
     lap("merge")
     return Segmentation(
         over=over,
@@ -142,5 +157,7 @@ def segment(
         features=f,
         fits=fits,
         seconds=seconds,
-        pdfs=None if merged.mode == "fit" else np.asarray(pdfs, np.float32),
+        pdfs=used,
+        semantic=semantic,
+        pooling=pooling,
     )
