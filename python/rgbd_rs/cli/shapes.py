@@ -117,6 +117,17 @@ def _cache(commands: Commands) -> None:
         help="per-map normalisation (lcn: local contrast normalisation, thesis)",
     )
     p.add_argument(
+        "--scale-copies",
+        type=integer(0, 64),
+        default=0,
+        metavar="K",
+        help="also cache K copies of every training shape with each axis scaled by U(2/3, 3/2) "
+        "(point-cloud augmentation; rows NAME#s1..K; test shapes never copied; 0 = none)",
+    )
+    p.add_argument(
+        "--scale-seed", type=integer(0, 2**32 - 1), default=0, metavar="S", help="seed (0)"
+    )
+    p.add_argument(
         "--shard", type=shard, default=(0, 1), metavar="i/n", help="compute shard i of n (i/n)"
     )
     p.add_argument(
@@ -129,6 +140,10 @@ def run_cache(args: argparse.Namespace) -> int:
     from rgbd_rs.shapes.dataset import InputSpec, build_cache, open_shapes
 
     src = named("--data", lambda: open_shapes(args.data))
+    if args.scale_copies:
+        from rgbd_rs.shapes.scaling import ScaledCopies
+
+        src = ScaledCopies(src, args.scale_copies, seed=args.scale_seed)
     extra = {} if args.representations is None else {"representations": args.representations}
     spec = InputSpec(
         view_resolution=args.resolution,

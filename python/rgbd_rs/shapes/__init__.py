@@ -19,6 +19,7 @@ from rgbd_rs.shapes.dataset import (
     shape_inputs,
 )
 from rgbd_rs.shapes.evaluate import ShapeEvaluation
+from rgbd_rs.shapes.scaling import ScaledCopies
 from rgbd_rs.shapes.train import ShapeRecipe, train_shapes
 from rgbd_rs.shapes.views import (
     DEFAULT_RESOLUTION,
@@ -41,6 +42,7 @@ __all__ = [
     "PointCloudSet",
     "ShapeCache",
     "ShapeClassifier",
+    "ScaledCopies",
     "ShapeEvaluation",
     "ShapeRecipe",
     "VoxelGrid",

@@ -679,6 +679,7 @@ def build_cache(
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     n = len(src)
+    base = getattr(src, "base", src)
     meta = {
         "format": CACHE_FORMAT,
         "kind": src.kind,
@@ -687,8 +688,13 @@ def build_cache(
         "count": n,
         "spec": s.to_dict(),
         "dtype": "float16",
-        "points_per_shape": int(src.points.shape[1]) if isinstance(src, PointCloudSet) else None,
+        "points_per_shape": int(base.points.shape[1]) if isinstance(base, PointCloudSet) else None,
     }
+    # Scaled copies (rgbd_rs.shapes.scaling.ScaledCopies) are part of what the cache holds;
+    # plain sources keep the meta.json of caches made before the option existed.
+    augmentation = getattr(src, "augmentation", None)
+    if augmentation is not None:
+        meta["augmentation"] = augmentation
     if (root / "meta.json").is_file():
         _check_meta(root, meta)
     create_once(root / "labels.npy", bytes_writer(npy_bytes(src.labels.astype(np.int16))))

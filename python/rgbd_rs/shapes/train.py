@@ -23,12 +23,14 @@ from typing import Any
 
 import torch
 from torch.nn import functional as F
+from torch.utils.data import Subset
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, parse_representations
 from rgbd_rs.shapes.augment import AugmentedShapes
 from rgbd_rs.shapes.dataset import ShapeCache
+from rgbd_rs.shapes.scaling import COPY_SEP, original_name
 
 __all__ = [
     "ShapeRecipe",
@@ -135,7 +137,7 @@ def train_shapes(
     """Train on ``cache``'s training split; return the best checkpoint's path (the last one
     without validation). ``init`` starts from a checkpoint's weights (fine-tuning). Re-running
     resumes from ``out/last.pt`` (see :func:`rgbd_rs.nn.train.train`)."""
-    from rgbd_rs.nn.train import TrainConfig, seed_everything, split, train
+    from rgbd_rs.nn.train import TrainConfig, seed_everything, train
 
     c = _cache(cache)
     r = recipe if recipe is not None else ShapeRecipe()
@@ -151,7 +153,7 @@ def train_shapes(
     if r.val_fraction > 0:
         if len(data) < 2:
             raise RgbdError(f"{c.path}: {len(data)} training shape(s), too few to validate")
-        train_set, val_set = split(data, r.val_fraction, seed=cfg.seed)
+        train_set, val_set = _split_by_shape(c, data, r.val_fraction, cfg.seed)
     if r.rotate or r.mirror:
         train_set = AugmentedShapes(train_set, data.shapes, turns=r.rotate, mirror=r.mirror)
     seed_everything(cfg.seed)  # the initial weights come from the seed too
@@ -180,6 +182,26 @@ def train_shapes(
         resume=resume,
     )
     return Path(result.best_checkpoint or result.last_checkpoint)
+
+
+def _split_by_shape(
+    cache: ShapeCache, data: Any, fraction: float, seed: int
+) -> tuple[Subset[Any], Subset[Any]]:
+    """(train, validation) subsets of ``data``. Without scaled copies in the cache this is
+    :func:`rgbd_rs.nn.train.split`; with them (names ``NAME#sK``, see
+    :mod:`rgbd_rs.shapes.scaling`) the split is drawn over the original shapes, a
+    validation shape's copies are left out, and every copy follows its original into training."""
+    from rgbd_rs.nn.train import split
+
+    names = [cache.names[int(k)] for k in data.indices]
+    if not any(COPY_SEP in n for n in names):
+        return split(data, fraction, seed=seed)
+    originals = [i for i, n in enumerate(names) if COPY_SEP not in n]
+    _, val = split(Subset(data, originals), fraction, seed=seed)
+    val_pos = [originals[j] for j in val.indices]
+    held = {names[i] for i in val_pos}
+    train_pos = [i for i, n in enumerate(names) if original_name(n) not in held]
+    return Subset(data, train_pos), Subset(data, val_pos)
 
 
 def ablation_rows(available: tuple[str, ...]) -> dict[str, tuple[str, ...]]:

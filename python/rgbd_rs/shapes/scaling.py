@@ -1,0 +1,121 @@
+"""Anisotropic scaling augmentation of shape datasets (``rgbd shapes cache --scale-copies K``).
+
+Point-cloud classifiers (DGCNN, SimpleView) train on shapes whose axes are each scaled by a random
+factor in [2/3, 3/2]. That changes a shape's proportions, so its six views, density profiles and
+curvature maps change with it: unlike the quarter turns and mirror images of
+:mod:`rgbd_rs.shapes.augment` it cannot be done on cached tensors. :class:`ScaledCopies` appends
+``copies`` scaled copies of every *training* shape to a source (test shapes are never copied);
+:func:`rgbd_rs.shapes.dataset.build_cache` stores them as extra rows named ``NAME#s1``,
+``NAME#s2``, ... and records the augmentation in the cache's meta.json, and
+:func:`rgbd_rs.shapes.train.train_shapes` draws its validation split over the original shapes,
+leaves a validation shape's copies out and keeps every other copy with its original.
+
+Each copy's three factors come from ``numpy.random.default_rng([seed, copy, shape])``, so a
+sharded cache build computes the same copies in any order.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.meshes import Mesh
+from rgbd_rs.shapes.dataset import TRAIN, Shape, ShapeSource
+
+__all__ = ["COPY_SEP", "SCALE_RANGE", "ScaledCopies", "original_name"]
+
+#: Range of each axis' factor (DGCNN's and SimpleView's point-cloud augmentation).
+SCALE_RANGE = (2.0 / 3.0, 1.5)
+#: Separates a copy's suffix from its original's name (``chair_0001#s2``).
+COPY_SEP = "#"
+#: Most copies per training shape.
+MAX_COPIES = 64
+
+
+def original_name(name: str) -> str:
+    """The name of the shape a cache row was copied from (``name`` itself for an original)."""
+    return name.split(COPY_SEP, 1)[0]
+
+
+class ScaledCopies(ShapeSource):
+    """``source``'s shapes, then ``copies`` rounds of its training shapes, each axis of each copy
+    scaled by a factor drawn uniformly from ``scale_range`` (about the origin: the inputs are
+    computed in the shape's bounding cube, so only the proportions matter)."""
+
+    def __init__(
+        self,
+        source: ShapeSource,
+        copies: int,
+        scale_range: tuple[float, float] = SCALE_RANGE,
+        seed: int = 0,
+    ) -> None:
+        if not isinstance(source, ShapeSource):
+            raise InvalidArgumentError(
+                f"source: got {type(source).__name__}, expected a rgbd_rs.shapes ShapeSource"
+            )
+        self.copies = _validate.integer("copies", copies, minimum=1, maximum=MAX_COPIES)
+        rng = _validate.array("scale_range", scale_range, shape=(2,), dtype=np.float64)
+        low, high = float(rng[0]), float(rng[1])
+        if not 0 < low <= high or not np.isfinite(high):
+            raise InvalidArgumentError(
+                f"scale_range: got {tuple(scale_range)}, expected 0 < low <= high (finite)"
+            )
+        self.scale_range = (low, high)
+        self.seed = _validate.integer("seed", seed, minimum=0, maximum=2**32 - 1)
+        clash = [n for n in source.names if COPY_SEP in n]
+        if clash:
+            raise InvalidArgumentError(
+                f"source: got shape names with {COPY_SEP!r} (e.g. {clash[0]!r}), expected none: "
+                "it marks the scaled copies"
+            )
+        self.base = source
+        self.kind = source.kind
+        self.path = source.path
+        self.classes = source.classes
+        self._train = np.flatnonzero(source.splits == TRAIN).astype(np.int64)
+        reps = self.copies
+        self.labels = np.concatenate([source.labels, np.tile(source.labels[self._train], reps)])
+        self.splits = np.concatenate([source.splits, np.tile(source.splits[self._train], reps)])
+        self.names = source.names + tuple(
+            f"{source.names[k]}{COPY_SEP}s{c + 1}" for c in range(reps) for k in self._train
+        )
+
+    @property
+    def augmentation(self) -> dict[str, Any]:
+        """What the cache's meta.json records about the copies."""
+        return {
+            "scale_copies": self.copies,
+            "scale_range": list(self.scale_range),
+            "scale_seed": self.seed,
+        }
+
+    def _origin(self, index: int) -> tuple[int, int]:
+        """(copy round 1.., original index) of row ``index``; round 0 for an original."""
+        n = len(self.base)
+        if index < n:
+            return 0, index
+        c, j = divmod(index - n, len(self._train))
+        return c + 1, int(self._train[j])
+
+    def scale(self, index: int) -> npt.NDArray[np.float64]:
+        """The three axis factors of row ``index`` (ones for an original shape)."""
+        c, k = self._origin(self._index(index))
+        if c == 0:
+            return np.ones(3)
+        low, high = self.scale_range
+        return np.random.default_rng([self.seed, c, k]).uniform(low, high, 3)
+
+    def load(self, index: int) -> Shape:
+        i = self._index(index)
+        c, k = self._origin(i)
+        shape = self.base.load(k)
+        if c == 0:
+            return shape
+        s = self.scale(i)
+        if isinstance(shape, Mesh):
+            return Mesh((shape.vertices * s).astype(np.float32), shape.triangles)
+        return np.asarray(shape * s, np.float32)

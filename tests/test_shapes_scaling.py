@@ -1,0 +1,114 @@
+"""Scaled copies of training shapes (rgbd_rs.shapes.scaling): what the source serves, what the
+cache records, and the validation split that keeps copies with their originals."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rgbd_rs.shapes.dataset as D
+from rgbd_rs.errors import RgbdError
+from rgbd_rs.meshes import Mesh, box
+from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, ShapeSource, build_cache
+from rgbd_rs.shapes.scaling import SCALE_RANGE, ScaledCopies, original_name
+from rgbd_rs.shapes.train import _split_by_shape
+
+NORM = "lcn" if D._lcn() is not None else "standardize"
+VOLUME = InputSpec(representations=("volume",), normalisation=NORM)
+
+
+@pytest.fixture(scope="module")
+def pack(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
+    """10 shapes of the real ModelNet10 pack: 2 classes x (3 train + 2 test)."""
+    src = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz")
+    pick = [
+        i
+        for c in (0, 8)
+        for s, n in ((0, 3), (1, 2))
+        for i in np.flatnonzero((src.labels == c) & (src.splits == s))[:n]
+    ]
+    path = tmp_path_factory.mktemp("scaling") / "mini.npz"
+    np.savez(
+        path,
+        points=src.points[pick],
+        label=np.where(src.labels[pick] == 0, 0, 1).astype(np.int16),
+        split=src.splits[pick],
+        classes=np.array(["bathtub", "table"]),
+        name=np.array([src.names[i] for i in pick]),
+    )
+    return path
+
+
+def test_copies_of_training_shapes_only(pack: Path) -> None:
+    base = PointCloudSet(pack)
+    src = ScaledCopies(base, 2, seed=3)
+    train = np.flatnonzero(base.splits == 0)
+    assert len(src) == len(base) + 2 * len(train)
+    assert src.names[: len(base)] == base.names
+    assert src.names[len(base)] == f"{base.names[train[0]]}#s1"
+    assert src.names[-1] == f"{base.names[train[-1]]}#s2"
+    assert (src.splits[len(base) :] == 0).all(), "test shapes are never copied"
+    np.testing.assert_array_equal(src.labels[len(base) :], np.tile(base.labels[train], 2))
+    np.testing.assert_array_equal(src.load(4), base.load(4))
+    scales = []
+    for i in range(len(base), len(src)):
+        k = base.names.index(original_name(src.names[i]))
+        s = src.scale(i)
+        assert ((s >= SCALE_RANGE[0]) & (s <= SCALE_RANGE[1])).all()
+        np.testing.assert_allclose(src.load(i), base.load(k) * s, rtol=1e-6)
+        scales.append(s)
+    assert len({tuple(s) for s in scales}) == len(scales), "every copy its own factors"
+    again = ScaledCopies(PointCloudSet(pack), 2, seed=3)
+    np.testing.assert_array_equal(again.load(len(src) - 1), src.load(len(src) - 1))
+    other = ScaledCopies(base, 2, seed=4)
+    assert not np.allclose(other.scale(len(base)), src.scale(len(base)))
+
+
+class _Boxes(ShapeSource):
+    kind = "mesh"
+
+    def __init__(self) -> None:
+        self.path = Path("boxes")
+        self.classes = ("box",)
+        self.labels = np.zeros(2, np.int64)
+        self.splits = np.array([0, 1], np.uint8)
+        self.names = ("a", "b")
+
+    def load(self, index: int) -> Mesh:
+        return box((1.0, 1.0, 1.0))
+
+
+def test_meshes_are_scaled_too() -> None:
+    src = ScaledCopies(_Boxes(), 1, scale_range=(0.5, 2.0))
+    assert len(src) == 3 and src.names[2] == "a#s1"
+    m = src.load(2)
+    assert isinstance(m, Mesh)
+    lo, hi = m.bounds()
+    np.testing.assert_allclose(hi - lo, src.scale(2), rtol=1e-6)
+
+
+def test_cache_records_the_copies(pack: Path, tmp_path: Path) -> None:
+    src = ScaledCopies(PointCloudSet(pack), 1)
+    cache = build_cache(src, tmp_path / "c", spec=VOLUME, workers=1, quiet=True)
+    assert cache.complete and len(cache) == 16
+    meta = json.loads((tmp_path / "c" / "meta.json").read_text())
+    assert meta["augmentation"] == {
+        "scale_copies": 1,
+        "scale_range": list(SCALE_RANGE),
+        "scale_seed": 0,
+    }
+    vol = cache.array("volume")
+    assert not np.array_equal(vol[10], vol[0]), "a copy's profiles differ from its original's"
+    with pytest.raises(RgbdError, match="other data or settings"):
+        build_cache(PointCloudSet(pack), tmp_path / "c", spec=VOLUME, workers=1, quiet=True)
+    # Validation: originals only, never a copy of a validation shape in training.
+    data = cache.dataset("train")
+    train, val = _split_by_shape(cache, data, 0.34, 0)
+    names = [cache.names[int(data.indices[i])] for i in range(len(data))]
+    val_names = {names[i] for i in val.indices}
+    assert val_names and all("#" not in n for n in val_names)
+    assert not {original_name(names[i]) for i in train.indices} & val_names
+    assert len(train) + 2 * len(val) == len(data)
