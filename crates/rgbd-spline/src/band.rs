@@ -131,6 +131,13 @@ impl BandMatrix {
         s
     }
 
+    /// The band's storage: entry `(i, j)`, `i - bw <= j <= i`, at `i·(bw + 1) + bw + j - i`
+    /// (for assembly loops that add many entries: no index swap or check per entry).
+    #[inline]
+    pub(crate) fn lower_mut(&mut self) -> &mut [f64] {
+        &mut self.data
+    }
+
     /// Adds `x` to entry `(i, j)` and its mirror; `|i - j|` must be within the band.
     #[inline]
     pub fn add(&mut self, i: usize, j: usize, x: f64) {

@@ -283,25 +283,44 @@ pub fn local_union_delta(
     let mut mat = BandMatrix::zeros(n_free, bw);
     let mut rhs = vec![0.0; n_free];
     let mut pts = [0usize; MAX_K];
-    for &(e, q0) in &active {
-        for (p, &o) in pts.iter_mut().zip(offs) {
-            *p = q0 + o;
-        }
-        let blk = block(e);
-        let (gram, rest) = blk.split_at(k * k);
-        for a in 0..k {
-            let ia = id[pts[a]];
-            if ia != u32::MAX {
-                rhs[ia as usize] += rest[a];
+    let mut pid = [u32::MAX; MAX_K];
+    {
+        // Entry (i, j), j <= i, of the band storage at (i + 1)·bw + j (`BandMatrix::add`'s sums in
+        // the same order, without its per-entry swap and index arithmetic).
+        let mbw = mat.bw;
+        let data = mat.lower_mut();
+        for &(e, q0) in &active {
+            for ((p, i), &o) in pts.iter_mut().zip(pid.iter_mut()).zip(offs) {
+                *p = q0 + o;
+                *i = id[q0 + o];
             }
-            for b in 0..=a {
-                let g = gram[a * k + b];
-                let ib = id[pts[b]];
-                match (ia != u32::MAX, ib != u32::MAX) {
-                    (true, true) => mat.add(ia as usize, ib as usize, g),
-                    (true, false) => rhs[ia as usize] -= g * c[pts[b]],
-                    (false, true) => rhs[ib as usize] -= g * c[pts[a]],
-                    (false, false) => {}
+            let blk = block(e);
+            let (gram, rest) = blk.split_at(k * k);
+            for a in 0..k {
+                let ia = pid[a];
+                let grow = &gram[a * k..=a * k + a];
+                if ia == u32::MAX {
+                    // A held point: only freed columns move their right-hand sides.
+                    let ca = c[pts[a]];
+                    for (b, &g) in grow.iter().enumerate() {
+                        let ib = pid[b];
+                        if ib != u32::MAX {
+                            rhs[ib as usize] -= g * ca;
+                        }
+                    }
+                    continue;
+                }
+                let ia = ia as usize;
+                rhs[ia] += rest[a];
+                for (b, &g) in grow.iter().enumerate() {
+                    let ib = pid[b];
+                    if ib != u32::MAX {
+                        let ib = ib as usize;
+                        let (i, j) = if ia >= ib { (ia, ib) } else { (ib, ia) };
+                        data[(i + 1) * mbw + j] += g;
+                    } else {
+                        rhs[ia] -= g * c[pts[b]];
+                    }
                 }
             }
         }

@@ -180,9 +180,7 @@ impl SegmentFits {
         check_values(values, width, height, channels, lambda)?;
         check_grid(grid, width, height)?;
         check_pixels("labels", labels.len(), width, height)?;
-        let mut ids: Vec<i32> = labels.iter().copied().filter(|&l| l >= 0).collect();
-        ids.par_sort_unstable();
-        ids.dedup();
+        let (ids, table) = distinct_labels(labels);
         if ids.is_empty() {
             return Err(invalid(
                 "labels",
@@ -191,16 +189,22 @@ impl SegmentFits {
             ));
         }
         let n_labels = ids.len();
-        let slots: Vec<i32> = labels
-            .par_iter()
-            .map(|&l| {
-                if l < 0 {
-                    l
-                } else {
-                    ids.binary_search(&l).map_or(-1, |s| s as i32)
-                }
-            })
-            .collect();
+        let slots: Vec<i32> = match &table {
+            Some(slot_of) => labels
+                .par_iter()
+                .map(|&l| if l < 0 { l } else { slot_of[l as usize] })
+                .collect(),
+            None => labels
+                .par_iter()
+                .map(|&l| {
+                    if l < 0 {
+                        l
+                    } else {
+                        ids.binary_search(&l).map_or(-1, |s| s as i32)
+                    }
+                })
+                .collect(),
+        };
         let labels = &slots[..];
         let full = Region::full(width, height);
         let (offset, normals, fits) = if surfaces {
@@ -560,6 +564,38 @@ impl SegmentFits {
     }
 }
 
+/// The distinct labels >= 0 of `labels`, sorted, and (when the largest is at most a few times
+/// the pixel count) a table of each label's slot among them, `-1` for absent labels: a presence
+/// scan instead of sorting every pixel's label.
+fn distinct_labels(labels: &[i32]) -> (Vec<i32>, Option<Vec<i32>>) {
+    let max = labels.iter().copied().fold(-1, i32::max);
+    if max < 0 {
+        return (Vec::new(), None);
+    }
+    let max = max as usize;
+    if max > 4 * labels.len() + 1024 {
+        // Sparse labels (e.g. 2^31 - 2): sort them.
+        let mut ids: Vec<i32> = labels.iter().copied().filter(|&l| l >= 0).collect();
+        ids.par_sort_unstable();
+        ids.dedup();
+        return (ids, None);
+    }
+    let mut slot_of = vec![-1i32; max + 1];
+    for &l in labels {
+        if l >= 0 {
+            slot_of[l as usize] = 0;
+        }
+    }
+    let mut ids = Vec::new();
+    for (l, s) in slot_of.iter_mut().enumerate() {
+        if *s == 0 {
+            *s = ids.len() as i32;
+            ids.push(l as i32);
+        }
+    }
+    (ids, Some(slot_of))
+}
+
 fn no_surfaces() -> RgbdError {
     invalid(
         "fits",
@@ -634,5 +670,34 @@ impl TestFits {
             fits,
             boxes,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distinct_labels;
+
+    #[test]
+    fn distinct_labels_match_a_sort() {
+        let cases: [Vec<i32>; 5] = [
+            vec![5, -1, 3, 3, 0, 7, -3, 5],
+            vec![-1, -2],
+            vec![2_147_483_646, 4, -1, 4],
+            (0..500).map(|i| (i * 37 % 101) - 3).collect(),
+            vec![0],
+        ];
+        for labels in cases {
+            let mut want: Vec<i32> = labels.iter().copied().filter(|&l| l >= 0).collect();
+            want.sort_unstable();
+            want.dedup();
+            let (ids, table) = distinct_labels(&labels);
+            assert_eq!(ids, want, "{labels:?}");
+            if let Some(t) = table {
+                for &l in labels.iter().filter(|&&l| l >= 0) {
+                    assert_eq!(ids[t[l as usize] as usize], l);
+                }
+                assert!(t.iter().all(|&s| s == -1 || ids[s as usize] as usize <= t.len()));
+            }
+        }
     }
 }

@@ -272,17 +272,27 @@ pub fn solve_one_channel(
     let mut gram = BandMatrix::zeros(n_ids, bw);
     let mut rhs = vec![0.0; n_ids];
     let mut ids = vec![0usize; k];
-    for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
-        for (slot, r) in ids.iter_mut().zip(layout.block_ids(*cell)) {
-            *slot = compact[r] as usize;
-        }
-        let (g, rest) = block.split_at(k * k);
-        let (brhs, ones) = rest.split_at(k);
-        for ia in 0..k {
-            for ib in 0..=ia {
-                gram.add(ids[ia], ids[ib], g[ia * k + ib]);
+    // Row starts in the band storage: entry (i, j) at row[i] + j, j <= i (the same sums in the
+    // same order as `BandMatrix::add`, without its per-entry swap and index arithmetic).
+    let w = gram.bw + 1;
+    let row: Vec<usize> = (0..n_ids).map(|i| i * w + gram.bw - i).collect();
+    {
+        let data = gram.lower_mut();
+        for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
+            for (slot, r) in ids.iter_mut().zip(layout.block_ids(*cell)) {
+                *slot = compact[r] as usize;
             }
-            rhs[ids[ia]] += brhs[ia] - mean * ones[ia];
+            let (g, rest) = block.split_at(k * k);
+            let (brhs, ones) = rest.split_at(k);
+            for ia in 0..k {
+                let a = ids[ia];
+                for (ib, &x) in g[ia * k..=ia * k + ia].iter().enumerate() {
+                    let b = ids[ib];
+                    let (i, j) = if a >= b { (a, b) } else { (b, a) };
+                    data[row[i] + j] += x;
+                }
+                rhs[a] += brhs[ia] - mean * ones[ia];
+            }
         }
     }
     let mut a = gram.clone();
