@@ -216,6 +216,18 @@ impl Layout {
         lo: (usize, usize),
         hi: (usize, usize),
     ) -> Self {
+        Self::of_cells(normal.cells.iter().copied(), normal.k, grid, lo, hi)
+    }
+
+    /// [`Self::new`] of a system with these cells (ascending, each once) and `k` points per
+    /// cell, e.g. the union of two systems that is not built.
+    pub(crate) fn of_cells<I: Iterator<Item = u32> + Clone>(
+        cells: I,
+        k: usize,
+        grid: &KnotGrid,
+        lo: (usize, usize),
+        hi: (usize, usize),
+    ) -> Self {
         let p = grid.degree;
         let shape = (hi.0 - lo.0 + 1 + p, hi.1 - lo.1 + 1 + p);
         let mut layout = Self {
@@ -226,10 +238,10 @@ impl Layout {
             stencils: Vec::new(),
             lo,
             cells_u: grid.cells_u,
-            k: normal.k,
+            k,
             k1: p + 1,
         };
-        for &cell in &normal.cells {
+        for cell in cells.clone() {
             for r in layout.block_ids(cell) {
                 layout.compact[r] = 0;
             }
@@ -255,7 +267,7 @@ impl Layout {
         }
         layout.n_ids = n_ids as usize;
         let mut bw = 0;
-        for &cell in &normal.cells {
+        for cell in cells {
             let first = layout.compact[layout.block_ids(cell).next().unwrap_or(0)];
             let last = layout.compact[layout.block_ids(cell).next_back().unwrap_or(0)];
             bw = bw.max((last - first) as usize);

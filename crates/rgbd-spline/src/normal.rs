@@ -40,7 +40,7 @@ impl Moments {
         }
     }
 
-    fn add(&mut self, o: &Moments) {
+    pub(crate) fn add(&mut self, o: &Moments) {
         self.n += o.n;
         for (a, b) in self.geo.iter_mut().zip(&o.geo) {
             *a += b;
@@ -123,6 +123,106 @@ impl Normal {
         out.moments = self.moments.clone();
         out.moments.add(&other.moments);
         out
+    }
+}
+
+impl Normal {
+    /// Joins the disjoint pixel set `other` into this one in place: afterwards `self` equals
+    /// `self.union(other)` (same cells, same sums), without building a new system. The blocks
+    /// after the first cell `other` adds move back once (a merge from the end), and the storage
+    /// grows geometrically, so a segment that keeps absorbing neighbours reallocates rarely.
+    pub fn absorb(&mut self, other: &Normal) {
+        let bl = self.block_len();
+        let (na, nb) = (self.cells.len(), other.cells.len());
+        let shared = {
+            let (mut i, mut j, mut s) = (0, 0, 0);
+            while i < na && j < nb {
+                match self.cells[i].cmp(&other.cells[j]) {
+                    std::cmp::Ordering::Less => i += 1,
+                    std::cmp::Ordering::Greater => j += 1,
+                    std::cmp::Ordering::Equal => {
+                        s += 1;
+                        i += 1;
+                        j += 1;
+                    }
+                }
+            }
+            s
+        };
+        let total = na + nb - shared;
+        self.cells.resize(total, 0);
+        self.blocks.resize(total * bl, 0.0);
+        let (mut i, mut j, mut out) = (na, nb, total);
+        while j > 0 {
+            let b = other.cells[j - 1];
+            out -= 1;
+            if i > 0 && self.cells[i - 1] >= b {
+                let a = self.cells[i - 1];
+                if out != i - 1 {
+                    self.cells[out] = a;
+                    self.blocks.copy_within((i - 1) * bl..i * bl, out * bl);
+                }
+                if a == b {
+                    let src = &other.blocks[(j - 1) * bl..j * bl];
+                    for (x, y) in self.blocks[out * bl..(out + 1) * bl].iter_mut().zip(src) {
+                        *x += y;
+                    }
+                    j -= 1;
+                }
+                i -= 1;
+            } else {
+                self.cells[out] = b;
+                self.blocks[out * bl..(out + 1) * bl]
+                    .copy_from_slice(&other.blocks[(j - 1) * bl..j * bl]);
+                j -= 1;
+            }
+        }
+        debug_assert_eq!(out, i);
+        self.moments.add(&other.moments);
+    }
+}
+
+/// The cells of the union of two systems, ascending, each once (a merge of the sorted lists).
+#[derive(Clone)]
+pub(crate) struct UnionCells<'a> {
+    a: &'a [u32],
+    b: &'a [u32],
+}
+
+impl<'a> UnionCells<'a> {
+    pub(crate) fn new(a: &'a Normal, b: &'a Normal) -> Self {
+        Self {
+            a: &a.cells,
+            b: &b.cells,
+        }
+    }
+}
+
+impl Iterator for UnionCells<'_> {
+    type Item = u32;
+
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        match (self.a.first(), self.b.first()) {
+            (None, None) => None,
+            (Some(&x), None) => {
+                self.a = &self.a[1..];
+                Some(x)
+            }
+            (None, Some(&y)) => {
+                self.b = &self.b[1..];
+                Some(y)
+            }
+            (Some(&x), Some(&y)) => {
+                if x <= y {
+                    self.a = &self.a[1..];
+                }
+                if y <= x {
+                    self.b = &self.b[1..];
+                }
+                Some(x.min(y))
+            }
+        }
     }
 }
 

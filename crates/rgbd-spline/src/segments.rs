@@ -9,7 +9,7 @@ use crate::local::{box_union, cell_box, local_union_delta, CellBox};
 use crate::maps::{surface_maps, SurfaceMaps};
 use crate::normal::{accumulate, Normal, Region};
 use crate::seam::{seam_pixels, SeamTest};
-use crate::union::solve_one_channel;
+use crate::union::{solve_one_channel, solve_union};
 use rgbd_error::{invalid, RgbdError};
 
 /// Which number `fit_error` reports.
@@ -448,8 +448,43 @@ impl SegmentFits {
     /// Merges live segment `j` into `i`; returns the error of the merged segment
     /// ([`Self::fit_error`] of `i` afterwards).
     pub fn merge(&mut self, i: usize, j: usize) -> Result<f64, RgbdError> {
-        let prepared = self.prepare_merge(i, j)?;
-        self.apply_merge(prepared)
+        if self.surfaces || self.test.is_none() {
+            let prepared = self.prepare_merge(i, j)?;
+            return self.apply_merge(prepared);
+        }
+        // The seam test alone ([`Self::test_only`]): as `apply_merge(prepare_merge(..))`, but the
+        // union is fitted from its parts and then joined into the kept segment's system in place
+        // (no copy of the kept segment's blocks per merge; same fit and system bit for bit).
+        let (si, sj) = (self.live("i", i)?, self.live("j", j)?);
+        if i == j {
+            return Err(invalid("j", j, "a segment other than i"));
+        }
+        let n = (self.count(si) + self.count(sj)) as f64;
+        let Some(t) = self.test.as_mut() else {
+            unreachable!("checked above")
+        };
+        let tfit = solve_union(
+            &t.normals[si],
+            &t.normals[sj],
+            (t.boxes[si], t.boxes[sj]),
+            &t.grid,
+            self.lambda,
+            &t.offset,
+        )?;
+        let e = tfit.sse / n;
+        let k = t.normals[sj].k;
+        let absorbed = std::mem::replace(&mut t.normals[sj], Normal::empty(k, 1));
+        t.normals[si].absorb(&absorbed);
+        t.fits[si] = Ok(tfit);
+        t.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
+        t.boxes[si] = match (t.boxes[si], t.boxes[sj]) {
+            (Some(x), Some(y)) => Some(box_union(x, y)),
+            (x, y) => x.or(y),
+        };
+        t.boxes[sj] = None;
+        self.parent[sj] = si;
+        self.generation += 1;
+        Ok(e)
     }
 
     /// The solving half of [`Self::merge`] (`&self`: other queries, e.g. union tests of other
@@ -696,7 +731,9 @@ mod tests {
                 for &l in labels.iter().filter(|&&l| l >= 0) {
                     assert_eq!(ids[t[l as usize] as usize], l);
                 }
-                assert!(t.iter().all(|&s| s == -1 || ids[s as usize] as usize <= t.len()));
+                assert!(t
+                    .iter()
+                    .all(|&s| s == -1 || ids[s as usize] as usize <= t.len()));
             }
         }
     }

@@ -13,8 +13,8 @@
 use crate::band::{avx2_fma, BandMatrix};
 use crate::fit::{add_penalty, linear_coef, Fit, FitKind, Layout, RIDGE};
 use crate::grid::KnotGrid;
-use crate::local::cell_box;
-use crate::normal::Normal;
+use crate::local::{box_union, cell_box, CellBox};
+use crate::normal::{Normal, UnionCells};
 use crate::surface::GridSurface;
 use rgbd_error::{invalid, RgbdError};
 
@@ -255,10 +255,89 @@ pub fn solve_one_channel(
         // Several channels or the linear fallback: nothing to factor.
         return crate::fit::solve(normal, grid, lambda, offset, false);
     }
-    let k = normal.k;
     let (lo, hi) = cell_box(normal, grid);
-    let (lin, _) = linear_coef(normal, grid, offset);
     let layout = Layout::new(normal, grid, lo, hi);
+    solve_assembled(normal, grid, lambda, offset, (lo, hi), layout, |f| {
+        let bl = normal.block_len();
+        for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
+            f(*cell, block);
+        }
+    })
+}
+
+/// [`solve_one_channel`] of `a.union(b)` (`boxes`: their cell boxes), without building the
+/// union: the same layout, the shared cells' blocks summed as `Normal::union` sums them, the same
+/// assembly order, so the same fit bit for bit.
+pub fn solve_union(
+    a: &Normal,
+    b: &Normal,
+    boxes: (Option<CellBox>, Option<CellBox>),
+    grid: &KnotGrid,
+    lambda: f64,
+    offset: &[f64],
+) -> Result<Fit, RgbdError> {
+    let (Some(ba), Some(bb)) = boxes else {
+        return solve_one_channel(&a.union(b), grid, lambda, offset);
+    };
+    let mut moments = a.moments.clone();
+    moments.add(&b.moments);
+    if a.channels != 1 || b.channels != 1 || moments.n < a.k || a.k != b.k {
+        return solve_one_channel(&a.union(b), grid, lambda, offset);
+    }
+    // The union's moments on a system without cells: what the linear fit and the residual read.
+    let head = Normal {
+        cells: Vec::new(),
+        blocks: Vec::new(),
+        moments,
+        k: a.k,
+        channels: 1,
+    };
+    let (lo, hi) = box_union(ba, bb);
+    let layout = Layout::of_cells(UnionCells::new(a, b), a.k, grid, lo, hi);
+    let bl = a.block_len();
+    solve_assembled(&head, grid, lambda, offset, (lo, hi), layout, |f| {
+        let mut sum = vec![0.0; bl];
+        let (mut i, mut j) = (0, 0);
+        while i < a.cells.len() || j < b.cells.len() {
+            let x = a.cells.get(i).copied().unwrap_or(u32::MAX);
+            let y = b.cells.get(j).copied().unwrap_or(u32::MAX);
+            if x < y {
+                f(x, &a.blocks[i * bl..(i + 1) * bl]);
+                i += 1;
+            } else if y < x {
+                f(y, &b.blocks[j * bl..(j + 1) * bl]);
+                j += 1;
+            } else {
+                let (p, q) = (
+                    &a.blocks[i * bl..(i + 1) * bl],
+                    &b.blocks[j * bl..(j + 1) * bl],
+                );
+                for ((s, p), q) in sum.iter_mut().zip(p).zip(q) {
+                    *s = p + q;
+                }
+                f(x, &sum);
+                i += 1;
+                j += 1;
+            }
+        }
+    })
+}
+
+/// The fit of a one-channel system (`normal`: its moments, channels and `k`; `cells`: its cell
+/// box; `blocks` calls its argument on each `(cell, block)` in ascending cell order).
+fn solve_assembled(
+    normal: &Normal,
+    grid: &KnotGrid,
+    lambda: f64,
+    offset: &[f64],
+    cells: CellBox,
+    layout: Layout,
+    blocks: impl FnOnce(&mut dyn FnMut(u32, &[f64])),
+) -> Result<Fit, RgbdError> {
+    let m = &normal.moments;
+    let k = normal.k;
+    let (lo, hi) = cells;
+    let (lin, _) = linear_coef(normal, grid, offset);
     let Layout {
         shape,
         ref compact,
@@ -268,7 +347,6 @@ pub fn solve_one_channel(
         ..
     } = layout;
     let mean = m.mean()[0];
-    let bl = normal.block_len();
     let mut gram = BandMatrix::zeros(n_ids, bw);
     let mut rhs = vec![0.0; n_ids];
     let mut ids = vec![0usize; k];
@@ -278,8 +356,8 @@ pub fn solve_one_channel(
     let row: Vec<usize> = (0..n_ids).map(|i| i * w + gram.bw - i).collect();
     {
         let data = gram.lower_mut();
-        for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
-            for (slot, r) in ids.iter_mut().zip(layout.block_ids(*cell)) {
+        blocks(&mut |cell, block| {
+            for (slot, r) in ids.iter_mut().zip(layout.block_ids(cell)) {
                 *slot = compact[r] as usize;
             }
             let (g, rest) = block.split_at(k * k);
@@ -293,7 +371,7 @@ pub fn solve_one_channel(
                 }
                 rhs[a] += brhs[ia] - mean * ones[ia];
             }
-        }
+        });
     }
     let mut a = gram.clone();
     add_penalty(&mut a, stencils, lambda);
@@ -444,5 +522,54 @@ mod tests {
                 assert!((x - y).abs() <= 1e-10 * y.abs().max(1.0));
             }
         }
+    }
+
+    #[test]
+    fn union_from_parts_and_in_place_join_equal_the_built_union() {
+        // Segments whose cells interleave, share cells, come before and after each other.
+        let (w, h) = (200usize, 150usize);
+        let vals: Vec<f64> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                1.0 + 0.003 * x + 1e-5 * y * y + 1e-3 * ((i * 7919) % 13) as f64
+            })
+            .collect();
+        let labels: Vec<i32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                match (x, y) {
+                    (x, y) if (x / 9 + y / 11) % 3 == 0 && x < 120 => 0,
+                    (x, _) if x < 60 => 1,
+                    (_, y) if y < 70 => 2,
+                    _ => 3,
+                }
+            })
+            .collect();
+        let grid = KnotGrid::new(w, h, 8.0, 3).unwrap();
+        let full = Region::full(w, h);
+        let off = valid_mean(&vals, w, 1, full, |_| true);
+        let n = accumulate(&vals, w, h, 1, Some(&labels), 4, &grid, &off, full);
+        for (x, y) in [(0, 1), (1, 0), (0, 2), (2, 3), (3, 2), (1, 3), (0, 3)] {
+            let (a, b) = (&n[x], &n[y]);
+            let built = a.union(b);
+            let boxes = (Some(cell_box(a, &grid)), Some(cell_box(b, &grid)));
+            let want = solve_one_channel(&built, &grid, 0.1, &off).unwrap();
+            let got = solve_union(a, b, boxes, &grid, 0.1, &off).unwrap();
+            assert_eq!(got, want, "{x} + {y}");
+            let mut joined = a.clone();
+            joined.absorb(b);
+            assert_eq!(joined, built, "{x} + {y}");
+        }
+        // A chain of joins in place equals the chain of built unions.
+        let mut joined = n[2].clone();
+        let mut built = n[2].clone();
+        for y in [0, 3, 1] {
+            joined.absorb(&n[y]);
+            built = built.union(&n[y]);
+            assert_eq!(joined, built);
+        }
+        let mut empty = Normal::empty(n[0].k, 1);
+        empty.absorb(&n[1]);
+        assert_eq!(empty, Normal::empty(n[0].k, 1).union(&n[1]));
     }
 }
