@@ -16,6 +16,29 @@ pub struct Compact {
 impl Compact {
     /// Compacts `labels`.
     pub fn new(labels: &[i32]) -> Self {
+        let max = labels.iter().copied().fold(-1, i32::max);
+        if max >= 0 && max as usize <= 4 * labels.len() + 1024 {
+            // Labels up to a few times the pixel count: a presence scan and a slot table
+            // instead of sorting every pixel's label.
+            let mut slot_of = vec![-1i32; max as usize + 1];
+            for &l in labels {
+                if l >= 0 {
+                    slot_of[l as usize] = 0;
+                }
+            }
+            let mut ids = Vec::new();
+            for (l, s) in slot_of.iter_mut().enumerate() {
+                if *s == 0 {
+                    *s = ids.len() as i32;
+                    ids.push(l as i32);
+                }
+            }
+            let slots = labels
+                .par_iter()
+                .map(|&l| if l < 0 { -1 } else { slot_of[l as usize] })
+                .collect();
+            return Self { ids, slots };
+        }
         let mut ids: Vec<i32> = labels.iter().copied().filter(|&l| l >= 0).collect();
         ids.par_sort_unstable();
         ids.dedup();
@@ -60,5 +83,25 @@ mod tests {
         assert_eq!(c.slot(7), Some(1));
         assert_eq!(c.slot(8), None);
         assert!(Compact::new(&[-1, -1]).is_empty());
+        // Dense labels take the table path: the same ids and slots as the sort.
+        let c = Compact::new(&[7, -3, 5, 7, 0, -1]);
+        assert_eq!(c.ids, vec![0, 5, 7]);
+        assert_eq!(c.slots, vec![2, -1, 1, 2, 0, -1]);
+        let many: Vec<i32> = (0..3000).map(|i| (i * 37 % 1001) - 5).collect();
+        let c = Compact::new(&many);
+        let mut want: Vec<i32> = many.iter().copied().filter(|&l| l >= 0).collect();
+        want.sort_unstable();
+        want.dedup();
+        assert_eq!(c.ids, want);
+        for (&l, &s) in many.iter().zip(&c.slots) {
+            assert_eq!(
+                s,
+                if l < 0 {
+                    -1
+                } else {
+                    want.binary_search(&l).unwrap() as i32
+                }
+            );
+        }
     }
 }

@@ -102,15 +102,22 @@ pub fn solve(
     let mut rhs = vec![0.0; n_ids * c];
     let mut rhs_ridge = vec![0.0; n_ids * c];
     let mut ids = vec![0usize; k];
+    // Entry (i, j), j <= i, of the band storage at (i + 1)·bw + j: `BandMatrix::add`'s sums in
+    // the same order, without its per-entry swap and index arithmetic.
+    let abw = a.bw;
     for (cell, block) in normal.cells.iter().zip(normal.blocks.chunks(bl)) {
         for (slot, r) in ids.iter_mut().zip(layout.block_ids(*cell)) {
             *slot = compact[r] as usize;
         }
         let (gram, rest) = block.split_at(k * k);
         let (brhs, ones) = rest.split_at(k * c);
+        let data = a.lower_mut();
         for ia in 0..k {
-            for ib in 0..=ia {
-                a.add(ids[ia], ids[ib], gram[ia * k + ib]);
+            let x = ids[ia];
+            for (ib, &g) in gram[ia * k..=ia * k + ia].iter().enumerate() {
+                let y = ids[ib];
+                let (i, j) = if x >= y { (x, y) } else { (y, x) };
+                data[(i + 1) * abw + j] += g;
             }
             for ch in 0..c {
                 rhs[ids[ia] * c + ch] += brhs[ia * c + ch] - mean[ch] * ones[ia];
