@@ -39,6 +39,20 @@ CASES: list[Case] = [
         r"^pdfs: got NaN",
         "nan",
     ),
+    Case(
+        "segment_classes",
+        lambda: segment_classes(np.full((4, 4), 2**63, np.uint64), PDF),
+        ARG,
+        r"^labels: got id 9223372036854775808",
+        "u64",
+    ),
+    Case(
+        "segment_classes",
+        lambda: segment_classes(L, np.where(L[..., None] == 1, -0.5, PDF)),
+        ARG,
+        r"^pdfs: got negative",
+        "neg",
+    ),
     Case("segment", lambda: segment(RGB, DEPTH, CAM, pooling="vote"), ARG, r"^pooling", "pool"),
 ]
 

@@ -117,6 +117,9 @@ def test_bad_runs_end_in_one_line(
     assert "--data" in capsys.readouterr().err
     assert main(["eval", "shapes", "--cache", str(tmp_path / "nope")]) == 2
     assert "--cache" in capsys.readouterr().err
+    seed_only = ["shapes", "cache", "--data", str(pack), "--out", str(ok), "--scale-seed", "3"]
+    assert main(seed_only) == 2
+    assert "--scale-seed: got 3 without --scale-copies" in capsys.readouterr().err
     np.save(tmp_path / "flat.npy", sample_surface_flat())
     r = tmp_path / "r" / "last.pt"
     assert main(["classify", str(tmp_path / "flat.npy"), "--checkpoint", str(r)]) == 0

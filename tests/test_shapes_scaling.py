@@ -13,7 +13,7 @@ import rgbd_rs.shapes.dataset as D
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.meshes import Mesh, box
 from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, ShapeSource, build_cache
-from rgbd_rs.shapes.scaling import SCALE_RANGE, ScaledCopies, original_name
+from rgbd_rs.shapes.scaling import SCALE_RANGE, ScaledCopies, original_name, original_rows
 from rgbd_rs.shapes.train import _split_by_shape
 
 NORM = "lcn" if D._lcn() is not None else "standardize"
@@ -99,11 +99,20 @@ def test_cache_records_the_copies(pack: Path, tmp_path: Path) -> None:
         "scale_copies": 1,
         "scale_range": list(SCALE_RANGE),
         "scale_seed": 0,
+        "originals": 10,
     }
     vol = cache.array("volume")
     assert not np.array_equal(vol[10], vol[0]), "a copy's profiles differ from its original's"
-    with pytest.raises(RgbdError, match="other data or settings"):
+    with pytest.raises(RgbdError, match=r"other data or settings.*augmentation"):
         build_cache(PointCloudSet(pack), tmp_path / "c", spec=VOLUME, workers=1, quiet=True)
+    with pytest.raises(RgbdError, match=r"augmentation.*'scale_seed': 0.*'scale_seed': 1"):
+        build_cache(
+            ScaledCopies(PointCloudSet(pack), 1, seed=1),
+            tmp_path / "c",
+            spec=VOLUME,
+            workers=1,
+            quiet=True,
+        )
     # Validation: originals only, never a copy of a validation shape in training.
     data = cache.dataset("train")
     train, val = _split_by_shape(cache, data, 0.34, 0)
@@ -112,3 +121,44 @@ def test_cache_records_the_copies(pack: Path, tmp_path: Path) -> None:
     assert val_names and all("#" not in n for n in val_names)
     assert not {original_name(names[i]) for i in train.indices} & val_names
     assert len(train) + 2 * len(val) == len(data)
+
+
+def test_copies_follow_their_original_by_row_not_by_name(pack: Path, tmp_path: Path) -> None:
+    # Two training shapes share a name: validating one must not drop the other or its copies.
+    d = dict(np.load(pack))
+    d["name"] = np.where(d["name"] == d["name"][1], d["name"][0], d["name"])
+    dup = tmp_path / "dup.npz"
+    np.savez(dup, **d)
+    cache = build_cache(
+        ScaledCopies(PointCloudSet(dup), 2), tmp_path / "c", spec=VOLUME, workers=1, quiet=True
+    )
+    data = cache.dataset("train")
+    for seed in range(6):
+        train, val = _split_by_shape(cache, data, 0.2, seed)
+        assert len(train) + 3 * len(val) == len(data) == 18
+        rows = np.asarray(data.indices)
+        origin = original_rows(cache.meta["augmentation"], cache.splits)
+        held = set(rows[val.indices].tolist())
+        assert all(origin[rows[i]] not in held for i in train.indices)
+        assert all(origin[rows[i]] == rows[i] for i in val.indices), "validation: originals only"
+
+
+def test_too_few_originals_to_validate(tmp_path: Path) -> None:
+    cache = build_cache(ScaledCopies(_Boxes(), 3), tmp_path / "b", spec=VOLUME, quiet=True)
+    with pytest.raises(RgbdError, match=r"1 original training shape\(s\) \(\+3 scaled copies\)"):
+        _split_by_shape(cache, cache.dataset("train"), 0.1, 0)
+
+
+def test_without_copies_the_split_is_the_trainers(pack: Path, tmp_path: Path) -> None:
+    from rgbd_rs.nn.train import split
+
+    d = dict(np.load(pack))
+    d["name"] = np.char.add(d["name"], "#x")  # a '#' in a name is not a copy
+    named = tmp_path / "named.npz"
+    np.savez(named, **d)
+    cache = build_cache(PointCloudSet(named), tmp_path / "c", spec=VOLUME, workers=1, quiet=True)
+    data = cache.dataset("train")
+    for seed in range(4):
+        a, b = _split_by_shape(cache, data, 0.34, seed)
+        a2, b2 = split(data, 0.34, seed=seed)
+        assert (a.indices, b.indices) == (a2.indices, b2.indices)

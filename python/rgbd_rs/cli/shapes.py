@@ -79,7 +79,9 @@ def _cache(commands: Commands) -> None:
         "--representations ...,curvature) curvature maps into DIR: one memory-mappable float16 "
         ".npy per "
         "representation. Resumable (re-run to continue; done shapes are skipped) and sharded: "
-        "--shard i/n computes every n-th shape from i, so n scheduler tasks fill one cache.",
+        "--shard i/n computes every n-th shape from i, so n scheduler tasks fill one cache. "
+        "A re-run must repeat the first run's settings (--resolution, --representations, "
+        "--scale-copies, --scale-seed, ...).",
     )
     p.set_defaults(run=run_cache)
     p.add_argument(
@@ -125,7 +127,11 @@ def _cache(commands: Commands) -> None:
         "(point-cloud augmentation; rows NAME#s1..K; test shapes never copied; 0 = none)",
     )
     p.add_argument(
-        "--scale-seed", type=integer(0, 2**32 - 1), default=0, metavar="S", help="seed (0)"
+        "--scale-seed",
+        type=integer(0, 2**32 - 1),
+        default=0,
+        metavar="S",
+        help="seed of the copies' scale factors (0; only with --scale-copies)",
     )
     p.add_argument(
         "--shard", type=shard, default=(0, 1), metavar="i/n", help="compute shard i of n (i/n)"
@@ -140,6 +146,12 @@ def run_cache(args: argparse.Namespace) -> int:
     from rgbd_rs.shapes.dataset import InputSpec, build_cache, open_shapes
 
     src = named("--data", lambda: open_shapes(args.data))
+    if args.scale_seed and not args.scale_copies:
+        from rgbd_rs.errors import InvalidArgumentError
+
+        raise InvalidArgumentError(
+            f"--scale-seed: got {args.scale_seed} without --scale-copies, expected both or neither"
+        )
     if args.scale_copies:
         from rgbd_rs.shapes.scaling import ScaledCopies
 

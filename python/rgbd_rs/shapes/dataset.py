@@ -273,7 +273,9 @@ class ShapeSource:
         raise NotImplementedError
 
     def _index(self, index: int) -> int:
-        return _validate.integer("index", index, maximum=max(len(self) - 1, 0))
+        if len(self) == 0:
+            raise InvalidArgumentError(f"index: got {index!r}, but the source holds no shapes")
+        return _validate.integer("index", index, maximum=len(self) - 1)
 
 
 class PointCloudSet(ShapeSource):
@@ -749,9 +751,11 @@ def build_cache(
 def _check_meta(root: Path, meta: dict[str, Any]) -> None:
     cache = ShapeCache(root)
     if cache.meta != meta or len(cache) != meta["count"]:
+        keys = sorted(k for k in set(meta) | set(cache.meta) if meta.get(k) != cache.meta.get(k))
+        differ = ", ".join(f"{k}: {cache.meta.get(k)!r} there, {meta.get(k)!r} now" for k in keys)
         raise RgbdError(
-            f"{root}: a cache of other data or settings ({cache.meta.get('source')}, "
-            f"{cache.meta.get('spec')}); choose another output folder"
+            f"{root}: a cache of other data or settings ({differ or 'its row count differs'}); "
+            "repeat the first run's settings or choose another output folder"
         )
 
 

@@ -16,6 +16,7 @@ sharded cache build computes the same copies in any order.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -26,7 +27,7 @@ from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.shapes.dataset import TRAIN, Shape, ShapeSource
 
-__all__ = ["COPY_SEP", "SCALE_RANGE", "ScaledCopies", "original_name"]
+__all__ = ["COPY_SEP", "SCALE_RANGE", "ScaledCopies", "original_name", "original_rows"]
 
 #: Range of each axis' factor (DGCNN's and SimpleView's point-cloud augmentation).
 SCALE_RANGE = (2.0 / 3.0, 1.5)
@@ -34,11 +35,28 @@ SCALE_RANGE = (2.0 / 3.0, 1.5)
 COPY_SEP = "#"
 #: Most copies per training shape.
 MAX_COPIES = 64
+#: Allowed factors: far beyond them float32 points underflow to 0 or overflow to inf.
+SCALE_LIMITS = (1e-3, 1e3)
 
 
 def original_name(name: str) -> str:
     """The name of the shape a cache row was copied from (``name`` itself for an original)."""
     return name.split(COPY_SEP, 1)[0]
+
+
+def original_rows(augmentation: Mapping[str, Any] | None, splits: npt.ArrayLike) -> np.ndarray:
+    """For every row of a cache, the row of the original shape it was copied from (its own row
+    for an original), from the cache's meta.json ``augmentation`` record (None: no copies) and
+    its per-row ``splits``; the rows follow :class:`ScaledCopies`' order."""
+    sp = np.asarray(splits)
+    rows = np.arange(len(sp), dtype=np.int64)
+    if not augmentation:
+        return rows
+    n = int(augmentation["originals"])
+    train = np.flatnonzero(sp[:n] == TRAIN)
+    if len(train):
+        rows[n:] = train[(rows[n:] - n) % len(train)]
+    return rows
 
 
 class ScaledCopies(ShapeSource):
@@ -60,9 +78,10 @@ class ScaledCopies(ShapeSource):
         self.copies = _validate.integer("copies", copies, minimum=1, maximum=MAX_COPIES)
         rng = _validate.array("scale_range", scale_range, shape=(2,), dtype=np.float64)
         low, high = float(rng[0]), float(rng[1])
-        if not 0 < low <= high or not np.isfinite(high):
+        if not SCALE_LIMITS[0] <= low <= high <= SCALE_LIMITS[1]:
             raise InvalidArgumentError(
-                f"scale_range: got {tuple(scale_range)}, expected 0 < low <= high (finite)"
+                f"scale_range: got {tuple(scale_range)}, expected {SCALE_LIMITS[0]:g} <= low <= "
+                f"high <= {SCALE_LIMITS[1]:g}"
             )
         self.scale_range = (low, high)
         self.seed = _validate.integer("seed", seed, minimum=0, maximum=2**32 - 1)
@@ -91,6 +110,7 @@ class ScaledCopies(ShapeSource):
             "scale_copies": self.copies,
             "scale_range": list(self.scale_range),
             "scale_seed": self.seed,
+            "originals": len(self.base),
         }
 
     def _origin(self, index: int) -> tuple[int, int]:
@@ -110,6 +130,8 @@ class ScaledCopies(ShapeSource):
         return np.random.default_rng([self.seed, c, k]).uniform(low, high, 3)
 
     def load(self, index: int) -> Shape:
+        """Row ``index``: an original shape as its source gives it, or a copy of a training shape
+        with its axes multiplied by :meth:`scale` (a Mesh's vertices or a cloud's points)."""
         i = self._index(index)
         c, k = self._origin(i)
         shape = self.base.load(k)

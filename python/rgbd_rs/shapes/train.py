@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from torch.nn import functional as F
 from torch.utils.data import Subset
@@ -30,7 +31,7 @@ from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, parse_representations
 from rgbd_rs.shapes.augment import AugmentedShapes
 from rgbd_rs.shapes.dataset import ShapeCache
-from rgbd_rs.shapes.scaling import COPY_SEP, original_name
+from rgbd_rs.shapes.scaling import original_rows
 
 __all__ = [
     "ShapeRecipe",
@@ -187,20 +188,28 @@ def train_shapes(
 def _split_by_shape(
     cache: ShapeCache, data: Any, fraction: float, seed: int
 ) -> tuple[Subset[Any], Subset[Any]]:
-    """(train, validation) subsets of ``data``. Without scaled copies in the cache this is
-    :func:`rgbd_rs.nn.train.split`; with them (names ``NAME#sK``, see
-    :mod:`rgbd_rs.shapes.scaling`) the split is drawn over the original shapes, a
-    validation shape's copies are left out, and every copy follows its original into training."""
+    """(train, validation) subsets of ``data``. Without scaled copies in the cache (its
+    meta.json has no ``augmentation``) this is :func:`rgbd_rs.nn.train.split`; with them (see
+    :mod:`rgbd_rs.shapes.scaling`) the split is drawn over the original shapes, a validation
+    shape's copies are left out, and every copy follows its original into training."""
     from rgbd_rs.nn.train import split
 
-    names = [cache.names[int(k)] for k in data.indices]
-    if not any(COPY_SEP in n for n in names):
+    augmentation = cache.meta.get("augmentation")
+    if not augmentation:
         return split(data, fraction, seed=seed)
-    originals = [i for i, n in enumerate(names) if COPY_SEP not in n]
+    rows = np.asarray(data.indices, np.int64)
+    origin = original_rows(augmentation, cache.splits)[rows]
+    originals = np.flatnonzero(origin == rows).tolist()
+    if len(originals) < 2:
+        raise RgbdError(
+            f"{cache.path}: {len(originals)} original training shape(s) (+"
+            f"{len(rows) - len(originals)} scaled copies), too few to validate; train with "
+            "val_fraction=0"
+        )
     _, val = split(Subset(data, originals), fraction, seed=seed)
     val_pos = [originals[j] for j in val.indices]
-    held = {names[i] for i in val_pos}
-    train_pos = [i for i, n in enumerate(names) if original_name(n) not in held]
+    held = set(rows[val_pos].tolist())
+    train_pos = [i for i, o in enumerate(origin.tolist()) if o not in held]
     return Subset(data, train_pos), Subset(data, val_pos)
 
 
