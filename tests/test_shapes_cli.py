@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from modelnet_packs import modelnet10_subset
 from rgbd_rs.cli import main
 from rgbd_rs.shapes.dataset import PointCloudSet, ShapeCache, sample_surface
 
@@ -17,23 +18,8 @@ CLASSES = (1, 2, 8)  # bed, chair, table
 
 @pytest.fixture(scope="module")
 def pack(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
-    src = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz")
-    pick = [
-        i
-        for c in CLASSES
-        for s, n in ((0, 6), (1, 2))
-        for i in np.flatnonzero((src.labels == c) & (src.splits == s))[:n]
-    ]
     path = tmp_path_factory.mktemp("shapes_cli") / "pack.npz"
-    np.savez(
-        path,
-        points=src.points[pick],
-        label=np.searchsorted(CLASSES, src.labels[pick]).astype(np.int16),
-        split=src.splits[pick],
-        classes=np.array([src.classes[c] for c in CLASSES]),
-        name=np.array([src.names[i] for i in pick]),
-    )
-    return path
+    return modelnet10_subset(shared_data, path, CLASSES, ((0, 6), (1, 2)))
 
 
 def test_cache_train_eval_classify(

@@ -14,6 +14,7 @@ import torch
 import trimesh
 
 import rgbd_rs.shapes.dataset as D
+from modelnet_packs import modelnet10_subset
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.meshes import Mesh, box, load_mesh, sphere
 from rgbd_rs.shapes import density_profiles, voxelize
@@ -56,23 +57,8 @@ def off_tree(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Pat
 @pytest.fixture(scope="module")
 def mini_pack(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
     """12 shapes of the real ModelNet10 pack (2 classes x (4 train + 2 test))."""
-    src = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz")
-    pick = [
-        i
-        for c in (0, 8)
-        for s, n in ((0, 4), (1, 2))
-        for i in np.flatnonzero((src.labels == c) & (src.splits == s))[:n]
-    ]
     path = tmp_path_factory.mktemp("mini_pack") / "mini.npz"
-    np.savez(
-        path,
-        points=src.points[pick],
-        label=np.where(src.labels[pick] == 0, 0, 1).astype(np.int16),
-        split=src.splits[pick],
-        classes=np.array(["bathtub", "table"]),
-        name=np.array([src.names[i] for i in pick]),
-    )
-    return path
+    return modelnet10_subset(shared_data, path, (0, 8), ((0, 4), (1, 2)))
 
 
 def test_modelnet_packs_have_the_official_splits(shared_data: Path) -> None:

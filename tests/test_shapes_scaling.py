@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import rgbd_rs.shapes.dataset as D
+from modelnet_packs import modelnet10_subset
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.meshes import Mesh, box
 from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, ShapeSource, build_cache
@@ -23,23 +24,8 @@ VOLUME = InputSpec(representations=("volume",), normalisation=NORM)
 @pytest.fixture(scope="module")
 def pack(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
     """10 shapes of the real ModelNet10 pack: 2 classes x (3 train + 2 test)."""
-    src = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz")
-    pick = [
-        i
-        for c in (0, 8)
-        for s, n in ((0, 3), (1, 2))
-        for i in np.flatnonzero((src.labels == c) & (src.splits == s))[:n]
-    ]
     path = tmp_path_factory.mktemp("scaling") / "mini.npz"
-    np.savez(
-        path,
-        points=src.points[pick],
-        label=np.where(src.labels[pick] == 0, 0, 1).astype(np.int16),
-        split=src.splits[pick],
-        classes=np.array(["bathtub", "table"]),
-        name=np.array([src.names[i] for i in pick]),
-    )
-    return path
+    return modelnet10_subset(shared_data, path, (0, 8), ((0, 3), (1, 2)))
 
 
 def test_copies_of_training_shapes_only(pack: Path) -> None:
