@@ -14,44 +14,27 @@ pub struct Compact {
 }
 
 impl Compact {
-    /// Compacts `labels`.
+    /// Compacts `labels` (the distinct labels from `rgbd_spline::distinct_labels`: a presence
+    /// scan and a slot table when the labels are at most a few times the pixel count, else a
+    /// sort).
     pub fn new(labels: &[i32]) -> Self {
-        let max = labels.iter().copied().fold(-1, i32::max);
-        if max >= 0 && max as usize <= 4 * labels.len() + 1024 {
-            // Labels up to a few times the pixel count: a presence scan and a slot table
-            // instead of sorting every pixel's label.
-            let mut slot_of = vec![-1i32; max as usize + 1];
-            for &l in labels {
-                if l >= 0 {
-                    slot_of[l as usize] = 0;
-                }
-            }
-            let mut ids = Vec::new();
-            for (l, s) in slot_of.iter_mut().enumerate() {
-                if *s == 0 {
-                    *s = ids.len() as i32;
-                    ids.push(l as i32);
-                }
-            }
-            let slots = labels
+        let (ids, table) = rgbd_spline::distinct_labels(labels);
+        let slots = match table {
+            Some(slot_of) => labels
                 .par_iter()
                 .map(|&l| if l < 0 { -1 } else { slot_of[l as usize] })
-                .collect();
-            return Self { ids, slots };
-        }
-        let mut ids: Vec<i32> = labels.iter().copied().filter(|&l| l >= 0).collect();
-        ids.par_sort_unstable();
-        ids.dedup();
-        let slots = labels
-            .par_iter()
-            .map(|&l| {
-                if l < 0 {
-                    -1
-                } else {
-                    ids.binary_search(&l).map_or(-1, |s| s as i32)
-                }
-            })
-            .collect();
+                .collect(),
+            None => labels
+                .par_iter()
+                .map(|&l| {
+                    if l < 0 {
+                        -1
+                    } else {
+                        ids.binary_search(&l).map_or(-1, |s| s as i32)
+                    }
+                })
+                .collect(),
+        };
         Self { ids, slots }
     }
 

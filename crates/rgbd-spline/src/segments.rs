@@ -602,7 +602,7 @@ impl SegmentFits {
 /// The distinct labels >= 0 of `labels`, sorted, and (when the largest is at most a few times
 /// the pixel count) a table of each label's slot among them, `-1` for absent labels: a presence
 /// scan instead of sorting every pixel's label.
-fn distinct_labels(labels: &[i32]) -> (Vec<i32>, Option<Vec<i32>>) {
+pub fn distinct_labels(labels: &[i32]) -> (Vec<i32>, Option<Vec<i32>>) {
     let max = labels.iter().copied().fold(-1, i32::max);
     if max < 0 {
         return (Vec::new(), None);
