@@ -19,22 +19,8 @@ impl Compact {
     /// sort).
     pub fn new(labels: &[i32]) -> Self {
         let (ids, table) = rgbd_spline::distinct_labels(labels);
-        let slots = match table {
-            Some(slot_of) => labels
-                .par_iter()
-                .map(|&l| if l < 0 { -1 } else { slot_of[l as usize] })
-                .collect(),
-            None => labels
-                .par_iter()
-                .map(|&l| {
-                    if l < 0 {
-                        -1
-                    } else {
-                        ids.binary_search(&l).map_or(-1, |s| s as i32)
-                    }
-                })
-                .collect(),
-        };
+        let mut slots = rgbd_spline::label_slots(labels, &ids, table.as_deref());
+        slots.par_iter_mut().for_each(|s| *s = (*s).max(-1));
         Self { ids, slots }
     }
 

@@ -26,7 +26,7 @@ pub use height::{depth_curvatures, fit_height, view_curvatures, HeightGrid, Heig
 pub use maps::{surface_maps, SurfaceMaps};
 pub use normal::Region;
 pub use seam::{NoiseModel, SeamTest, KINECT_V1_NOISE};
-pub use segments::{distinct_labels, Criterion, PreparedMerge, SegmentFits};
+pub use segments::{distinct_labels, label_slots, Criterion, PreparedMerge, SegmentFits};
 pub use surface::{GridSurface, Jet, MAX_CHANNELS};
 
 /// Errors of the spline kernels: the workspace's one error enum (`rgbd-error`).

@@ -189,22 +189,7 @@ impl SegmentFits {
             ));
         }
         let n_labels = ids.len();
-        let slots: Vec<i32> = match &table {
-            Some(slot_of) => labels
-                .par_iter()
-                .map(|&l| if l < 0 { l } else { slot_of[l as usize] })
-                .collect(),
-            None => labels
-                .par_iter()
-                .map(|&l| {
-                    if l < 0 {
-                        l
-                    } else {
-                        ids.binary_search(&l).map_or(-1, |s| s as i32)
-                    }
-                })
-                .collect(),
-        };
+        let slots = label_slots(labels, &ids, table.as_deref());
         let labels = &slots[..];
         let full = Region::full(width, height);
         let (offset, normals, fits) = if surfaces {
@@ -475,13 +460,7 @@ impl SegmentFits {
         let k = t.normals[sj].k;
         let absorbed = std::mem::replace(&mut t.normals[sj], Normal::empty(k, 1));
         t.normals[si].absorb(&absorbed);
-        t.fits[si] = Ok(tfit);
-        t.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
-        t.boxes[si] = match (t.boxes[si], t.boxes[sj]) {
-            (Some(x), Some(y)) => Some(box_union(x, y)),
-            (x, y) => x.or(y),
-        };
-        t.boxes[sj] = None;
+        t.join(si, sj, j, tfit);
         self.parent[sj] = si;
         self.generation += 1;
         Ok(e)
@@ -534,13 +513,7 @@ impl SegmentFits {
             let k = tu.k;
             t.normals[si] = tu;
             t.normals[sj] = Normal::empty(k, 1);
-            t.fits[si] = Ok(tfit);
-            t.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
-            t.boxes[si] = match (t.boxes[si], t.boxes[sj]) {
-                (Some(x), Some(y)) => Some(box_union(x, y)),
-                (x, y) => x.or(y),
-            };
-            t.boxes[sj] = None;
+            t.join(si, sj, j, tfit);
         }
         if let Some((union, fit)) = surface {
             if self.test.is_none() {
@@ -599,6 +572,27 @@ impl SegmentFits {
     }
 }
 
+/// Each pixel's slot among `ids` (from [`distinct_labels`], with its `table` when it gave one);
+/// negative labels are kept as they are.
+pub fn label_slots(labels: &[i32], ids: &[i32], table: Option<&[i32]>) -> Vec<i32> {
+    match table {
+        Some(slot_of) => labels
+            .par_iter()
+            .map(|&l| if l < 0 { l } else { slot_of[l as usize] })
+            .collect(),
+        None => labels
+            .par_iter()
+            .map(|&l| {
+                if l < 0 {
+                    l
+                } else {
+                    ids.binary_search(&l).map_or(-1, |s| s as i32)
+                }
+            })
+            .collect(),
+    }
+}
+
 /// The distinct labels >= 0 of `labels`, sorted, and (when the largest is at most a few times
 /// the pixel count) a table of each label's slot among them, `-1` for absent labels: a presence
 /// scan instead of sorting every pixel's label.
@@ -640,6 +634,18 @@ fn no_surfaces() -> RgbdError {
 }
 
 impl TestFits {
+    /// After slot `sj` (label `j`) joined slot `si`: `si` takes the union's fit and both cell
+    /// boxes, `sj` is retired (its normal equations are the caller's business).
+    fn join(&mut self, si: usize, sj: usize, j: usize, union_fit: Fit) {
+        self.fits[si] = Ok(union_fit);
+        self.fits[sj] = Err(invalid("j", format!("segment {j}"), "a live segment"));
+        self.boxes[si] = match (self.boxes[si], self.boxes[sj]) {
+            (Some(x), Some(y)) => Some(box_union(x, y)),
+            (x, y) => x.or(y),
+        };
+        self.boxes[sj] = None;
+    }
+
     /// Fits the variance-stabilised depth (last channel of `values`) of every slot on the test
     /// grid. `labels` are slots.
     #[allow(clippy::too_many_arguments)]
