@@ -447,7 +447,11 @@ impl SegmentFits {
         let n = (self.count(si) + self.count(sj)) as f64;
         let Some(t) = self.test.as_mut() else {
             // Not reached (checked above); an error rather than a panic across the boundary.
-            return Err(invalid("fits", "no seam test", "fits built with a seam test"));
+            return Err(invalid(
+                "fits",
+                "no seam test",
+                "fits built with a seam test",
+            ));
         };
         let tfit = solve_union(
             &t.normals[si],
