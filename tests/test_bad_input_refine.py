@@ -8,7 +8,7 @@ import pytest
 
 from bad_input import Case, check, params
 from rgbd_rs import InvalidArgumentError, PinholeCamera, ShapeMismatchError
-from rgbd_rs.segmentation import segment, segment_classes
+from rgbd_rs.segmentation import merge_regions, segment, segment_classes
 
 SHAPE = ShapeMismatchError
 ARG = InvalidArgumentError
@@ -18,6 +18,9 @@ PDF = np.full((4, 4, 2), 0.5, np.float32)
 CAM = PinholeCamera(40.0, 40.0, 15.5, 11.5, 32, 24)
 RGB = np.zeros((24, 32, 3), np.uint8)
 DEPTH = np.full((24, 32), 2.0, np.float32)
+P = np.dstack([*np.meshgrid(np.arange(4.0), np.arange(4.0)), np.full((4, 4), 2.0)]).astype(
+    np.float32
+)
 
 CASES: list[Case] = [
     Case("segment_classes", lambda: segment_classes(L, PDF, "max"), ARG, r"^pooling: got 'max'"),
@@ -54,6 +57,13 @@ CASES: list[Case] = [
         "neg",
     ),
     Case("segment", lambda: segment(RGB, DEPTH, CAM, pooling="vote"), ARG, r"^pooling", "pool"),
+    Case(
+        "merge_regions",
+        lambda: merge_regions(L, P, pdfs=PDF, pooling="max"),
+        ARG,
+        r"^pooling: got 'max'",
+        "pool",
+    ),
 ]
 
 

@@ -57,5 +57,9 @@ def test_segment_pools_as_asked() -> None:
     assert b.pooling == "mean" and a.pooling == "majority"
     np.testing.assert_array_equal(a.labels, b.labels)
     np.testing.assert_array_equal(a.semantic, a.merge.semantic)
+    np.testing.assert_array_equal(a.semantic, segment_classes(a.labels, pdfs, "majority"))
+    # Mean pooling from the merge's native descriptor sums equals the numpy pooling.
+    np.testing.assert_array_equal(b.semantic, b.merge.semantic)
     np.testing.assert_array_equal(b.semantic, segment_classes(b.labels, pdfs, "mean"))
+    assert not np.array_equal(a.semantic, b.semantic), "the two poolings differ on this frame"
     assert b.refined_labels is not None and (b.refined_labels >= 0).all()

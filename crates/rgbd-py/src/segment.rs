@@ -98,11 +98,12 @@ pub fn segment_boundaries<'py>(
 }
 
 /// Algorithm 1 on the live segments of `fits` (merged in place): `(labels, kept, absorbed,
-/// score, errors (M, 3) = kept, absorbed, union, semantic)`, `semantic` the majority class of
-/// each final segment (argmax votes of its pixels, counted in the descriptors' pass), `None`
-/// without `pdfs` (the fit-only baseline).
+/// score, errors (M, 3) = kept, absorbed, union, semantic)`, `semantic` the class of each final
+/// segment from the descriptors' pass: the majority of its pixels' argmax votes, or with `mean`
+/// the argmax of its PDF sums (eq. 4.6's descriptor; first maximum on ties); `None` without
+/// `pdfs` (the fit-only baseline).
 #[pyfunction]
-#[pyo3(signature = (fits, pairs, pdfs, t_sim))]
+#[pyo3(signature = (fits, pairs, pdfs, t_sim, mean=false))]
 #[allow(clippy::type_complexity)]
 pub fn merge_regions<'py>(
     py: Python<'py>,
@@ -110,6 +111,7 @@ pub fn merge_regions<'py>(
     pairs: PyReadonlyArray2<'py, i32>,
     pdfs: Option<PyReadonlyArray3<'py, f32>>,
     t_sim: f64,
+    mean: bool,
 ) -> PyResult<(
     Arr2<'py, i32>,
     Arr1<'py, i32>,
@@ -158,10 +160,17 @@ pub fn merge_regions<'py>(
             }
             None => Priority::FitGain,
         };
-        let votes = match &priority {
-            Priority::Similarity { descriptors, .. } => {
-                Some((descriptors.votes.clone(), descriptors.classes))
-            }
+        // Per initial segment and class, what the final segment's class is chosen from.
+        let scores = match &priority {
+            Priority::Similarity { descriptors, .. } => Some(if mean {
+                (
+                    Vec::new(),
+                    Some(descriptors.sums.clone()),
+                    descriptors.classes,
+                )
+            } else {
+                (descriptors.votes.clone(), None, descriptors.classes)
+            }),
             Priority::FitGain => None,
         };
         let mut model = LabelledFits {
@@ -180,15 +189,12 @@ pub fn merge_regions<'py>(
                 }
             })
             .collect();
-        // Each final segment's votes are the sum of its initial segments'.
-        let semantic = votes.map(|(initial, classes)| {
-            let mut total = vec![0u32; initial.len()];
-            for (s, &r) in merged.root.iter().enumerate() {
-                for c in 0..classes {
-                    total[r * classes + c] += initial[s * classes + c];
-                }
-            }
-            let cls = majority_of_votes(&total, classes);
+        // Each final segment's votes (or PDF sums) are the sum of its initial segments'.
+        let semantic = scores.map(|(votes, sums, classes)| {
+            let cls = match sums {
+                Some(sums) => final_classes(&sums, &merged.root, classes),
+                None => final_classes(&votes, &merged.root, classes),
+            };
             compact
                 .slots
                 .iter()
@@ -220,6 +226,21 @@ pub fn merge_regions<'py>(
         to_numpy(py, (steps.len(), 3), errors)?,
         semantic.map(|v| to_numpy(py, (h, w), v)).transpose()?,
     ))
+}
+
+/// Each final segment's class: the per-class `initial` scores (votes or PDF sums, `n x
+/// classes`) of its initial segments summed over `root`, then their [`majority_of_votes`].
+fn final_classes<T>(initial: &[T], root: &[usize], classes: usize) -> Vec<i32>
+where
+    T: Copy + Default + PartialOrd + std::ops::AddAssign,
+{
+    let mut total = vec![T::default(); initial.len()];
+    for (s, &r) in root.iter().enumerate() {
+        for c in 0..classes {
+            total[r * classes + c] += initial[s * classes + c];
+        }
+    }
+    majority_of_votes(&total, classes)
 }
 
 /// Checks of `H x W x C` class PDFs in one pass: `(non-finite values, smallest finite value,

@@ -140,14 +140,15 @@ fn argmax_group(ps: &[f32], classes: usize, best: &mut [usize; PDF_GROUP]) {
     }
 }
 
-/// Per segment of `votes` (`n x classes`), the class with the most votes (the smaller on
-/// ties), `-1` for a segment without votes.
-pub fn majority_of_votes(votes: &[u32], classes: usize) -> Vec<i32> {
+/// Per segment of `votes` (`n x classes`; counts, or any non-negative scores such as the PDF
+/// sums of [`Descriptors`]), the class with the most (the smaller on ties), `-1` for a segment
+/// whose scores are all zero (no pixels).
+pub fn majority_of_votes<T: PartialOrd + Copy + Default>(votes: &[T], classes: usize) -> Vec<i32> {
     votes
         .chunks_exact(classes)
         .map(|v| {
             let best = argmax(v);
-            if v[best] == 0 {
+            if v[best] == T::default() {
                 -1
             } else {
                 best as i32

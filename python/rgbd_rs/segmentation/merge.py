@@ -19,6 +19,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
+from rgbd_rs.segmentation.refine import POOLINGS
 from rgbd_rs.surface import SegmentFits
 
 __all__ = [
@@ -71,8 +72,8 @@ class MergeResult:
     history: tuple[MergeStep, ...]
     #: ``"similarity"`` (Algorithm 1 with PDFs) or ``"fit"`` (fit-only baseline).
     mode: str
-    #: ``H x W`` int32 class of each final segment (majority of its pixels' argmax), -1 = none;
-    #: None without PDFs.
+    #: ``H x W`` int32 class of each final segment (by the ``pooling`` of :func:`merge_regions`:
+    #: the majority of its pixels' argmax by default), -1 = none; None without PDFs.
     semantic: np.ndarray | None = None
 
     @property
@@ -239,6 +240,7 @@ def merge_regions(
     max_depth_step: float = T_D,
     max_color_distance: float = T_C,
     max_normal_angle: float = T_THETA_DEG,
+    pooling: str = "majority",
 ) -> MergeResult:
     """Merges the segments of ``labels`` (``H x W`` int, -1 = none) by Algorithm 1.
 
@@ -246,8 +248,10 @@ def merge_regions(
     depth test of the adjacency; ``lab`` and ``normals`` (``H x W x 3``) its colour and normal
     tests (see :func:`adjacency`; ``touching=True`` skips them). With ``pdfs`` (``H x W x C``
     per-pixel class probabilities summing to 1) couples are ordered and gated by their
-    similarity (eq. 4.6-4.7, threshold ``t_sim``) and each segment gets the majority class; without
-    them the fit-only baseline merges couples in order of fit improvement.
+    similarity (eq. 4.6-4.7, threshold ``t_sim``) and each final segment gets a class
+    (``pooling``: ``"majority"``, the most common per-pixel argmax, or ``"mean"``, the argmax of
+    its mean PDF, eq. 4.6's descriptor; as :func:`rgbd_rs.segmentation.refine.segment_classes`);
+    without them the fit-only baseline merges couples in order of fit improvement.
 
     ``fits`` lets callers choose the fit options (:class:`~rgbd_rs.surface.SegmentFits` built on
     the same ``points`` and ``labels``); it is merged in place and afterwards describes the final
@@ -259,6 +263,7 @@ def merge_regions(
     pts = _validate.array("points", points, shape=(*shape, 3))
     p = None if pdfs is None else _pdfs(pdfs, shape)
     t = _validate.real("t_sim", t_sim, nonnegative=True)
+    pool = _validate.choice("pooling", pooling, POOLINGS)
     if t > 1.0:
         raise InvalidArgumentError(f"t_sim: got {t_sim!r}, expected a similarity in [0, 1]")
     if fits is None:
@@ -283,9 +288,11 @@ def merge_regions(
         max_color_distance=max_color_distance,
         max_normal_angle=max_normal_angle,
     )
-    # semantic: each final segment's majority class, from votes counted in the native
+    # semantic: each final segment's class, from the votes or PDF sums of the native
     # descriptors' pass (None without PDFs).
-    out, kept, absorbed, score, errors, semantic = _rgbd_rs.merge_regions(fits._native, pairs, p, t)
+    out, kept, absorbed, score, errors, semantic = _rgbd_rs.merge_regions(
+        fits._native, pairs, p, t, pool == "mean"
+    )
     history = tuple(
         MergeStep(int(k), int(a), float(s), float(e[0]), float(e[1]), float(e[2]))
         for k, a, s, e in zip(kept, absorbed, score, errors, strict=True)

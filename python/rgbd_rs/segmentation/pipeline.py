@@ -22,7 +22,7 @@ from rgbd_rs.segmentation.features import Features, features
 from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
 from rgbd_rs.segmentation.merge import MergeResult, merge_regions
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
-from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS, segment_classes
+from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS
 from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, class_pdfs, resolve_labeler
 from rgbd_rs.surface import SegmentFits
 
@@ -137,18 +137,17 @@ def segment(
         )
         lap("semantic")
     normals = None if touching else square_normals(depth, camera, radius=ADJACENCY_NORMAL_RADIUS)
+    # The merge's own descriptors (eq. 4.6 sums, argmax votes) give each final segment's class.
     merged = merge_regions(
-        over, f.points, pdfs=pdfs, lab=f.lab, normals=normals, touching=touching, fits=fits
+        over,
+        f.points,
+        pdfs=pdfs,
+        lab=f.lab,
+        normals=normals,
+        touching=touching,
+        fits=fits,
+        pooling=pooling,
     )
-    used = None if merged.mode == "fit" else np.asarray(pdfs, np.float32)
-    semantic = None
-    if used is not None:
-        # The native merge already counted majority votes; mean pooling needs the PDF sums.
-        semantic = (
-            merged.semantic
-            if pooling == "majority"
-            else segment_classes(merged.labels, used, pooling)
-        )
     lap("merge")
     return Segmentation(
         over=over,
@@ -157,7 +156,7 @@ def segment(
         features=f,
         fits=fits,
         seconds=seconds,
-        pdfs=used,
-        semantic=semantic,
+        pdfs=None if merged.mode == "fit" else np.asarray(pdfs, np.float32),
+        semantic=merged.semantic,
         pooling=pooling,
     )
