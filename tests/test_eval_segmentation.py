@@ -143,13 +143,18 @@ def test_our_stages_plug_in(monkeypatch: pytest.MonkeyPatch) -> None:
     ours = [m for m in E.default_methods() if m.kind == "ours" and m.name != E.OURS_FULL]
     report = E.evaluate([46], tuning_frames=[1], methods=ours, quiet=True)
     assert [s.name for s in report.scores] == [E.OURS_OVER, E.OURS_MERGED]
-    # Tuning: the over-segmentation grid on frame 1; evaluation: once more, and no third run
-    # for the same-count line (the pipeline's own over-segmentation at 300 is reused).
-    assert calls == {"oversegment": len(E.OVERSEGMENT_GRID) + 1, "segment": 1}
+    # Tuning: both grids on frame 1; evaluation: once more each, and no third over-segmentation
+    # for the same-count line when the merging was tuned to start from the same clusters (its
+    # over-segmentation is reused).
+    merged = report.scores[1]
+    reused = merged.params["n_segments"] == E.COUNT_MATCH_SEGMENTS
+    assert calls == {
+        "oversegment": len(E.OVERSEGMENT_GRID) + 1 + (0 if reused else 1),
+        "segment": len(E.MERGE_GRID) + 1,
+    }
+    assert merged.params in E.MERGE_GRID and not np.isnan(merged.tuning_voi)
     c = report.count_match
     assert c is not None and 150 < c.segments_ours < 400
-    merged = report.scores[1]
-    assert merged.segments < c.segments_ours / 4
 
 
 def test_slic_at_matches_the_count() -> None:
@@ -281,3 +286,23 @@ def test_full_method_row_scores_the_labels() -> None:
     for acc in (*sem.network_accuracy, *sem.refined_accuracy):
         assert 0 <= acc <= 1
     assert "after segment refinement" in sem.table() and "| wall |" in sem.per_class_table()
+
+
+def test_tuning_runs_of_the_full_method_are_not_scored() -> None:
+    """The full method tuned on one frame, evaluated on another after a peer: the semantic
+    scores hold the evaluation frame only (a tuning run's labels must not leak into them)."""
+    import torch
+
+    from rgbd_rs.data.nyuv2 import LABEL13_NAMES
+    from rgbd_rs.nn.semantic import SemanticNet
+    from rgbd_rs.segmentation.labeling import SemanticLabeler
+
+    torch.manual_seed(0)
+    tiny = SemanticLabeler(SemanticNet(14, width=8, lcn_window=5), (80, 60), LABEL13_NAMES)
+    full = next(m for m in E.default_methods(labeler=tiny) if m.name == E.OURS_FULL)
+    assert full.grid == E.MERGE_GRID and len(full.grid) > 1  # tuned like the peers
+    full = E.Method(E.OURS_FULL, full.make, ({"n_segments": 30}, {"n_segments": 60}), "ours")
+    report = E.evaluate([46], tuning_frames=[1], methods=[FZ_D, full], quiet=True)
+    sem = report.semantic
+    assert sem is not None and sem.frames == 1
+    assert sem.network.sum() == int((load_nyuv2_frame(46).label13 > 0).sum())
