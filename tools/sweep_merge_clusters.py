@@ -1,0 +1,66 @@
+"""Fit-only merging against the NYUv2 region ground truth at several over-segmentation sizes.
+
+Usage: python tools/sweep_merge_clusters.py train|test N [N ...]
+
+For each N (k-means clusters of the over-segmentation the merging starts from), runs
+``segment(..., labeler=None, n_segments=N)`` on the split's frames and prints the mean VoI,
+Rand index and final segment count, after Felzenszwalb (RGB-D) at the evaluation's tuned
+parameters for comparison (README, segmentation accuracy).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from rgbd_rs import metrics
+from rgbd_rs.data.nyuv2 import (
+    NYUV2_CAMERA,
+    NyuFrame,
+    load_nyuv2_frame,
+    nyuv2_frames,
+    region_ground_truth,
+)
+from rgbd_rs.segmentation.evaluate import felzenszwalb_rgbd
+from rgbd_rs.segmentation.pipeline import segment
+
+
+def score(name: str, frames: list[NyuFrame], run: Callable[[NyuFrame], np.ndarray]) -> None:
+    v, r, c = [], [], []
+    t0 = time.time()
+    for f in frames:
+        gt = region_ground_truth(f.label40)
+        labels = run(f)
+        v.append(metrics.variation_of_information(labels, gt, ignore=-1))
+        r.append(metrics.rand_index(labels, gt, ignore=-1))
+        c.append(len(np.unique(labels[labels >= 0])))
+    print(
+        f"{name}: VoI {np.mean(v):.3f} RI {np.mean(r):.3f} segments {np.mean(c):.0f} "
+        f"({time.time() - t0:.0f} s)",
+        flush=True,
+    )
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) < 2 or argv[0] not in ("train", "test"):
+        print(__doc__)
+        return 2
+    frames = [load_nyuv2_frame(i) for i in nyuv2_frames(argv[0])]
+    felz = felzenszwalb_rgbd(scale=300, min_size=2500, depth_weight=100)
+    score("felzenszwalb (RGB-D)", frames, lambda f: felz(f.rgb, f.depth, NYUV2_CAMERA))
+    for n in (int(a) for a in argv[1:]):
+        score(
+            f"fit-only merging, {n} clusters",
+            frames,
+            lambda f, n=n: (
+                segment(f.rgb, f.depth, NYUV2_CAMERA, labeler=None, n_segments=n, seed=0).labels
+            ),
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
