@@ -284,6 +284,13 @@ CASES: list[Case] = [
     ),
     Case(
         "reproject_depth",
+        lambda: reproject_depth(np.full((6, 8), 1500, np.uint16), CAM, CAM, Pose()),
+        ARG,
+        r"^depth: got dtype uint16, expected float depth in metres .*millimetres",
+        "raw millimetres",
+    ),
+    Case(
+        "reproject_depth",
         lambda: reproject_depth(DEPTH, CAM, CAM, "x"),
         ARG,
         r"^pose: got str",

@@ -30,7 +30,7 @@ from rgbd_rs.nn.shapes import (
     view_pools,
     volume_pools,
 )
-from rgbd_rs.shapes.classify import ShapeClassifier, classify, weights_path
+from rgbd_rs.shapes.classify import ShapeClassifier, classify, to_z_up, weights_path
 from rgbd_rs.shapes.dataset import (
     InputSpec,
     OffTree,
@@ -534,6 +534,19 @@ ALL_CASES: list[Case] = [
         ARG,
         r"^shape: got 1 non-finite",
         "nan",
+    ),
+    Case(
+        "classify",
+        lambda: classify(np.zeros((4, 3), np.float32), checkpoint=CKPT, up="-z"),
+        ARG,
+        r"^up: got '-z', expected one of",
+        "up",
+    ),
+    Case(
+        "to_z_up",
+        lambda: to_z_up(np.zeros((4, 3), np.float32), "up"),
+        ARG,
+        r"^up: got 'up', expected one of",
     ),
     Case(
         "classify",

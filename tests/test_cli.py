@@ -135,6 +135,8 @@ def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str)
         "calibration is a list",
         "a camera lacks a key",
         "bad --reference",
+        "8-bit depth PNG",
+        "bad --depth-scale",
     ],
 )
 def test_bad_fuse_runs_end_in_one_line(
@@ -183,8 +185,42 @@ def test_bad_fuse_runs_end_in_one_line(
             ("--calib", "k.json", "calibration: camera 'tof' has no key 'fx'"),
         ),
         "bad --reference": ({"reference": Path("middle")}, ("--reference", "'middle'")),
+        "8-bit depth PNG": (
+            {"tof_depth": _png(tmp_path / "d8.png", np.full((424, 512), 200, np.uint8))},
+            ("--tof-depth", "d8.png", "8-bit PNG", "16-bit"),
+        ),
+        "bad --depth-scale": ({"depth_scale": Path("0")}, ("--depth-scale", "got 0")),
     }[case]
     _assert_one_line_error(run(*_fuse_argv(good, **replace)), *needles)
+
+
+def _png(path: Path, arr: np.ndarray) -> Path:
+    import cv2
+
+    assert cv2.imwrite(str(path), arr)
+    return path
+
+
+def test_load_map_depth_units_and_reproject_output(tmp_path: Path) -> None:
+    """--depth-scale converts a 16-bit PNG; 8-bit depth PNGs are refused; a .npz from `rgbd
+    reproject` (depth + amplitude) gives its depth."""
+    from rgbd_rs import InvalidArgumentError
+    from rgbd_rs.cli.fusion import load_map
+
+    png = _png(tmp_path / "d.png", np.array([[1234, 0], [5000, 65535]], np.uint16))
+    mm = load_map("--depth", png, png_scale=1e-3, depth=True)
+    np.testing.assert_allclose(mm, [[1.234, np.nan], [5.0, 65.535]], rtol=1e-6)
+    tum = load_map("--depth", png, png_scale=1 / 5000, depth=True)
+    np.testing.assert_allclose(tum, mm / 5, rtol=1e-6)
+    with pytest.raises(InvalidArgumentError, match=r"^--depth: .*d8\.png: got an 8-bit PNG"):
+        load_map("--depth", _png(tmp_path / "d8.png", np.ones((2, 2), np.uint8)), depth=True)
+    amp8 = load_map("--tof-amplitude", tmp_path / "d8.png")  # any map but depth may be 8-bit
+    assert amp8.dtype == np.float32
+    npz = tmp_path / "r.npz"
+    np.savez(npz, depth=np.full((2, 3), 1.5, np.float32), amplitude=np.ones((2, 3)))
+    np.testing.assert_array_equal(load_map("--depth", npz, depth=True), np.full((2, 3), 1.5))
+    with pytest.raises(InvalidArgumentError, match=r"expected exactly one array"):
+        load_map("--tof-amplitude", npz)
 
 
 def _save(path: Path, arr: np.ndarray) -> Path:

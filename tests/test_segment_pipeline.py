@@ -52,6 +52,16 @@ def test_deterministic(frame, result) -> None:  # type: ignore[no-untyped-def]
     np.testing.assert_array_equal(again.labels, result.labels)
 
 
+def test_depth_in_a_wrong_unit_warns(frame) -> None:  # type: ignore[no-untyped-def]
+    """0.1 mm (or TUM's 1/5000 m) read as millimetres: ten (five) times too far, which the
+    features accept, so segment() warns naming the unit."""
+    with pytest.warns(RuntimeWarning, match=r"^depth: median .* check the depth unit"):
+        segment(frame.rgb, frame.depth * 10, NYUV2_CAMERA, n_segments=20, labeler=None)
+    from rgbd_rs.segmentation.pipeline import depth_unit_warning
+
+    assert depth_unit_warning(NYUV2_CAMERA.depth_to_points(frame.depth)) is None
+
+
 def test_cli_writes_labels_overlay_and_frames(tmp_path: Path) -> None:
     root = data_root()
     assert root is not None

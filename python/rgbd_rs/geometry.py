@@ -105,7 +105,8 @@ def reproject_depth(
     ``splat_radius=0`` the output is the sparse sampling the upsampling stage expects.
 
     Args:
-        depth: ``H_s x W_s`` depth (z, metres) on the source lattice; NaN/<= 0 invalid.
+        depth: ``H_s x W_s`` float depth (z, metres, the unit of ``pose``'s translation) on
+            the source lattice; NaN/<= 0 invalid. Integer maps (raw millimetres) are refused.
         source, target: the two cameras (with their distortion).
         pose: rigid transform from the source frame to the target frame.
         channels: optional ``H_s x W_s`` or ``H_s x W_s x C`` values (e.g. ToF amplitude)
@@ -120,6 +121,11 @@ def reproject_depth(
     if not isinstance(pose, Pose):
         raise InvalidArgumentError(f"pose: got {type(pose).__name__}, expected a Pose")
     d = _validate.array("depth", depth, shape=(source.height, source.width))
+    if isinstance(depth, np.ndarray) and depth.dtype.kind in "iub":
+        raise InvalidArgumentError(
+            f"depth: got dtype {depth.dtype}, expected float depth in metres (a raw 16-bit "
+            "depth image is usually millimetres: pass depth_mm / 1000)"
+        )
     ch = None
     squeeze = False
     if channels is not None:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs.cli._args import Commands, integer, named
+from rgbd_rs.cli._args import Commands, integer, named, real
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 #: 16-bit disparity PNGs store disparity x 256 (the KITTI convention); 0 = invalid.
@@ -23,7 +23,7 @@ FUSE_DESCRIPTION = (
     "OUT/fused.npz (float32 maps), OUT/disparity.png (16-bit, disparity x 256), OUT/depth_mm.png "
     "(16-bit millimetres) and OUT/preview.png, and prints the SGM search range and the share of "
     "valid pixels of each input and of the result. Maps: .npy/.npz in metres, or 16-bit PNG in "
-    "millimetres (depth). The amplitude may be in any unit."
+    "millimetres (depth; --depth-scale for other units). The amplitude may be in any unit."
 )
 
 #: The calibration JSON layout (rgbd_rs.data.calibration), shown by `rgbd fuse --help`.
@@ -68,6 +68,13 @@ def register(commands: Commands) -> None:
     )
     fz.add_argument(
         "--tof-amplitude", type=Path, required=True, help="ToF amplitude (.npy/.npz/.png)"
+    )
+    fz.add_argument(
+        "--depth-scale",
+        type=real(0.0, 1e3),
+        default=DEPTH_PNG_SCALE,
+        metavar="M",
+        help=DEPTH_SCALE_HELP,
     )
     fz.add_argument("--calib", type=Path, required=True, help="rig calibration JSON")
     fz.add_argument("--out", type=Path, required=True, help="output folder")
@@ -136,9 +143,22 @@ def register(commands: Commands) -> None:
     ef.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def load_map(flag: str, path: Path, *, png_scale: float = 1.0) -> npt.NDArray[np.float32]:
-    """The ``H x W`` map of ``flag``'s file: .npy, a single-array .npz, or a PNG (values x
-    ``png_scale``, 0 = invalid). Bad files raise an RgbdError naming ``flag`` and the file."""
+#: Metres per unit of a 16-bit depth PNG unless ``--depth-scale`` says otherwise (millimetres,
+#: as NYUv2, Kinect and Azure Kinect store them).
+DEPTH_PNG_SCALE = 1e-3
+DEPTH_SCALE_HELP = (
+    "metres per unit of a 16-bit depth PNG (default 0.001: millimetres; 0.0002 for TUM's 5000 "
+    "per metre, 0.0001 for 0.1 mm); .npy/.npz depth is always metres"
+)
+
+
+def load_map(
+    flag: str, path: Path, *, png_scale: float = 1.0, depth: bool = False
+) -> npt.NDArray[np.float32]:
+    """The ``H x W`` map of ``flag``'s file: .npy, a .npz with one array (or, for a ``depth``
+    map, one named ``depth``, as `rgbd reproject` writes), or a PNG (values x ``png_scale``,
+    0 = invalid; a ``depth`` PNG must have 16 bits). Bad files raise an RgbdError naming
+    ``flag`` and the file."""
     from rgbd_rs.io import read_npy, read_npz, read_png
 
     suffix = path.suffix.lower()
@@ -148,14 +168,22 @@ def load_map(flag: str, path: Path, *, png_scale: float = 1.0) -> npt.NDArray[np
             raise ShapeMismatchError(
                 f"{flag}: {path}: got a PNG of shape {raw.shape}, expected a single channel"
             )
+        if depth and raw.dtype != np.uint16:
+            raise InvalidArgumentError(
+                f"{flag}: {path}: got an 8-bit PNG, expected a 16-bit depth PNG (8 bits cannot "
+                "hold depth; save 16-bit millimetres, or .npy in metres)"
+            )
         return np.where(raw > 0, raw * png_scale, np.nan).astype(np.float32)
     if suffix == ".npy":
         arr = named(flag, lambda: read_npy(path))
     elif suffix == ".npz":
         arrays = named(flag, lambda: read_npz(path))
+        if depth and len(arrays) > 1 and "depth" in arrays:
+            arrays = {"depth": arrays["depth"]}
         if len(arrays) != 1:
+            expected = "one array, or one named 'depth'" if depth else "exactly one array"
             raise InvalidArgumentError(
-                f"{flag}: {path}: got arrays {sorted(arrays)}, expected exactly one array"
+                f"{flag}: {path}: got arrays {sorted(arrays)}, expected {expected}"
             )
         (arr,) = arrays.values()
     else:
@@ -184,7 +212,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     rig = named("--calib", lambda: load_rig(args.calib))
     left = named("--left", lambda: read_png(args.left))
     right = named("--right", lambda: read_png(args.right))
-    depth = load_map("--tof-depth", args.tof_depth, png_scale=1e-3)
+    depth = load_map("--tof-depth", args.tof_depth, png_scale=args.depth_scale, depth=True)
     amp = load_map("--tof-amplitude", args.tof_amplitude)
     conf: object = args.confidence
     if args.weights is not None:

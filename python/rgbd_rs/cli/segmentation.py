@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rgbd_rs.cli._args import Commands, integer, named
+from rgbd_rs.cli._args import Commands, integer, named, real
+from rgbd_rs.cli.fusion import DEPTH_PNG_SCALE, DEPTH_SCALE_HELP
 
 DESCRIPTION = (
     "Segment an RGB-D frame: 9-D colour/position/normal features (eq. 4.1), normalized-cuts "
@@ -38,7 +39,15 @@ def register(commands: Commands) -> None:
         "--depth",
         type=Path,
         required=True,
-        help="depth registered to the colour image (.npy/.npz metres, .png millimetres)",
+        help="depth registered to the colour image (.npy/.npz metres, 16-bit .png millimetres "
+        "or --depth-scale)",
+    )
+    p.add_argument(
+        "--depth-scale",
+        type=real(0.0, 1e3),
+        default=DEPTH_PNG_SCALE,
+        metavar="M",
+        help=DEPTH_SCALE_HELP,
     )
     p.add_argument(
         "--calib",
@@ -85,7 +94,7 @@ def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.viz import outline_segments, paint_segments, save_png
 
     rgb = named("--rgb", lambda: read_png(args.rgb))
-    depth = load_map("--depth", args.depth, png_scale=1e-3)
+    depth = load_map("--depth", args.depth, png_scale=args.depth_scale, depth=True)
     camera = named("--calib", lambda: load_camera(args.calib))
     pdfs = None if args.pdfs is None else named("--pdfs", lambda: read_npy(args.pdfs))
     n = DEFAULT_N_SEGMENTS if args.segments is None else args.segments

@@ -36,7 +36,8 @@ def _classify(commands: Commands) -> None:
         description="Classify a mesh (.off, .obj, .ply) or a point cloud (.npy, .npz, .ply "
         "without faces, .pcd) with the 15-branch ConvNet of thesis ch. 5: the weights shipped "
         "in the package (ModelNet40 when shipped, else ModelNet10) or --checkpoint. Prints the "
-        "top classes with their probabilities.",
+        "top classes with their probabilities. Shapes are taken as z-up (ModelNet's "
+        "alignment); --up y for y-up files.",
     )
     p.add_argument("file", type=Path, metavar="FILE", help="mesh or point-cloud file")
     p.add_argument(
@@ -46,6 +47,13 @@ def _classify(commands: Commands) -> None:
         "--dataset", choices=("modelnet10", "modelnet40"), help="which shipped weights to use"
     )
     p.add_argument("--top", type=integer(1), default=5, metavar="N", help="classes to print (5)")
+    p.add_argument(
+        "--up",
+        choices=("z", "y", "x"),
+        default="z",
+        help="the shape's up axis (default z, ModelNet's; many PLY/OBJ files are y-up): the "
+        "networks were trained on z-up shapes, and a shape on its side is misclassified",
+    )
 
 
 def run_classify(args: argparse.Namespace) -> int:
@@ -57,7 +65,7 @@ def run_classify(args: argparse.Namespace) -> int:
         lambda: ShapeClassifier.load(args.checkpoint, dataset=args.dataset),
     )
     shape = load_shape(args.file)
-    best, probs = clf(shape)
+    best, probs = clf(shape, up=args.up)
     print(f"{args.file}: {best}")
     for name, prob in list(probs.items())[: args.top]:
         print(f"  {prob:6.1%}  {name}")
@@ -312,7 +320,9 @@ def _eval(commands: Commands) -> None:
         description="Accuracy of shape-classifier checkpoints on a cache's test split (ModelNet's "
         "official one): overall and per-class accuracy and the confusion matrix (markdown + PNG "
         "heat map in the --out folder). --ablation DIR evaluates every DIR/<row>/best.pt written "
-        "by `rgbd train shapes --ablation`; Table 5.2 goes to ablation.md in the --out folder.",
+        "by `rgbd train shapes --ablation`; Table 5.2 goes to ablation.md in the --out folder. "
+        "Caches must match the network: the shipped weights take --resolution 32 with "
+        "--representations depth,volume,curvature.",
     )
     p.add_argument(
         "--cache", type=Path, required=True, metavar="DIR", help="`rgbd shapes cache` folder"
@@ -349,6 +359,7 @@ def _eval(commands: Commands) -> None:
         action="store_true",
         help="average the probabilities over each shape and its mirror image (x -> -x)",
     )
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -385,18 +396,20 @@ def run_eval(args: argparse.Namespace) -> int:
                 device=args.device,
                 turns=args.turns,
                 mirror=args.mirror,
+                quiet=args.quiet,
             )
 
-        res = named(str(ck), one)
+        res = named("--ablation" if args.ablation is not None else "--checkpoint", one)
         stem = row_name(res.representations)
         if any(row_name(r.representations) == stem for r in results):
             stem = f"{stem}_{len(results)}"  # two checkpoints of one row keep both reports
         res.write(args.out, stem)
         results.append(res)
         print(res.summary())
-    label = args.label or str(cache.meta.get("source", "dataset")).split("_")[0]
-    table = ablation_markdown({label: results})
-    (args.out / "ablation.md").write_text(table + "\n")
-    print(table)
+    if args.ablation is not None:
+        label = args.label or str(cache.meta.get("source", "dataset")).split("_")[0]
+        table = ablation_markdown({label: results})
+        (args.out / "ablation.md").write_text(table + "\n")
+        print(table)
     print(f"reports in {args.out}")
     return 0

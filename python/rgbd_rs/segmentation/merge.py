@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.segmentation.refine import POOLINGS
+from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS
 from rgbd_rs.surface import SegmentFits
 
 __all__ = [
@@ -240,7 +240,7 @@ def merge_regions(
     max_depth_step: float = T_D,
     max_color_distance: float = T_C,
     max_normal_angle: float = T_THETA_DEG,
-    pooling: str = "majority",
+    pooling: str = DEFAULT_POOLING,
 ) -> MergeResult:
     """Merges the segments of ``labels`` (``H x W`` int, -1 = none) by Algorithm 1.
 
@@ -249,8 +249,9 @@ def merge_regions(
     tests (see :func:`adjacency`; ``touching=True`` skips them). With ``pdfs`` (``H x W x C``
     per-pixel class probabilities summing to 1) couples are ordered and gated by their
     similarity (eq. 4.6-4.7, threshold ``t_sim``) and each final segment gets a class
-    (``pooling``: ``"majority"``, the most common per-pixel argmax, or ``"mean"``, the argmax of
-    its mean PDF, eq. 4.6's descriptor; as :func:`rgbd_rs.segmentation.refine.segment_classes`);
+    (``pooling``: ``"mean"``, the argmax of its mean PDF, eq. 4.6's descriptor, the default as in
+    :func:`~rgbd_rs.segmentation.pipeline.segment`, or ``"majority"``, the most common per-pixel
+    argmax; as :func:`rgbd_rs.segmentation.refine.segment_classes`);
     without them the fit-only baseline merges couples in order of fit improvement.
 
     ``fits`` lets callers choose the fit options (:class:`~rgbd_rs.surface.SegmentFits` built on

@@ -10,6 +10,7 @@ the shipped weights by default) the merging is Algorithm 1; without, the fit-onl
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +35,25 @@ __all__ = ["ADJACENCY_NORMAL_RADIUS", "Segmentation", "segment"]
 #: (5 NYUv2 train frames, fit-only merging: VoI 1.95 -> 1.45, RI 0.903 -> 0.878, 176 -> 103
 #: segments).
 ADJACENCY_NORMAL_RADIUS = GRAVITY_RADIUS
+#: A median valid depth above this (metres) warns that the unit may be off: RGB-D cameras of
+#: the Kinect / ToF class measure up to ~10 m (depth in millimetres, a median above 50, is
+#: refused by the features; this catches 0.1 mm or TUM's 1/5000 m read as millimetres).
+MAX_PLAUSIBLE_MEDIAN_DEPTH_M = 10.0
+
+
+def depth_unit_warning(points: npt.NDArray[np.float32]) -> str | None:
+    """The warning for ``points`` (``H x W x 3`` metres) whose median depth is implausible for
+    an RGB-D camera, or None."""
+    z = points[..., 2]
+    z = z[np.isfinite(z)]
+    med = float(np.median(z)) if z.size else 0.0
+    if med <= MAX_PLAUSIBLE_MEDIAN_DEPTH_M:
+        return None
+    return (
+        f"depth: median {med:.3g} m, beyond the ~{MAX_PLAUSIBLE_MEDIAN_DEPTH_M:g} m an RGB-D "
+        "camera measures: check the depth unit (metres; `rgbd segment --depth-scale` for a PNG "
+        "that is not in millimetres)"
+    )
 
 
 @dataclass(frozen=True)
@@ -125,6 +145,9 @@ def segment(
     # With the ConvNet, HHA is a cue; its 7x7 normals are the features' normals (computed once).
     hh = None if net is None else hha_details(depth, camera)
     f = features(rgb, depth, camera, normals=None if hh is None else hh.normals)
+    unit = depth_unit_warning(f.points)
+    if unit is not None:
+        warnings.warn(unit, RuntimeWarning, stacklevel=2)
     lap("features")
     over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
     lap("oversegment")

@@ -4,7 +4,7 @@ profiles (:mod:`.voxels`) and spline curvature maps of a shape, fed to the 15-br
 ModelNet (packs or the Princeton OFF tree) and caches the inputs; :mod:`.train` and
 :mod:`.evaluate` reproduce the thesis' tables."""
 
-from rgbd_rs.shapes.classify import ShapeClassifier, classify
+from rgbd_rs.shapes.classify import ShapeClassifier, classify, to_z_up
 from rgbd_rs.shapes.dataset import (
     InputSpec,
     OffTree,
@@ -60,6 +60,7 @@ __all__ = [
     "sample_surface",
     "shape_inputs",
     "splat_radii",
+    "to_z_up",
     "train_shapes",
     "voxelize",
 ]

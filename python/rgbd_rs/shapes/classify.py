@@ -33,13 +33,40 @@ from rgbd_rs.shapes.dataset import (
     sample_surface,
 )
 
-__all__ = ["WEIGHT_FILES", "ShapeClassifier", "classify", "shipped_weights", "weights_path"]
+__all__ = [
+    "UP_ROTATIONS",
+    "WEIGHT_FILES",
+    "ShapeClassifier",
+    "classify",
+    "shipped_weights",
+    "to_z_up",
+    "weights_path",
+]
 
 #: The checkpoints the package may ship, by dataset.
 WEIGHT_FILES = {"modelnet10": "shapes_modelnet10.pt", "modelnet40": "shapes_modelnet40.pt"}
 _WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "nn" / "weights"
 #: Seed of the surface sampling of meshes (deterministic classification).
 SAMPLE_SEED = 0
+#: Rotations taking a shape whose ``up`` axis is the key to the z-up frame the networks were
+#: trained in (ModelNet's aligned models). Many PLY / OBJ files (the Stanford bunny, ShapeNet)
+#: are y-up; a y-up chair given as z-up lies on its back and is classified as something else.
+UP_ROTATIONS: dict[str, npt.NDArray[np.float64]] = {
+    "z": np.eye(3),
+    "y": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+    "x": np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+}
+
+
+def to_z_up(shape: Shape, up: str) -> Shape:
+    """``shape`` (a Mesh or an ``N x 3`` cloud) rotated so that its ``up`` axis (``"x"``,
+    ``"y"`` or ``"z"``) becomes +z; ``"z"`` returns it unchanged."""
+    r = UP_ROTATIONS[_validate.choice("up", up, tuple(UP_ROTATIONS))]
+    if up == "z":
+        return shape
+    if isinstance(shape, Mesh):
+        return shape.transformed(r)
+    return (np.asarray(shape, np.float64) @ r.T).astype(np.float32)
 
 
 def weights_path(dataset: str) -> Path:
@@ -136,23 +163,29 @@ class ShapeClassifier:
         net.eval()
         return out
 
-    def _prepare(self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str]) -> Shape:
+    def _prepare(self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str], up: str) -> Shape:
         x: Any = load_shape(shape) if isinstance(shape, (str, os.PathLike)) else shape
-        x = _shape_arg("shape", x)
+        x = to_z_up(_shape_arg("shape", x), up)
         if isinstance(x, Mesh) and self.kind == "points":
             x = sample_surface(x, self.points_per_shape or 1024, SAMPLE_SEED)
         return x  # type: ignore[no-any-return]
 
     def probabilities(
-        self, shapes: list[Mesh | npt.ArrayLike | str | os.PathLike[str]], *, workers: int = 1
+        self,
+        shapes: list[Mesh | npt.ArrayLike | str | os.PathLike[str]],
+        *,
+        workers: int = 1,
+        up: str = "z",
     ) -> npt.NDArray[np.float32]:
         """``N x n_classes`` softmax probabilities of several shapes (meshes, point clouds or
-        file paths)."""
+        file paths). The networks were trained on z-up shapes (ModelNet): ``up="y"`` (or
+        ``"x"``) rotates shapes whose up axis is y (x) first."""
         if not isinstance(shapes, (list, tuple)):
             raise InvalidArgumentError(
                 f"shapes: got {type(shapes).__name__}, expected a list of shapes"
             )
-        prepared = [self._prepare(s) for s in shapes]
+        _validate.choice("up", up, tuple(UP_ROTATIONS))
+        prepared = [self._prepare(s, up) for s in shapes]
         if not prepared:
             return np.zeros((0, len(self.classes)), np.float32)
         inputs = batch_inputs(prepared, self.spec, workers=workers)
@@ -168,10 +201,11 @@ class ShapeClassifier:
             return torch.softmax(logits, dim=1).cpu().numpy().astype(np.float32)
 
     def __call__(
-        self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str]
+        self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str], *, up: str = "z"
     ) -> tuple[str, dict[str, float]]:
-        """``(class name, {class: probability})``, the dict sorted by decreasing probability."""
-        p = self.probabilities([shape])[0]
+        """``(class name, {class: probability})``, the dict sorted by decreasing probability;
+        ``up``: the shape's up axis (see :meth:`probabilities`)."""
+        p = self.probabilities([shape], up=up)[0]
         order = np.argsort(-p, kind="stable")
         probs = {self.classes[i]: float(p[i]) for i in order}
         return self.classes[int(order[0])], probs
@@ -206,11 +240,16 @@ def classify(
     *,
     checkpoint: str | os.PathLike[str] | None = None,
     dataset: str | None = None,
+    up: str = "z",
 ) -> tuple[str, dict[str, float]]:
     """The class of ``shape`` (a Mesh, an ``N x 3`` point cloud or a mesh / point-cloud file)
     and every class' probability (dict sorted by decreasing probability), with the shipped
     weights (``dataset`` ``"modelnet10"`` / ``"modelnet40"``; default the 40-class ones when
-    shipped) or ``checkpoint``. The loaded network is kept for the next calls."""
+    shipped) or ``checkpoint``. The loaded network is kept for the next calls.
+
+    The networks were trained on ModelNet's aligned shapes, **z up**: give ``up="y"`` (or
+    ``"x"``) for a shape whose up axis is y (many PLY / OBJ files): it is rotated first. A
+    shape lying on its side is classified as something else, without any error."""
     if checkpoint is not None and not isinstance(checkpoint, (str, os.PathLike)):
         raise InvalidArgumentError(f"checkpoint: got {checkpoint!r}, expected a file path")
     if dataset is not None:
@@ -218,4 +257,4 @@ def classify(
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
     file = Path(key) if key is not None else None
     stamp = file.stat().st_mtime if file is not None and file.is_file() else 0.0
-    return _cached(key, dataset, stamp)(shape)  # a rewritten checkpoint is read again
+    return _cached(key, dataset, stamp)(shape, up=up)  # a rewritten checkpoint is read again

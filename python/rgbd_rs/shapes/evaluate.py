@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import torch
+from tqdm import tqdm
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
@@ -195,11 +196,12 @@ def evaluate(
     device: str = "cpu",
     turns: bool = False,
     mirror: bool = False,
+    quiet: bool = True,
 ) -> ShapeEvaluation:
     """Accuracy of ``checkpoint`` on ``cache``'s ``split`` (``"test"``, ``"train"``, ``"all"``).
     ``turns``: average each shape's probabilities over its four quarter turns about z
     (:mod:`rgbd_rs.shapes.augment`); ``mirror``: average them over the shape and its mirror image
-    in x (both: over all eight).
+    in x (both: over all eight). ``quiet=False`` shows a progress bar over the shapes.
     A cache computed with other inputs (resolution, normalisation, classes, missing
     representations) raises :class:`RgbdError` naming both."""
     clf = (
@@ -214,17 +216,20 @@ def evaluate(
     k = len(c.classes)
     confusion = np.zeros((k, k), np.int64)
     loader = torch.utils.data.DataLoader(data, batch_size=bs, shuffle=False)
-    for name, flag in (("turns", turns), ("mirror", mirror)):
+    for name, flag in (("turns", turns), ("mirror", mirror), ("quiet", quiet)):
         if not isinstance(flag, bool):
             raise InvalidArgumentError(f"{name}: got {flag!r}, expected True or False")
     shapes = clf.net.shapes
+    bar = tqdm(total=len(data), desc="evaluate", unit="shape", disable=True if quiet else None)
     for x, y in loader:
+        bar.update(len(y))
         views = mirror_pair(x, shapes) if mirror else [x]
         if turns:
             views = [t for v in views for t in quarter_turns(v, shapes)]
         probs = sum(np.asarray(clf.probabilities_of_inputs(v)) for v in views)
         pred = np.asarray(probs).argmax(axis=1)
         np.add.at(confusion, (y.numpy(), pred), 1)
+    bar.close()
     return ShapeEvaluation(
         classes=c.classes,
         confusion=confusion,
@@ -250,7 +255,12 @@ def _check_compatible(clf: ShapeClassifier, cache: ShapeCache) -> None:
     if clf.classes != cache.classes:
         diffs.append(f"classes {list(clf.classes)} vs {list(cache.classes)}")
     if diffs:
-        raise RgbdError(f"{clf.source}: does not fit the cache {cache.path}: " + "; ".join(diffs))
+        raise RgbdError(
+            f"{clf.source}: does not fit the cache {cache.path}: "
+            + "; ".join(diffs)
+            + " (build the cache with the network's settings: `rgbd shapes cache --resolution "
+            f"{a.view_resolution} --representations {','.join(a.representations)}`)"
+        )
 
 
 def ablation_markdown(results: Mapping[str, Sequence[ShapeEvaluation]]) -> str:
