@@ -137,6 +137,7 @@ def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str)
         "bad --reference",
         "8-bit depth PNG",
         "bad --depth-scale",
+        "--weights with heuristic",
     ],
 )
 def test_bad_fuse_runs_end_in_one_line(
@@ -190,6 +191,10 @@ def test_bad_fuse_runs_end_in_one_line(
             ("--tof-depth", "d8.png", "8-bit PNG", "16-bit"),
         ),
         "bad --depth-scale": ({"depth_scale": Path("0")}, ("--depth-scale", "got 0")),
+        "--weights with heuristic": (
+            {"confidence": Path("heuristic"), "weights": tmp_path / "w.pt"},
+            ("--weights", "--confidence heuristic", "only with --confidence convnet"),
+        ),
     }[case]
     _assert_one_line_error(run(*_fuse_argv(good, **replace)), *needles)
 
@@ -258,6 +263,7 @@ def _edit_json(src: Path, dst: Path, fx: object) -> Path:
             ("--splat-radius", "got 9"),
         ),
         (["fuse", "--left", "a"], ("required",)),
+        (["synth-indoor", "--out", "o", "--count", "0"], ("--count", "got 0")),
         (["nonsense"], ("invalid choice",)),
     ],
     ids=lambda v: " ".join(v) if isinstance(v, list) else None,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +43,8 @@ def test_choose_prefers_the_best_mean_among_the_safe_powers() -> None:
         choose([])
     table = Calibration(2.0, tuple(scores), 4).markdown()
     assert "| **2** |" in table and "4 validation scenes" in table
+    assert Calibration(choose(scores), tuple(scores), 4).within_limit
+    assert not Calibration(choose(unsafe), tuple(unsafe), 4).within_limit
 
 
 def test_the_power_is_applied_stored_and_read_back(tmp_path: Path) -> None:
@@ -114,21 +117,26 @@ def test_cli_writes_a_calibrated_checkpoint(
         == 0
     )
     out = tmp_path / "cal.pt"
-    code = cli.main(
-        [
-            "train",
-            "calibrate-confidence",
-            "--data",
-            str(data),
-            "--out",
-            str(out),
-            "--powers",
-            "1",
-            "2",
-            "--quiet",
-        ]
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # the CLI prints a warning as one stderr line
+        code = cli.main(
+            [
+                "train",
+                "calibrate-confidence",
+                "--data",
+                str(data),
+                "--out",
+                str(out),
+                "--powers",
+                "1",
+                "2",
+                "--quiet",
+            ]
+        )
     assert code == 0
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
     assert "chosen power:" in text and "| power |" in text
+    for line in captured.err.splitlines():  # only when no power is within the limit
+        assert line.startswith("rgbd: warning: no power keeps every good validation input")
     assert ConfidenceEstimator.load(out).stereo_power in (1.0, 2.0)

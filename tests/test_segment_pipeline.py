@@ -78,6 +78,34 @@ def test_cli_writes_labels_overlay_and_frames(tmp_path: Path) -> None:
         assert (out / name).exists(), name
 
 
+def test_cli_errors_name_the_flag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import cv2
+
+    root = data_root()
+    assert root is not None
+    f = root / "nyuv2" / "frames"
+    calib = Path(__file__).parents[1] / "examples" / "nyu_camera.json"
+    small = tmp_path / "small.png"
+    cv2.imwrite(str(small), np.full((240, 320), 1500, np.uint16))
+    d8 = tmp_path / "d8.png"
+    cv2.imwrite(str(d8), np.full((480, 640), 150, np.uint8))
+    foreign = tmp_path / "foreign.json"
+    foreign.write_text('{"CalibrationInformation": {}}')
+    base = {"--rgb": f / "0001_rgb.png", "--depth": f / "0001_depth.png", "--calib": calib}
+    for change, needles in (
+        ({"--depth": small}, ("--depth: ", "320x240 pixels", "--calib camera's 640x480")),
+        ({"--depth": d8}, ("--depth: ", "8-bit PNG")),
+        ({"--calib": foreign}, ("--calib: ", "CalibrationInformation", "expected a camera")),
+    ):
+        args = {**base, **change}
+        argv = ["segment", *[x for k, v in args.items() for x in (k, str(v))]]
+        assert main([*argv, "--out", str(tmp_path / "o"), "--labeler", "none"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("rgbd: error: ") and len(err.splitlines()) == 1, err
+        for n in needles:
+            assert n in err, (n, err)
+
+
 def _tiny_labeler():  # type: ignore[no-untyped-def]
     import torch
 

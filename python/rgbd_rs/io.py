@@ -166,7 +166,12 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     if not isinstance(rgb, (bool, np.bool_)):
         raise InvalidArgumentError(f"rgb: got {rgb!r}, expected True or False")
     data = np.frombuffer(_read_bytes(path), np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)  # our error says it once
+    try:
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if img is None:
         raise RgbdError(f"{path}: corrupt or truncated image")
     if rgb and img.ndim == 3:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import NoReturn, TypeVar
 
 from rgbd_rs.errors import RgbdError
@@ -88,6 +88,20 @@ def named(flag: str, load: Callable[[], T]) -> T:
         raise type(exc)(f"{flag}: {exc}") from None
     except OSError as exc:
         raise RgbdError(f"{flag}: {os_message(exc)}") from None
+
+
+def flagged(names: Mapping[str, str], call: Callable[[], T]) -> T:
+    """``call()``, with an error about a library parameter worded for the command line: a
+    message that starts ``"name:"`` (a key of ``names``) starts with that parameter's flag
+    instead (``"camera: got a 640x480 camera ..."`` -> ``"--calib: got a 640x480 camera ..."``)."""
+    try:
+        return call()
+    except RgbdError as exc:
+        msg = str(exc)
+        for name, flag in names.items():
+            if msg.startswith(f"{name}:"):
+                raise type(exc)(f"{flag}{msg[len(name) :]}") from None
+        raise
 
 
 def os_message(exc: OSError) -> str:

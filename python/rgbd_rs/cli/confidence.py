@@ -162,6 +162,18 @@ def run_calibrate(args: argparse.Namespace) -> int:
     )
     print(result.markdown())
     print(f"chosen power: {result.power:g}")
+    if not result.within_limit:
+        import warnings
+
+        from rgbd_rs.fusion.calibrate import MAX_DAMAGE
+
+        warnings.warn(
+            f"no power keeps every good validation input within {MAX_DAMAGE:g} x its RMS; "
+            f"{result.power:g} damages them least: the fusion may be worse than a clean input "
+            "(more validation scenes, or another checkpoint, may help)",
+            RuntimeWarning,
+            stacklevel=1,
+        )
     print(f"calibrated checkpoint: {write_calibrated(source, result.power, args.out)}")
     if args.ship:
         print(f"shipped weights: {write_calibrated(source, result.power, WEIGHTS)}")

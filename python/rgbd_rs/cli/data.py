@@ -27,7 +27,7 @@ def register(commands: Commands) -> None:
         "--splat-radius",
         type=integer(0, MAX_SPLAT_RADIUS),
         default=1,
-        help=f"splat radius in pixels (0..{MAX_SPLAT_RADIUS})",
+        help=f"splat radius in pixels (0..{MAX_SPLAT_RADIUS}, default 1)",
     )
     syn = commands.command(
         "synth",

@@ -14,8 +14,9 @@ def register(commands: Commands) -> None:
         run,
         help="run the demo on synthetic and real data",
         description="Camera geometry on an analytic scene and on the real Azure "
-        "Kinect frame, then ToF-stereo fusion of a rendered SYNTH3-style scene; prints "
-        "measurements and writes PNGs.",
+        "Kinect frame, ToF-stereo fusion of a rendered SYNTH3-style scene, segmentation and "
+        "semantic labeling of a real NYUv2 frame, and shape classification of real ModelNet "
+        "shapes; prints measurements and writes PNGs.",
     )
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="folder for the pictures")
     demo.add_argument("--no-pictures", action="store_true", help="print only")

@@ -11,9 +11,21 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs.cli._args import Commands, integer, named, real
+from rgbd_rs.cli._args import Commands, flagged, integer, named, real
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
+#: fuse()'s parameters -> the flags that gave them (errors name the flag).
+FUSE_FLAGS = {
+    "left": "--left",
+    "right": "--right",
+    "tof_depth": "--tof-depth",
+    "tof_amplitude": "--tof-amplitude",
+    "rig": "--calib",
+    "confidence[0]": "--tof-confidence",
+    "confidence[1]": "--stereo-confidence",
+    "max_disparity": "--max-disparity",
+    "reference": "--reference",
+}
 #: 16-bit disparity PNGs store disparity x 256 (the KITTI convention); 0 = invalid.
 DISPARITY_PNG_SCALE = 256.0
 
@@ -96,8 +108,16 @@ def register(commands: Commands) -> None:
         type=Path,
         help="a checkpoint of `rgbd train confidence` to use instead of the shipped weights",
     )
-    fz.add_argument("--tof-confidence", type=Path, help="ToF confidence map (.npy, [0, 1])")
-    fz.add_argument("--stereo-confidence", type=Path, help="stereo confidence map (.npy, [0, 1])")
+    fz.add_argument(
+        "--tof-confidence",
+        type=Path,
+        help="ToF confidence map (.npy, [0, 1]) on the output camera's grid (its width x height)",
+    )
+    fz.add_argument(
+        "--stereo-confidence",
+        type=Path,
+        help="stereo confidence map (.npy, [0, 1]) on the output camera's grid",
+    )
     fz.add_argument(
         "--max-disparity",
         type=integer(1),
@@ -215,6 +235,12 @@ def run_fuse(args: argparse.Namespace) -> int:
     depth = load_map("--tof-depth", args.tof_depth, png_scale=args.depth_scale, depth=True)
     amp = load_map("--tof-amplitude", args.tof_amplitude)
     conf: object = args.confidence
+    if args.weights is not None and (args.confidence != "convnet" or args.tof_confidence):
+        given = "--tof-confidence" if args.tof_confidence else f"--confidence {args.confidence}"
+        raise InvalidArgumentError(
+            f"--weights: given with {given}, expected it only with --confidence convnet "
+            "(the ConvNet it replaces)"
+        )
     if args.weights is not None:
         from rgbd_rs.nn.confidence import ConfidenceEstimator
 
@@ -226,16 +252,19 @@ def run_fuse(args: argparse.Namespace) -> int:
         )
     params = LcParams(radius=args.radius, stride=args.stride, cross_check=args.cross_check)
     t0 = time.perf_counter()
-    out = fuse(
-        left,
-        right,
-        depth,
-        amp,
-        rig,
-        confidence=conf,  # type: ignore[arg-type]
-        params=params,
-        max_disparity=args.max_disparity,
-        reference=args.reference,
+    out = flagged(
+        FUSE_FLAGS,
+        lambda: fuse(
+            left,
+            right,
+            depth,
+            amp,
+            rig,
+            confidence=conf,  # type: ignore[arg-type]
+            params=params,
+            max_disparity=args.max_disparity,
+            reference=args.reference,
+        ),
     )
     elapsed = time.perf_counter() - t0
     maps = {

@@ -25,7 +25,7 @@ def register(commands: Commands) -> None:
     )
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument(
-        "--count", type=integer(0, 1_000_000), required=True, help="frames 0..N-1 of the seed"
+        "--count", type=integer(1, 1_000_000), required=True, help="frames 0..N-1 of the seed"
     )
     p.add_argument("--seed", type=integer(0, 2**63 - 1), default=0, help="random seed (default 0)")
     p.add_argument("--shard", type=shard, default=(0, 1), help="write frames i, i+n, ... (i/n)")

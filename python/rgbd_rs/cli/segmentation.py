@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgbd_rs.cli._args import Commands, integer, named, real
+from rgbd_rs.cli._args import Commands, flagged, integer, named, real
 from rgbd_rs.cli.fusion import DEPTH_PNG_SCALE, DEPTH_SCALE_HELP
 
 DESCRIPTION = (
@@ -19,11 +19,22 @@ DESCRIPTION = (
     "auto, NYUv2's 13 classes), a checkpoint of `rgbd train semantic` (--labeler FILE), or none "
     "(--labeler none: the fit-only baseline, couples merged in order of fit improvement while "
     "eq. 4.8 holds); --pdfs (per-pixel class probabilities, H x W x C .npy) replaces the ConvNet. "
-    "Writes OUT/labels.png (16-bit segment ids + 1, 0 = no depth), OUT/labels.npy, OUT/over.npy, "
+    "Writes OUT/labels.png (16-bit, the final segments numbered 1..N, 0 = no depth), "
+    "OUT/labels.npy (the merge's segment ids, -1 = no depth), OUT/over.npy, "
     "OUT/overlay.png (boundaries on the colour image), OUT/segments.png; with classes "
     "OUT/semantic.npy, OUT/semantic.png (refined classes), OUT/network.png (the ConvNet's "
     "per-pixel classes); with --frames N every N-th merge step as OUT/merge/NNNN.png (Fig. 4.5)."
 )
+
+
+#: segment()'s parameters -> the flags that gave them (errors name the flag).
+SEGMENT_FLAGS = {
+    "rgb": "--rgb",
+    "depth": "--depth",
+    "camera": "--calib",
+    "pdfs": "--pdfs",
+    "n_segments": "--segments",
+}
 
 
 def register(commands: Commands) -> None:
@@ -66,7 +77,11 @@ def register(commands: Commands) -> None:
         "checkpoint file",
     )
     p.add_argument(
-        "--segments", type=integer(2, 100000), default=None, help="normalized-cuts clusters"
+        "--segments",
+        type=integer(2, 100000),
+        default=None,
+        help="normalized-cuts clusters of the over-segmentation (default 230: ~300 segments; "
+        "fewer, e.g. 30, give fewer and larger final segments)",
     )
     p.add_argument(
         "--touching",
@@ -96,6 +111,15 @@ def run_segment(args: argparse.Namespace) -> int:
     rgb = named("--rgb", lambda: read_png(args.rgb))
     depth = load_map("--depth", args.depth, png_scale=args.depth_scale, depth=True)
     camera = named("--calib", lambda: load_camera(args.calib))
+    size = (camera.height, camera.width)
+    for flag, path, arr in (("--rgb", args.rgb, rgb), ("--depth", args.depth, depth)):
+        if arr.shape[:2] != size:
+            from rgbd_rs.errors import ShapeMismatchError
+
+            raise ShapeMismatchError(
+                f"{flag}: {path}: got {arr.shape[1]}x{arr.shape[0]} pixels, expected the --calib "
+                f"camera's {camera.width}x{camera.height}"
+            )
     pdfs = None if args.pdfs is None else named("--pdfs", lambda: read_npy(args.pdfs))
     n = DEFAULT_N_SEGMENTS if args.segments is None else args.segments
     labeler = None if args.labeler == "none" else args.labeler
@@ -103,17 +127,20 @@ def run_segment(args: argparse.Namespace) -> int:
         from rgbd_rs.errors import RgbdError
 
         raise RgbdError(f"--labeler: {labeler}: no such checkpoint file (or auto, none)")
-    result = segment(
-        rgb,
-        depth,
-        camera,
-        pdfs=pdfs,
-        labeler=labeler,
-        n_segments=n,
-        touching=args.touching,
-        pooling=args.pooling,
-        seed=args.seed,
-        quiet=args.quiet,
+    result = flagged(
+        SEGMENT_FLAGS,
+        lambda: segment(
+            rgb,
+            depth,
+            camera,
+            pdfs=pdfs,
+            labeler=labeler,
+            n_segments=n,
+            touching=args.touching,
+            pooling=args.pooling,
+            seed=args.seed,
+            quiet=args.quiet,
+        ),
     )
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -142,6 +169,7 @@ def run_segment(args: argparse.Namespace) -> int:
         steps = len(result.merge.history)
         for k in range(0, steps + 1, args.frames):
             save_png(out / "merge" / f"{k:04d}.png", paint_segments(result.merge.labels_after(k)))
+        written += f", merge/ ({steps // args.frames + 1} frames)"
     if not args.quiet:
         stages = ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in result.seconds.items())
         n_over = int(np.unique(result.over[result.over >= 0]).size)

@@ -60,6 +60,12 @@ class Calibration:
     scores: tuple[PowerScore, ...]
     scenes: int
 
+    @property
+    def within_limit(self) -> bool:
+        """Whether the chosen power keeps every good validation input within
+        :data:`MAX_DAMAGE` (False: none did, and the least damaging one was chosen)."""
+        return any(s.power == self.power and s.worst_damage <= MAX_DAMAGE for s in self.scores)
+
     def markdown(self) -> str:
         """The scores as a markdown table (the chosen power in bold)."""
         rows = [
