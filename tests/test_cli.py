@@ -56,6 +56,29 @@ def test_reproject_writes_outputs(tmp_path: Path, shared_data: Path) -> None:
     assert not list(tmp_path.glob("*.tmp*"))
 
 
+def test_reproject_undistort_feeds_segment(tmp_path: Path, shared_data: Path) -> None:
+    """The real Kinect frame to segments: `rgbd reproject --undistort` writes a pinhole camera,
+    the undistorted colour and depth, which `rgbd segment` takes as they are."""
+    from rgbd_rs.data.calibration import load_camera
+
+    tof = shared_data / "tof"
+    frame, calib = tof / "azure_kinect_frame.npz", tof / "azure_kinect_calibration.json"
+    rep = tmp_path / "rep"
+    argv = ["reproject", "--frame", str(frame), "--calib", str(calib), "--out", str(rep)]
+    assert main([*argv, "--undistort"]) == 0
+    cam = load_camera(rep / "camera.json")
+    assert cam.distortion.is_identity and (cam.width, cam.height) == (1280, 720)
+    with np.load(rep / "depth.npz") as z:
+        depth = z["depth"]
+    assert 0.3 < np.isfinite(depth).mean() < 0.8 and 0.3 < np.nanmedian(depth) < 5
+    seg = tmp_path / "seg"
+    argv = ["segment", "--rgb", str(rep / "color.png"), "--depth", str(rep / "depth.npz")]
+    argv += ["--calib", str(rep / "camera.json"), "--out", str(seg), "--labeler", "none"]
+    assert main([*argv, "--segments", "40", "--quiet"]) == 0
+    labels = np.load(seg / "labels.npy")
+    assert labels.shape == (720, 1280) and len(np.unique(labels[labels >= 0])) > 3
+
+
 def test_bad_input_is_a_clean_error(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     code = main(
         [

@@ -18,7 +18,10 @@ def register(commands: Commands) -> None:
         help="reproject a ToF depth map onto a colour camera",
         description="Reproject an Azure Kinect depth frame (npz with depth_mm, "
         "ir, color) onto its colour camera using the device calibration JSON; "
-        "writes depth.npz, a 16-bit PNG (mm) and a preview.",
+        "writes depth.npz (depth in metres, amplitude), a 16-bit PNG (mm) and a preview. With "
+        "--undistort, also color.png, the depth and amplitude resampled onto the ideal "
+        "(distortion-free) colour camera, and camera.json, ready for `rgbd segment --rgb "
+        "OUT/color.png --depth OUT/depth.npz --calib OUT/camera.json`.",
     )
     rep.add_argument("--frame", type=Path, required=True, help="npz with depth_mm, ir, color")
     rep.add_argument("--calib", type=Path, required=True, help="Azure Kinect calibration JSON")
@@ -28,6 +31,12 @@ def register(commands: Commands) -> None:
         type=integer(0, MAX_SPLAT_RADIUS),
         default=1,
         help=f"splat radius in pixels (0..{MAX_SPLAT_RADIUS}, default 1)",
+    )
+    rep.add_argument(
+        "--undistort",
+        action="store_true",
+        help="resample colour and depth onto the ideal colour camera and write camera.json "
+        "(the segmentation needs a pinhole without distortion)",
     )
     syn = commands.command(
         "synth",
@@ -114,14 +123,25 @@ def run_reproject(args: argparse.Namespace) -> int:
     rep = reproject_to_color(frame, cal, splat_radius=args.splat_radius)
     args.out.mkdir(parents=True, exist_ok=True)
     assert rep.channels is not None  # amplitude was passed as a channel
-    write_npz(args.out / "depth.npz", {"depth": rep.depth, "amplitude": rep.channels})
-    mm = np.clip(np.nan_to_num(rep.depth * 1000.0, nan=0.0), 0, 65535).astype(np.uint16)
+    depth, amplitude, color = rep.depth, rep.channels, frame.color
+    written = "depth.npz, depth_mm.png, preview.png"
+    if args.undistort:
+        from rgbd_rs.data.calibration import save_camera
+        from rgbd_rs.io import write_png
+
+        cam = cal.color
+        depth = cam.undistort_image(depth, interpolation="nearest")
+        amplitude = cam.undistort_image(amplitude, interpolation="nearest")
+        color = cam.undistort_image(color)
+        write_png(args.out / "color.png", color)
+        save_camera(args.out / "camera.json", cam.without_distortion())
+        written += ", color.png, camera.json (undistorted)"
+    write_npz(args.out / "depth.npz", {"depth": depth, "amplitude": amplitude})
+    mm = np.clip(np.nan_to_num(depth * 1000.0, nan=0.0), 0, 65535).astype(np.uint16)
     save_png(args.out / "depth_mm.png", mm)
     save_png(
         args.out / "preview.png",
-        tile(
-            [as_bgr(frame.color), colorize(rep.depth)], ["colour", "ToF depth on colour"], columns=2
-        ),
+        tile([as_bgr(color), colorize(depth)], ["colour", "ToF depth on colour"], columns=2),
     )
-    print(f"coverage {rep.coverage:.1%}; wrote {args.out}/depth.npz, depth_mm.png, preview.png")
+    print(f"coverage {rep.coverage:.1%}; wrote {args.out}/{written}")
     return 0
