@@ -140,8 +140,12 @@ def test_our_stages_plug_in(monkeypatch: pytest.MonkeyPatch) -> None:
     for module, fn in (("features", features), ("oversegment", oversegment), ("pipeline", segment)):
         mod = importlib.import_module(f"rgbd_rs.segmentation.{module}")
         monkeypatch.setattr(mod, fn.__name__, fn)
+    shown: dict[str, np.ndarray] = {}
+    monkeypatch.setattr(
+        E, "frame_figure", lambda path, frame, gt, results, peer: shown.update(results)
+    )
     ours = [m for m in E.default_methods() if m.kind == "ours" and m.name != E.OURS_FULL]
-    report = E.evaluate([46], tuning_frames=[1], methods=ours, quiet=True)
+    report = E.evaluate([46], tuning_frames=[1], methods=ours, quiet=True, out=Path("unused"))
     assert [s.name for s in report.scores] == [E.OURS_OVER, E.OURS_MERGED]
     # Tuning: both grids on frame 1; evaluation: once more each, and no third over-segmentation
     # for the same-count line when the merging was tuned to start from the same clusters (its
@@ -153,6 +157,9 @@ def test_our_stages_plug_in(monkeypatch: pytest.MonkeyPatch) -> None:
         "segment": len(E.MERGE_GRID) + 1,
     }
     assert merged.params in E.MERGE_GRID and not np.isnan(merged.tuning_voi)
+    # The figure shows the over-segmentation the merging started from (the stand-in merges
+    # by labels // 8), not the same-count line's.
+    np.testing.assert_array_equal(shown[E.OURS_OVER] // 8, shown[E.OURS_MERGED])
     c = report.count_match
     assert c is not None and 150 < c.segments_ours < 400
 

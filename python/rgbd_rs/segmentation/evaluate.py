@@ -213,9 +213,11 @@ class _LastOver:
     def store(self, rgb: U8, depth: F32, n_segments: int, over: Labels) -> None:
         self.key, self.over = (rgb, depth, n_segments), over
 
-    def get(self, rgb: U8, depth: F32, n_segments: int) -> Labels | None:
+    def get(self, rgb: U8, depth: F32, n_segments: int | None = None) -> Labels | None:
+        """The stored over-segmentation of this frame (at ``n_segments`` clusters; None: at
+        whatever count the fit-only row ran), or None."""
         k = self.key
-        if k is not None and k[0] is rgb and k[1] is depth and k[2] == n_segments:
+        if k is not None and k[0] is rgb and k[1] is depth and n_segments in (None, k[2]):
             return self.over
         return None
 
@@ -536,8 +538,9 @@ def evaluate(
             available yet (ImportError / AttributeError when built) is listed in
             ``missing`` instead.
         out: a folder for one figure per evaluation frame (``NNNN.png``: colour, depth, ground
-            truth, our over-segmentation at :data:`COUNT_MATCH_SEGMENTS` (what the merging starts
-            from), the merged result, the peer with the lowest tuning VoI); None = none.
+            truth, the over-segmentation the fit-only merging started from (at
+            :data:`COUNT_MATCH_SEGMENTS` without that row), the merged result, the peer with the
+            lowest tuning VoI); None = none.
         quiet: no progress bars.
     """
     eval_ids = _frame_list("frames", frames)
@@ -596,6 +599,7 @@ def evaluate(
             full = LAST_FULL.take()
             if semantic is not None and full is not None:
                 semantic.add(full, frame.label13)
+        start = _LAST_OVER.get(frame.rgb, frame.depth)  # what the fit-only merging started from
         if count_run is not None:
             ours = _LAST_OVER.get(frame.rgb, frame.depth, COUNT_MATCH_SEGMENTS)
             if ours is None:
@@ -607,8 +611,9 @@ def evaluate(
                 _recall(ours, gt),
                 _recall(theirs, gt),
             )
-            # The figure shows the over-segmentation the merging starts from (~300 segments).
             results[OURS_OVER] = ours
+        if start is not None:  # the figure shows the over-segmentation the merging started from
+            results[OURS_OVER] = start
         if folder is not None:
             peer = None if best_peer is None else usable[best_peer].name
             frame_figure(folder / f"{frame.name}.png", frame, gt, results, peer)
