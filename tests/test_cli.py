@@ -68,6 +68,14 @@ def test_reproject_undistort_feeds_segment(tmp_path: Path, shared_data: Path) ->
     assert main([*argv, "--undistort"]) == 0
     cam = load_camera(rep / "camera.json")
     assert cam.distortion.is_identity and (cam.width, cam.height) == (1280, 720)
+    # colour and depth are resampled onto that camera, not copied
+    from rgbd_rs.data import load_azure_kinect_calibration, load_azure_kinect_frame
+    from rgbd_rs.io import read_png
+
+    cal, kinect = load_azure_kinect_calibration(calib), load_azure_kinect_frame(frame)
+    color = read_png(rep / "color.png")
+    np.testing.assert_array_equal(color, cal.color.undistort_image(kinect.color))
+    assert not np.array_equal(color, kinect.color)
     with np.load(rep / "depth.npz") as z:
         depth = z["depth"]
     assert 0.3 < np.isfinite(depth).mean() < 0.8 and 0.3 < np.nanmedian(depth) < 5
@@ -161,6 +169,8 @@ def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str)
         "8-bit depth PNG",
         "bad --depth-scale",
         "--weights with heuristic",
+        "maps with heuristic",
+        "tiny --depth-scale",
     ],
 )
 def test_bad_fuse_runs_end_in_one_line(
@@ -214,6 +224,15 @@ def test_bad_fuse_runs_end_in_one_line(
             ("--tof-depth", "d8.png", "8-bit PNG", "16-bit"),
         ),
         "bad --depth-scale": ({"depth_scale": Path("0")}, ("--depth-scale", "got 0")),
+        "maps with heuristic": (
+            {
+                "confidence": Path("uniform"),
+                "tof_confidence": tmp_path / "t.npy",
+                "stereo_confidence": tmp_path / "s.npy",
+            },
+            ("--confidence uniform", "--tof-confidence/--stereo-confidence"),
+        ),
+        "tiny --depth-scale": ({"depth_scale": Path("1e-300")}, ("--depth-scale", "1e-300")),
         "--weights with heuristic": (
             {"confidence": Path("heuristic"), "weights": tmp_path / "w.pt"},
             ("--weights", "--confidence heuristic", "only with --confidence convnet"),
@@ -249,6 +268,16 @@ def test_load_map_depth_units_and_reproject_output(tmp_path: Path) -> None:
     np.testing.assert_array_equal(load_map("--depth", npz, depth=True), np.full((2, 3), 1.5))
     with pytest.raises(InvalidArgumentError, match=r"expected exactly one array"):
         load_map("--tof-amplitude", npz)
+    for dtype in (np.uint16, np.int32, np.bool_):  # raw millimetres, or a mask, are not metres
+        np.save(tmp_path / "i.npy", np.ones((2, 2), dtype))
+        with pytest.raises(InvalidArgumentError, match=r"^--depth: .*i\.npy: got dtype .*metres"):
+            load_map("--depth", tmp_path / "i.npy", depth=True)
+    from rgbd_rs.cli.fusion import DEPTH_PNG_SCALE, depth_png_scale
+
+    assert depth_png_scale("--depth", png, None) == DEPTH_PNG_SCALE
+    assert depth_png_scale("--depth", png, 2e-4) == 2e-4
+    with pytest.raises(InvalidArgumentError, match=r"^--depth-scale: given with --depth .*r\.npz"):
+        depth_png_scale("--depth", npz, 1e-3)
 
 
 def _save(path: Path, arr: np.ndarray) -> Path:
@@ -401,3 +430,24 @@ def test_implausible_input_is_one_warning_line(
     assert res.returncode == 0, res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(needle), res.stderr
+
+
+def test_png_and_camera_errors_name_the_file(
+    tmp_path: Path, shared_data: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    from rgbd_rs import RgbdError
+    from rgbd_rs.data.calibration import load_camera
+    from rgbd_rs.io import read_png
+
+    good = (shared_data / "nyuv2" / "frames" / "0001_rgb.png").read_bytes()
+    cut = tmp_path / "t.png"
+    cut.write_bytes(good[: len(good) // 2])
+    with pytest.raises(RgbdError, match=r"t\.png: corrupt or truncated image"):
+        read_png(cut)
+    assert "WARN" not in capfd.readouterr().err, "no OpenCV log line before our error"
+    (tmp_path / "tail.png").write_bytes(good + b"\0\0")  # bytes after IEND still decode
+    assert read_png(tmp_path / "tail.png").shape == (480, 640, 3)
+    cam = tmp_path / "c.json"
+    cam.write_text('{"fx": -500, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480}')
+    with pytest.raises(RgbdError, match=r"c\.json: invalid calibration \(fx: got -500"):
+        load_camera(cam)

@@ -140,3 +140,25 @@ def test_cli_writes_a_calibrated_checkpoint(
     for line in captured.err.splitlines():  # only when no power is within the limit
         assert line.startswith("rgbd: warning: no power keeps every good validation input")
     assert ConfidenceEstimator.load(out).stereo_power in (1.0, 2.0)
+
+
+@pytest.mark.parametrize("safe", [True, False])
+def test_cli_warns_when_no_power_is_within_the_limit(
+    safe: bool,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import rgbd_rs.fusion.calibrate as C
+
+    worst = MAX_DAMAGE - 0.01 if safe else MAX_DAMAGE + 0.2
+    scores = (PowerScore(1.0, 2.0, 0.9, worst + 0.1), PowerScore(2.0, 2.1, 0.95, worst))
+    fake = Calibration(choose(scores), scores, 3)
+    monkeypatch.setattr(C, "calibrate_stereo_power", lambda *a, **k: fake)
+    argv = ["train", "calibrate-confidence", "--data", str(tmp_path), "--out"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert cli.main([*argv, str(tmp_path / "c.pt"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert ("rgbd: warning: no power keeps every good validation input" in err) is not safe
+    assert ConfidenceEstimator.load(tmp_path / "c.pt").stereo_power == 2.0

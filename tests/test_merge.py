@@ -13,6 +13,7 @@ from rgbd_rs.segmentation.merge import (
     majority_classes,
     merge_regions,
 )
+from rgbd_rs.segmentation.refine import segment_classes
 from rgbd_rs.surface import SegmentFits
 
 H, W = 120, 160
@@ -121,11 +122,26 @@ def test_semantic_is_the_majority_of_the_final_segments() -> None:
     q = np.full_like(p, 0.02 / 3)
     np.put_along_axis(q, other[..., None], 0.98, axis=2)
     p = np.where(flip[..., None], q, p)
-    r = merge_regions(labels, pts, pdfs=p)
+    r = merge_regions(labels, pts, pdfs=p, pooling="majority")
     assert r.history, "the scene merges"
     assert r.semantic is not None
     np.testing.assert_array_equal(r.semantic, majority_classes(r.labels, p))
     assert (r.semantic[:3] == -1).all()
+
+
+def test_default_pooling_is_the_mean_pdf() -> None:
+    """Where the two poolings disagree (60 % of the pixels lean to class 1, 40 % are sure of
+    class 2: majority 1, mean 2), the default is the mean, as in segment()."""
+    pts, labels, _ = wall_and_floor()
+    sure = np.random.default_rng(5).random(labels.shape) < 0.4
+    p = np.where(sure[..., None], [0.0, 0.005, 0.99, 0.005], [0.0, 0.4, 0.35, 0.25])
+    p = p.astype(np.float32)
+    d = merge_regions(labels, pts, pdfs=p)
+    m = merge_regions(labels, pts, pdfs=p, pooling="majority")
+    assert d.semantic is not None and m.semantic is not None
+    valid = labels >= 0
+    assert (d.semantic[valid] == 2).all() and (m.semantic[valid] == 1).all()
+    np.testing.assert_array_equal(d.semantic, segment_classes(d.labels, p))
 
 
 def test_majority_classes() -> None:

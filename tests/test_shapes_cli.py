@@ -103,6 +103,31 @@ def test_bad_runs_end_in_one_line(
     assert "--data" in capsys.readouterr().err
     assert main(["eval", "shapes", "--cache", str(tmp_path / "nope")]) == 2
     assert "--cache" in capsys.readouterr().err
+    assert main(["eval", "shapes", "--cache", str(ok), "--label", "X"]) == 2
+    assert "--label: given without --ablation" in capsys.readouterr().err
+    # a checkpoint that does not fit the cache says which cache settings would
+    other = tmp_path / "other"
+    argv = ["shapes", "cache", "--data", str(pack), "--out", str(other), "--quiet"]
+    assert main([*argv, "--representations", "depth", "--resolution", "16"]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "shapes",
+                "--cache",
+                str(other),
+                "--checkpoint",
+                str(r_last := tmp_path / "r" / "last.pt"),
+            ]
+        )
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --checkpoint: {r_last}: does not fit the cache")
+    assert (
+        "rgbd shapes cache --resolution 64 --volume-resolution 32 --representations volume " in err
+    )
+    assert "--normalisation standardize`" in err
     seed_only = ["shapes", "cache", "--data", str(pack), "--out", str(ok), "--scale-seed", "3"]
     assert main(seed_only) == 2
     assert "--scale-seed: got 3 without --scale-copies" in capsys.readouterr().err
@@ -155,6 +180,11 @@ def test_up_axis_of_y_up_and_x_up_shapes(shared_data: Path, tmp_path: Path) -> N
     clouds = [src.load(int(i)) for i in idx]
     clf = ShapeClassifier.load(dataset="modelnet10")
     upright = clf.probabilities(clouds)
+    # The up axis goes to +z, not -z (an upside-down shape scores about as badly as one on
+    # its side), and the rest of the frame stays right-handed.
+    np.testing.assert_allclose(to_z_up(np.array([[0.0, 1, 0]]), "y"), [[0, 0, 1]], atol=1e-7)
+    np.testing.assert_allclose(to_z_up(np.array([[1.0, 0, 0]]), "x"), [[0, 0, 1]], atol=1e-7)
+    np.testing.assert_allclose(to_z_up(np.array([[0.0, 0, 1]]), "y"), [[0, -1, 0]], atol=1e-7)
     for axis in ("y", "x"):
         r = UP_ROTATIONS[axis]
         assert np.allclose(r @ r.T, np.eye(3)) and np.isclose(np.linalg.det(r), 1)

@@ -78,7 +78,11 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 2
     est = ConfidenceEstimator.load()
-    root = data_root() / "middlebury"
+    shared = data_root()
+    if shared is None:
+        print("the shared data (../shared/data or $RGBD_DATA) was not found")
+        return 2
+    root = shared / "middlebury"
     sets = {
         "validation": list(synth_samples(argv[0], "test")),
         "synthetic test": list(synth_samples(argv[1], "test")),

@@ -73,14 +73,23 @@ def main(argv: list[str]) -> int:
     if len(argv) < 2 or argv[0] not in ("train", "test"):
         print(__doc__)
         return 2
-    counts, sizes = argv[1:], []
-    if "--min-size" in counts:
-        k = counts.index("--min-size")
-        counts, sizes = counts[:k], [int(a) for a in counts[k + 1 :]]
+    words, sizes_text = argv[1:], []
+    if "--min-size" in words:
+        k = words.index("--min-size")
+        words, sizes_text = words[:k], words[k + 1 :]
+    try:  # every number checked before the minutes of work start
+        counts = [int(a) for a in words]
+        sizes = [int(a) for a in sizes_text]
+    except ValueError:
+        print(__doc__)
+        return 2
+    if not counts or min(counts) < 2 or (sizes and min(sizes) < 1):
+        print(__doc__)
+        return 2
     frames = [load_nyuv2_frame(i) for i in nyuv2_frames(argv[0])]
     felz = felzenszwalb_rgbd(scale=300, min_size=2500, depth_weight=100)
     score("felzenszwalb (RGB-D)", frames, lambda f: felz(f.rgb, f.depth, NYUV2_CAMERA))
-    for n in (int(a) for a in counts):
+    for n in counts:
         merged = {
             f.index: segment(
                 f.rgb, f.depth, NYUV2_CAMERA, labeler=None, n_segments=n, seed=0

@@ -160,18 +160,22 @@ def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
     return _atomic_bytes(out, buf.tobytes())
 
 
+#: A PNG file's first 8 bytes, and its IEND chunk (type + CRC), its last 8 (a truncated file
+#: lacks it).
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_END = b"IEND\xaeB`\x82"
+
+
 def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     """Read a PNG unchanged (8/16 bit; 3 channels returned as RGB); bad files raise RgbdError."""
     path = _path(path)
     if not isinstance(rgb, (bool, np.bool_)):
         raise InvalidArgumentError(f"rgb: got {rgb!r}, expected True or False")
-    data = np.frombuffer(_read_bytes(path), np.uint8)
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)  # our error says it once
-    try:
-        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
-    finally:
-        cv2.utils.logging.setLogLevel(level)
+    raw = _read_bytes(path)
+    if raw.startswith(PNG_SIGNATURE) and PNG_END not in raw:
+        # Caught here: OpenCV would print its own warning line before returning nothing.
+        raise RgbdError(f"{path}: corrupt or truncated image (no PNG end chunk)")
+    img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise RgbdError(f"{path}: corrupt or truncated image")
     if rgb and img.ndim == 3:

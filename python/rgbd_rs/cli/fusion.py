@@ -83,8 +83,7 @@ def register(commands: Commands) -> None:
     )
     fz.add_argument(
         "--depth-scale",
-        type=real(0.0, 1e3),
-        default=DEPTH_PNG_SCALE,
+        type=real(*DEPTH_SCALE_RANGE, low_open=False),
         metavar="M",
         help=DEPTH_SCALE_HELP,
     )
@@ -167,9 +166,24 @@ def register(commands: Commands) -> None:
 #: as NYUv2, Kinect and Azure Kinect store them).
 DEPTH_PNG_SCALE = 1e-3
 DEPTH_SCALE_HELP = (
-    "metres per unit of a 16-bit depth PNG (default 0.001: millimetres; 0.0002 for TUM's 5000 "
-    "per metre, 0.0001 for 0.1 mm); .npy/.npz depth is always metres"
+    f"metres per unit of a 16-bit depth PNG (default {DEPTH_PNG_SCALE:g}: millimetres; 0.0002 "
+    "for TUM's 5000 per metre, 0.0001 for 0.1 mm); only for PNG: .npy/.npz depth is metres"
 )
+#: Bounds of --depth-scale (metres per PNG unit): 1 um to 1 km.
+DEPTH_SCALE_RANGE = (1e-6, 1e3)
+
+
+def depth_png_scale(flag: str, path: Path, scale: float | None) -> float:
+    """``--depth-scale`` (None: not given) for the depth file ``path`` of ``flag``: refused
+    with a .npy/.npz, which holds metres."""
+    if scale is None:
+        return DEPTH_PNG_SCALE
+    if path.suffix.lower() != ".png":
+        raise InvalidArgumentError(
+            f"--depth-scale: given with {flag} {path}, expected it only with a 16-bit PNG "
+            "(.npy/.npz depth is metres)"
+        )
+    return scale
 
 
 def load_map(
@@ -212,6 +226,11 @@ def load_map(
         )
     if arr.dtype.kind not in "biuf":
         raise InvalidArgumentError(f"{flag}: {path}: got dtype {arr.dtype}, expected a numeric map")
+    if depth and arr.dtype.kind in "biu":
+        raise InvalidArgumentError(
+            f"{flag}: {path}: got dtype {arr.dtype}, expected float depth in metres (a 16-bit "
+            "map of millimetres: save it as a 16-bit PNG, or divide by 1000)"
+        )
     if arr.ndim != 2 or arr.size == 0:
         raise ShapeMismatchError(
             f"{flag}: {path}: got shape {arr.shape}, expected a non-empty H x W map"
@@ -232,9 +251,15 @@ def run_fuse(args: argparse.Namespace) -> int:
     rig = named("--calib", lambda: load_rig(args.calib))
     left = named("--left", lambda: read_png(args.left))
     right = named("--right", lambda: read_png(args.right))
-    depth = load_map("--tof-depth", args.tof_depth, png_scale=args.depth_scale, depth=True)
+    scale = depth_png_scale("--tof-depth", args.tof_depth, args.depth_scale)
+    depth = load_map("--tof-depth", args.tof_depth, png_scale=scale, depth=True)
     amp = load_map("--tof-amplitude", args.tof_amplitude)
     conf: object = args.confidence
+    if args.tof_confidence is not None and args.confidence != "convnet":
+        raise InvalidArgumentError(
+            f"--confidence {args.confidence}: given with --tof-confidence/--stereo-confidence, "
+            "expected one source of confidences (your maps replace the ConvNet)"
+        )
     if args.weights is not None and (args.confidence != "convnet" or args.tof_confidence):
         given = "--tof-confidence" if args.tof_confidence else f"--confidence {args.confidence}"
         raise InvalidArgumentError(
@@ -244,7 +269,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     if args.weights is not None:
         from rgbd_rs.nn.confidence import ConfidenceEstimator
 
-        conf = ConfidenceEstimator.load(args.weights)
+        conf = named("--weights", lambda: ConfidenceEstimator.load(args.weights))
     if args.tof_confidence is not None:
         conf = (
             load_map("--tof-confidence", args.tof_confidence),

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rgbd_rs import _rgbd_rs
 from rgbd_rs.cli._args import Commands, flagged, integer, named, real
-from rgbd_rs.cli.fusion import DEPTH_PNG_SCALE, DEPTH_SCALE_HELP
+from rgbd_rs.cli.fusion import DEPTH_SCALE_HELP, DEPTH_SCALE_RANGE
 
 DESCRIPTION = (
     "Segment an RGB-D frame: 9-D colour/position/normal features (eq. 4.1), normalized-cuts "
@@ -55,8 +56,7 @@ def register(commands: Commands) -> None:
     )
     p.add_argument(
         "--depth-scale",
-        type=real(0.0, 1e3),
-        default=DEPTH_PNG_SCALE,
+        type=real(*DEPTH_SCALE_RANGE, low_open=False),
         metavar="M",
         help=DEPTH_SCALE_HELP,
     )
@@ -80,7 +80,8 @@ def register(commands: Commands) -> None:
         "--segments",
         type=integer(2, 100000),
         default=None,
-        help="normalized-cuts clusters of the over-segmentation (default 230: ~300 segments; "
+        help="normalized-cuts clusters of the over-segmentation (default "
+        f"{_rgbd_rs.OVERSEG_DEFAULT_SEGMENTS}; "
         "fewer, e.g. 30, give fewer and larger final segments)",
     )
     p.add_argument(
@@ -101,7 +102,7 @@ def register(commands: Commands) -> None:
 
 
 def run_segment(args: argparse.Namespace) -> int:
-    from rgbd_rs.cli.fusion import load_map
+    from rgbd_rs.cli.fusion import depth_png_scale, load_map
     from rgbd_rs.data.calibration import load_camera
     from rgbd_rs.io import read_npy, read_png, write_png
     from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
@@ -109,7 +110,8 @@ def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.viz import outline_segments, paint_segments, save_png
 
     rgb = named("--rgb", lambda: read_png(args.rgb))
-    depth = load_map("--depth", args.depth, png_scale=args.depth_scale, depth=True)
+    scale = depth_png_scale("--depth", args.depth, args.depth_scale)
+    depth = load_map("--depth", args.depth, png_scale=scale, depth=True)
     camera = named("--calib", lambda: load_camera(args.calib))
     size = (camera.height, camera.width)
     for flag, path, arr in (("--rgb", args.rgb, rgb), ("--depth", args.depth, depth)):

@@ -367,6 +367,8 @@ def run_eval(args: argparse.Namespace) -> int:
     from rgbd_rs.shapes.dataset import ShapeCache
     from rgbd_rs.shapes.evaluate import ShapeEvaluation, ablation_markdown, evaluate, row_name
 
+    if args.label is not None and args.ablation is None:
+        raise RgbdError("--label: given without --ablation, expected it only with --ablation")
     cache = named("--cache", lambda: ShapeCache(args.cache))
     if args.ablation is not None:
         found = sorted(args.ablation.glob("*/best.pt")) or sorted(args.ablation.glob("*/last.pt"))
@@ -399,7 +401,8 @@ def run_eval(args: argparse.Namespace) -> int:
                 quiet=args.quiet,
             )
 
-        res = named("--ablation" if args.ablation is not None else "--checkpoint", one)
+        flag = "--ablation" if args.ablation is not None else "--checkpoint"
+        res = named(flag, one) if args.ablation is not None or args.checkpoint else one()
         stem = row_name(res.representations)
         if any(row_name(r.representations) == stem for r in results):
             stem = f"{stem}_{len(results)}"  # two checkpoints of one row keep both reports

@@ -153,19 +153,18 @@ def load_camera(path: str | Path) -> PinholeCamera:
         if "stereo" in top and "fx" not in top:
             rig = load_rig(path)
             return rig.stereo.right if rig.reference == "right" else rig.stereo.left
-        if not {"fx", "fy", "cx", "cy"} & set(top):
-            raise RgbdError(
-                f"{path}: got a JSON object with keys {sorted(top)[:8]}, expected a camera "
-                '({"fx", "fy", "cx", "cy", "width", "height"}, e.g. examples/nyu_camera.json) '
-                'or a `rgbd fuse` rig file ({"stereo", "tof", "tof_to_reference"})'
-            )
-        return _camera("camera", top)
+        foreign = not {"fx", "fy", "cx", "cy"} & set(top)
+        if not foreign:
+            return _camera("camera", top)
     except _MissingKey as exc:
         raise RgbdError(f"{path}: calibration: {exc}") from exc
-    except RgbdError:
-        raise
     except (TypeError, ValueError, OverflowError) as exc:
         raise RgbdError(f"{path}: invalid calibration ({exc})") from exc
+    raise RgbdError(
+        f"{path}: got a JSON object with keys {sorted(top)[:8]}, expected a camera "
+        '({"fx", "fy", "cx", "cy", "width", "height"}, e.g. examples/nyu_camera.json) '
+        'or a `rgbd fuse` rig file ({"stereo", "tof", "tof_to_reference"})'
+    )
 
 
 def load_rig(path: str | Path) -> ToFStereoRig:

@@ -107,7 +107,8 @@ def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> str | None:
             return (
                 f"tof_depth: the ToF depths look like {unit}, not metres (median {med:.4g}, "
                 f"outside the stereo rig's range: {rig_text}); check the depth unit (rgbd fuse "
-                "reads .npy/.npz in metres and 16-bit PNG in millimetres)"
+                "reads .npy/.npz in metres, a 16-bit PNG in millimetres unless --depth-scale "
+                "says otherwise)"
             )
     where = "beyond" if d_med < MIN_STEREO_DISPARITY else "nearer than"
     return (

@@ -37,7 +37,8 @@ __all__ = ["ADJACENCY_NORMAL_RADIUS", "Segmentation", "segment"]
 ADJACENCY_NORMAL_RADIUS = GRAVITY_RADIUS
 #: A median valid depth above this (metres) warns that the unit may be off: RGB-D cameras of
 #: the Kinect / ToF class measure up to ~10 m (depth in millimetres, a median above 50, is
-#: refused by the features; this catches 0.1 mm or TUM's 1/5000 m read as millimetres).
+#: refused by the features). It catches 0.1 mm read as millimetres (10x too far) on any scene
+#: beyond 1 m; TUM's 1/5000 m read as millimetres (5x) only on scenes beyond 2 m.
 MAX_PLAUSIBLE_MEDIAN_DEPTH_M = 10.0
 
 
@@ -51,8 +52,8 @@ def depth_unit_warning(points: npt.NDArray[np.float32]) -> str | None:
         return None
     return (
         f"depth: median {med:.3g} m, beyond the ~{MAX_PLAUSIBLE_MEDIAN_DEPTH_M:g} m an RGB-D "
-        "camera measures: check the depth unit (metres; `rgbd segment --depth-scale` for a PNG "
-        "that is not in millimetres)"
+        "camera measures: check the depth unit (metres; with `rgbd segment`, --depth-scale for "
+        "a PNG that is not in millimetres)"
     )
 
 

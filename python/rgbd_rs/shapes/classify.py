@@ -58,15 +58,17 @@ UP_ROTATIONS: dict[str, npt.NDArray[np.float64]] = {
 }
 
 
-def to_z_up(shape: Shape, up: str) -> Shape:
-    """``shape`` (a Mesh or an ``N x 3`` cloud) rotated so that its ``up`` axis (``"x"``,
-    ``"y"`` or ``"z"``) becomes +z; ``"z"`` returns it unchanged."""
+def to_z_up(shape: Mesh | npt.ArrayLike, up: str) -> Shape:
+    """``shape`` (a Mesh or an ``N x 3`` cloud, validated; a cloud comes back float32) rotated
+    so that its ``up`` axis (``"x"``, ``"y"`` or ``"z"``) becomes +z (a proper rotation: the
+    y-up frame's +y goes to +z, its +z to -y); ``"z"`` leaves it as it is."""
     r = UP_ROTATIONS[_validate.choice("up", up, tuple(UP_ROTATIONS))]
+    x = _shape_arg("shape", shape)
     if up == "z":
-        return shape
-    if isinstance(shape, Mesh):
-        return shape.transformed(r)
-    return (np.asarray(shape, np.float64) @ r.T).astype(np.float32)
+        return x
+    if isinstance(x, Mesh):
+        return x.transformed(r)
+    return (np.asarray(x, np.float64) @ r.T).astype(np.float32)
 
 
 def weights_path(dataset: str) -> Path:
@@ -165,7 +167,7 @@ class ShapeClassifier:
 
     def _prepare(self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str], up: str) -> Shape:
         x: Any = load_shape(shape) if isinstance(shape, (str, os.PathLike)) else shape
-        x = to_z_up(_shape_arg("shape", x), up)
+        x = to_z_up(x, up)
         if isinstance(x, Mesh) and self.kind == "points":
             x = sample_surface(x, self.points_per_shape or 1024, SAMPLE_SEED)
         return x  # type: ignore[no-any-return]

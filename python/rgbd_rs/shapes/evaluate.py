@@ -221,15 +221,15 @@ def evaluate(
             raise InvalidArgumentError(f"{name}: got {flag!r}, expected True or False")
     shapes = clf.net.shapes
     bar = tqdm(total=len(data), desc="evaluate", unit="shape", disable=True if quiet else None)
-    for x, y in loader:
-        bar.update(len(y))
-        views = mirror_pair(x, shapes) if mirror else [x]
-        if turns:
-            views = [t for v in views for t in quarter_turns(v, shapes)]
-        probs = sum(np.asarray(clf.probabilities_of_inputs(v)) for v in views)
-        pred = np.asarray(probs).argmax(axis=1)
-        np.add.at(confusion, (y.numpy(), pred), 1)
-    bar.close()
+    with bar:  # closed on an exception too
+        for x, y in loader:
+            views = mirror_pair(x, shapes) if mirror else [x]
+            if turns:
+                views = [t for v in views for t in quarter_turns(v, shapes)]
+            probs = sum(np.asarray(clf.probabilities_of_inputs(v)) for v in views)
+            pred = np.asarray(probs).argmax(axis=1)
+            np.add.at(confusion, (y.numpy(), pred), 1)
+            bar.update(len(y))
     return ShapeEvaluation(
         classes=c.classes,
         confusion=confusion,
@@ -259,7 +259,8 @@ def _check_compatible(clf: ShapeClassifier, cache: ShapeCache) -> None:
             f"{clf.source}: does not fit the cache {cache.path}: "
             + "; ".join(diffs)
             + " (build the cache with the network's settings: `rgbd shapes cache --resolution "
-            f"{a.view_resolution} --representations {','.join(a.representations)}`)"
+            f"{a.view_resolution} --volume-resolution {a.volume_resolution} --representations "
+            f"{','.join(a.representations)} --normalisation {a.normalisation}`)"
         )
 
 
