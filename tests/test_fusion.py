@@ -267,6 +267,21 @@ def test_middlebury_simulated_tof(shared_data: Path) -> None:
     assert np.median(np.abs(tof.disparity - s.gt_disparity)[ok]) < 0.5
 
 
+def test_middlebury_samples(
+    shared_data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rgbd_rs import RgbdError
+    from rgbd_rs.fusion.evaluate import middlebury_samples
+
+    samples = middlebury_samples()
+    assert [s.name for s in samples] == ["Cones", "Reindeer", "Wood2"]
+    cones = middlebury_sample(shared_data / "middlebury" / "Cones")
+    np.testing.assert_array_equal(samples[0].tof_depth, cones.tof_depth)  # same simulation
+    monkeypatch.setenv("RGBD_DATA", str(tmp_path))
+    with pytest.raises(RgbdError, match=r"middlebury: not found"):
+        middlebury_samples()
+
+
 def test_cli_fuse(scene: SynthSample, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     write_png(tmp_path / "l.png", scene.left)
     write_png(tmp_path / "r.png", scene.right)

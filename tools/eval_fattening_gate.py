@@ -20,9 +20,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy import ndimage
 
-from rgbd_rs.data.paths import data_root
 from rgbd_rs.fusion._inputs import views
-from rgbd_rs.fusion.evaluate import Sample, evaluate_sample, middlebury_sample, synth_samples
+from rgbd_rs.fusion.evaluate import Sample, evaluate_sample, middlebury_samples, synth_samples
 from rgbd_rs.fusion.lc import lc_fuse
 from rgbd_rs.metrics import bad_pixel_rate, rms_error
 from rgbd_rs.nn.confidence import ConfidenceEstimator
@@ -78,15 +77,10 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 2
     est = ConfidenceEstimator.load()
-    shared = data_root()
-    if shared is None:
-        print("the shared data (../shared/data or $RGBD_DATA) was not found")
-        return 2
-    root = shared / "middlebury"
     sets = {
         "validation": list(synth_samples(argv[0], "test")),
         "synthetic test": list(synth_samples(argv[1], "test")),
-        "Middlebury": [middlebury_sample(p) for p in sorted(root.iterdir()) if p.is_dir()],
+        "Middlebury": middlebury_samples(),
     }
     print("| dataset | LC | mean RMS (px) | mean fused / better input | worst fused / good input |")
     print("|---|---|---:|---:|---:|")

@@ -12,9 +12,8 @@ from __future__ import annotations
 
 import sys
 
-from rgbd_rs.data.paths import data_root
 from rgbd_rs.fusion.calibrate import calibrate_stereo_power
-from rgbd_rs.fusion.evaluate import middlebury_sample, synth_samples
+from rgbd_rs.fusion.evaluate import middlebury_samples, synth_samples
 from rgbd_rs.nn.confidence import ConfidenceEstimator
 
 
@@ -24,14 +23,9 @@ def main(argv: list[str]) -> int:
         return 2
     est = ConfidenceEstimator.load(None if argv[0] == "shipped" else argv[0])
     power = float(argv[2]) if len(argv) == 3 else est.stereo_power
-    shared = data_root()
-    if shared is None:
-        print("the shared data (../shared/data or $RGBD_DATA) was not found")
-        return 2
-    root = shared / "middlebury"
     sets = {
         "synthetic test": list(synth_samples(argv[1], "test")),
-        "Middlebury": [middlebury_sample(p) for p in sorted(root.iterdir()) if p.is_dir()],
+        "Middlebury": middlebury_samples(),
     }
     for name, samples in sets.items():
         cal = calibrate_stereo_power(est, samples, powers=[power], quiet=True)

@@ -343,9 +343,8 @@ def run_fuse(args: argparse.Namespace) -> int:
 
 
 def run_eval(args: argparse.Namespace) -> int:
-    from rgbd_rs.data.paths import data_root
     from rgbd_rs.fusion import LcParams
-    from rgbd_rs.fusion.evaluate import evaluate, markdown_table, middlebury_sample, synth_samples
+    from rgbd_rs.fusion.evaluate import evaluate, markdown_table, middlebury_samples, synth_samples
 
     if args.synth is None and not args.middlebury:
         raise InvalidArgumentError("--synth/--middlebury: got neither, expected at least one")
@@ -369,10 +368,7 @@ def run_eval(args: argparse.Namespace) -> int:
         )
         print(markdown_table(res, f"synthetic {args.split} set ({len(res)} scenes)"))
     if args.middlebury:
-        root = data_root(required=True)
-        assert root is not None
-        scenes = sorted(p for p in (root / "middlebury").iterdir() if p.is_dir())
-        mb = [middlebury_sample(p) for p in scenes]
+        mb = middlebury_samples()
         res = evaluate(
             mb,
             args.out / "middlebury",

@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.middlebury import load_middlebury
+from rgbd_rs.data.paths import data_root
 from rgbd_rs.data.synth import SynthDataset
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, U8, views
@@ -140,6 +141,18 @@ def middlebury_sample(folder: str | Path, seed: int = 0, model: ToFModel | None 
     return Sample(
         pair.name, pair.left, pair.right, frame.depth, frame.amplitude, rig, pair.disparity_left
     )
+
+
+def middlebury_samples(seed: int = 0) -> list[Sample]:
+    """Every Middlebury pair of the shared data (``$RGBD_DATA`` or ../shared/data), with its ToF
+    frame simulated by :func:`middlebury_sample`, sorted by name; an error names the folder when
+    the shared data is missing."""
+    root = data_root(required=True)
+    assert root is not None  # required=True raises instead
+    folder = root / "middlebury"
+    if not folder.is_dir():
+        raise RgbdError(f"{folder}: not found, expected the Middlebury pairs of the shared data")
+    return [middlebury_sample(p, seed) for p in sorted(folder.iterdir()) if p.is_dir()]
 
 
 def synth_samples(root: str | Path, split: str = "test") -> Iterator[Sample]:
