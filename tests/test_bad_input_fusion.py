@@ -53,6 +53,20 @@ CASES: list[Case] = [
     ),
     Case(
         "fuse",
+        lambda: F.fuse(
+            LEFT,
+            LEFT,
+            TOF,
+            TOF,
+            RIG,
+            confidence=(np.ones(LEFT.shape[:2]), np.full(LEFT.shape[:2], 2.0)),
+        ),
+        ARG,
+        r"^confidence\[1\]: got values in \[2, 2\], expected values in \[0, 1\]",
+        "maps out of range",
+    ),
+    Case(
+        "fuse",
         lambda: F.fuse(LEFT, LEFT, TOF, TOF, RIG, confidence="learned"),
         ARG,
         r"^confidence: got 'learned'",

@@ -212,7 +212,7 @@ def test_non_occluded_mask() -> None:
         (
             {"confidence": (np.full((270, 480), 2.0), np.ones((270, 480)))},
             InvalidArgumentError,
-            r"confidences\[0\]",
+            r"^confidence\[0\]: got values in \[2, 2\], expected values in \[0, 1\]",
         ),
         ({"max_disparity": 480}, InvalidArgumentError, "max_disparity: got 480"),
     ],

@@ -39,6 +39,19 @@ def map2d(name: str, value: object, shape: tuple[int, int]) -> F32:
     return np.asarray(_validate.array(name, value, shape=shape), dtype=np.float32)
 
 
+def unit_map(name: str, value: object, shape: tuple[int, int]) -> F32:
+    """An ``H x W`` float32 map of ``shape`` with values in [0, 1] (NaN allowed: no weight)."""
+    m = map2d(name, value, shape)
+    with np.errstate(invalid="ignore"):
+        bad = (m < 0) | (m > 1)
+    if bad.any():
+        raise InvalidArgumentError(
+            f"{name}: got values in [{np.nanmin(m):.3g}, {np.nanmax(m):.3g}], expected values in "
+            "[0, 1] (NaN = no weight)"
+        )
+    return m
+
+
 def rig_arg(rig: object) -> ToFStereoRig:
     if not isinstance(rig, ToFStereoRig):
         raise InvalidArgumentError(f"rig: got {type(rig).__name__}, expected a ToFStereoRig")

@@ -21,6 +21,7 @@ from rgbd_rs.fusion._inputs import (
     rgb8,
     rig_arg,
     tof_depth_warning,
+    unit_map,
     views,
     with_reference,
 )
@@ -190,8 +191,8 @@ def fuse(
         kind = "convnet"
     elif isinstance(confidence, (tuple, list)) and len(confidence) == 2:
         given = (
-            map2d("confidence[0]", confidence[0], (h, w)),
-            map2d("confidence[1]", confidence[1], (h, w)),
+            unit_map("confidence[0]", confidence[0], (h, w)),
+            unit_map("confidence[1]", confidence[1], (h, w)),
         )
     else:
         raise InvalidArgumentError(
