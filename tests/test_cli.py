@@ -31,6 +31,7 @@ def test_demo_prints_measurements(tmp_path: Path, shared_data: Path) -> None:
     assert "max error" in res.stdout and "Azure Kinect" in res.stdout
     assert "semantic labeling of NYUv2 frame 0046" in res.stdout and "VoI" in res.stdout
     assert "pyvista_airplane.ply: airplane" in res.stdout
+    assert "stanford_bunny.off (y up): " in res.stdout  # classified upright
     assert (tmp_path / "segmentation.png").stat().st_size > 1000
     assert (tmp_path / "synthetic_reprojection.png").stat().st_size > 1000
     assert (tmp_path / "kinect_depth_to_color.png").stat().st_size > 1000

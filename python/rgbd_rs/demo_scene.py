@@ -16,7 +16,12 @@ from rgbd_rs.data.paths import data_root
 #: The NYUv2 frame of the demo (the first of the test split).
 DEMO_FRAME = 46
 #: The meshes the demo classifies (in ../shared/data/meshes).
-DEMO_MESHES = ("modelnet10_bathtub_0005.off", "stanford_bunny.off", "pyvista_airplane.ply")
+#: Meshes of the shared data and their up axes (the networks expect z up; the bunny is y-up).
+DEMO_MESHES = (
+    ("modelnet10_bathtub_0005.off", "z"),
+    ("stanford_bunny.off", "y"),
+    ("pyvista_airplane.ply", "z"),
+)
 
 
 def run_segmentation(out: Path | None) -> dict[str, float] | None:
@@ -65,9 +70,9 @@ def run_shapes() -> list[tuple[str, str, float]] | None:
     if root is None:
         return None
     rows = []
-    for name in DEMO_MESHES:
-        best, probs = classify(root / "meshes" / name)
-        rows.append((name, best, probs[best]))
+    for name, up in DEMO_MESHES:
+        best, probs = classify(root / "meshes" / name, up=up)
+        rows.append((name if up == "z" else f"{name} ({up} up)", best, probs[best]))
     return rows
 
 
