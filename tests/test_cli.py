@@ -377,7 +377,7 @@ def test_a_warning_is_one_line_and_the_run_succeeds(
     res = run(*_fuse_argv(fuse_inputs, tof_depth=dead, out=tmp_path / "out"))
     assert res.returncode == 0, res.stderr
     assert res.stderr.strip().splitlines() == [
-        "rgbd: warning: tof_depth: no valid ToF pixel reaches the reference camera; returning "
+        "rgbd: warning: --tof-depth: no valid ToF pixel reaches the reference camera; returning "
         "the stereo-only LC result"
     ]
     assert (tmp_path / "out" / "fused.npz").is_file()
@@ -423,10 +423,10 @@ def test_implausible_input_is_one_warning_line(
 ) -> None:
     if case == "swapped images":
         replace = {"left": fuse_inputs["--right"], "right": fuse_inputs["--left"]}
-        needle = "rgbd: warning: left/right: the images look swapped"
+        needle = "rgbd: warning: --left/--right: the images look swapped"
     else:
         replace = {"tof_depth": _save(tmp_path / "mm.npy", np.full((424, 512), 1000.0))}
-        needle = "rgbd: warning: tof_depth: the ToF depths look like millimetres"
+        needle = "rgbd: warning: --tof-depth: the ToF depths look like millimetres"
     res = run(*_fuse_argv(fuse_inputs, out=tmp_path / "out", **replace))
     assert res.returncode == 0, res.stderr
     lines = res.stderr.strip().splitlines()

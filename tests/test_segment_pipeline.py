@@ -169,3 +169,31 @@ def test_cli_with_a_checkpoint_writes_classes(tmp_path: Path) -> None:
     for name in ("semantic.npy", "semantic.png", "network.png", "overlay.png"):
         assert (out / name).exists(), name
     assert main([*argv[:-2], "--labeler", str(tmp_path / "nope.pt"), "--quiet"]) == 2
+
+
+def test_cli_warns_on_a_wrong_depth_unit_naming_the_flag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shared HHA frame's raw depth is in 0.1 mm: read as millimetres it is ten times too
+    far, which the CLI reports as one warning line naming --depth (and --depth-scale fixes)."""
+    import warnings
+
+    root = data_root()
+    assert root is not None
+    raw = root / "hha" / "depth_raw.png"
+    calib = Path(__file__).parents[1] / "examples" / "nyu_camera.json"
+    argv = [
+        "segment",
+        "--rgb",
+        str(root / "nyuv2" / "frames" / "0001_rgb.png"),
+        "--depth",
+        str(raw),
+    ]
+    argv += ["--calib", str(calib), "--labeler", "none", "--segments", "20", "--quiet"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("rgbd: warning: --depth: median 3"), lines
+        assert main([*argv, "--out", str(tmp_path / "b"), "--depth-scale", "0.0001"]) == 0
+        assert capsys.readouterr().err == ""

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Callable, Mapping
 from typing import NoReturn, TypeVar
 
@@ -91,17 +92,34 @@ def named(flag: str, load: Callable[[], T]) -> T:
 
 
 def flagged(names: Mapping[str, str], call: Callable[[], T]) -> T:
-    """``call()``, with an error about a library parameter worded for the command line: a
-    message that starts ``"name:"`` (a key of ``names``) starts with that parameter's flag
-    instead (``"camera: got a 640x480 camera ..."`` -> ``"--calib: got a 640x480 camera ..."``)."""
-    try:
-        return call()
-    except RgbdError as exc:
-        msg = str(exc)
+    """``call()``, with its errors and warnings about a library parameter worded for the
+    command line: a message that starts ``"name:"`` (a key of ``names``) starts with that
+    parameter's flag instead (``"camera: got a 640x480 camera ..."`` -> ``"--calib: got a
+    640x480 camera ..."``). The call's warnings are shown once it has returned or failed."""
+
+    def worded(msg: str) -> str | None:
         for name, flag in names.items():
             if msg.startswith(f"{name}:"):
-                raise type(exc)(f"{flag}{msg[len(name) :]}") from None
-        raise
+                return f"{flag}{msg[len(name) :]}"
+        return None
+
+    seen: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return call()
+            finally:
+                seen = list(caught)
+    except RgbdError as exc:
+        msg = worded(str(exc))
+        if msg is None:
+            raise
+        raise type(exc)(msg) from None
+    finally:
+        for w in seen:
+            text = str(w.message)
+            warnings.warn(worded(text) or text, w.category, stacklevel=2)
 
 
 def os_message(exc: OSError) -> str:

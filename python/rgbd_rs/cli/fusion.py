@@ -16,6 +16,7 @@ from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 #: fuse()'s parameters -> the flags that gave them (errors name the flag).
 FUSE_FLAGS = {
+    "left/right": "--left/--right",
     "left": "--left",
     "right": "--right",
     "tof_depth": "--tof-depth",
