@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion._inputs import F32, map2d, rgb8, views
+from rgbd_rs.fusion._inputs import F32, map2d, rgb8, unit_map, views
 from rgbd_rs.fusion.crosscheck import consistent, warp_to_target
 
 #: The defaults and limits live in crates/rgbd-fusion (``LcParams::for_width``, ``MAX_RADIUS``);
@@ -116,13 +116,7 @@ def lc_fuse(
         if c is None:
             cs.append(None)
             continue
-        m = map2d(f"confidences[{i}]", c, (h, w))
-        if np.any((m < 0) | (m > 1)):
-            raise InvalidArgumentError(
-                f"confidences[{i}]: got values in [{np.nanmin(m):.3g}, {np.nanmax(m):.3g}], "
-                "expected values in [0, 1]"
-            )
-        cs.append(m)
+        cs.append(unit_map(f"confidences[{i}]", c, (h, w)))
     if not any(np.isfinite(d).any() for d in ds):
         raise InvalidArgumentError(
             "disparities: got only NaN, expected at least one valid disparity to fuse"
