@@ -21,9 +21,9 @@ import numpy as np
 from scipy import ndimage
 
 from rgbd_rs.fusion._inputs import views
+from rgbd_rs.fusion.calibrate import SceneInputs
 from rgbd_rs.fusion.evaluate import Sample, evaluate_sample, middlebury_samples, synth_samples
 from rgbd_rs.fusion.lc import lc_fuse
-from rgbd_rs.metrics import bad_pixel_rate, rms_error
 from rgbd_rs.nn.confidence import ConfidenceEstimator
 
 Gate = Callable[[dict[str, np.ndarray]], np.ndarray]
@@ -54,21 +54,14 @@ def scores(samples: list[Sample], est: ConfidenceEstimator) -> dict[str, list[tu
             "pt": r.maps["P_T"],
             "ps": r.maps["P_S"],
         }
-        gt, mask = r.maps["gt"], r.maps["mask"] > 0
-        inputs = [rms_error(m[k], gt, mask) for k in ("tof", "sgm")]
-        good = [
-            e
-            for k, e in zip(("tof", "sgm"), inputs, strict=True)
-            if 1.0 - bad_pixel_rate(m[k], gt, 1.0, mask) >= 0.95
-        ]
+        scene = SceneInputs.of((m["tof"], m["sgm"]), r.maps["gt"], r.maps["mask"] > 0)
         for name, gate in GATES.items():
             if gate is None:
                 fused = r.maps["LC ConvNet"]
             else:
                 ps = gate(m).astype(np.float32)
                 fused, _ = lc_fuse(ref, tgt, [m["tof"], m["sgm"]], [m["pt"], ps], target_sign=sign)
-            e = rms_error(fused, gt, mask & np.isfinite(fused))
-            out[name].append((e, e / min(inputs), e / min(good) if good else 0.0))
+            out[name].append(scene.score(fused))
     return out
 
 

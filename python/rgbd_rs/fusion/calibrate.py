@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 from tqdm import tqdm
 
 from rgbd_rs import _validate
@@ -92,6 +93,40 @@ def choose(scores: Sequence[PowerScore]) -> float:
     return min(scores, key=lambda s: (s.worst_damage, s.power)).power
 
 
+@dataclass(frozen=True)
+class SceneInputs:
+    """One scene's two inputs measured against its ground truth on ``mask``: what a fused map
+    is compared with (the better input, and the inputs that are good: :data:`GOOD_SHARE` of
+    their pixels within 1 px)."""
+
+    gt: npt.NDArray[np.float32]
+    mask: npt.NDArray[np.bool_]
+    rms: tuple[float, ...]
+    good: tuple[float, ...]
+
+    @classmethod
+    def of(
+        cls,
+        inputs: Sequence[npt.NDArray[np.float32]],
+        gt: npt.NDArray[np.float32],
+        mask: npt.NDArray[np.bool_],
+    ) -> SceneInputs:
+        """The inputs' RMS on ``mask`` (bool ``H x W``), and which of them are good."""
+        rms = tuple(rms_error(d, gt, mask) for d in inputs)
+        good = tuple(
+            e
+            for d, e in zip(inputs, rms, strict=True)
+            if 1.0 - bad_pixel_rate(d, gt, 1.0, mask) >= GOOD_SHARE
+        )
+        return cls(gt, mask, rms, good)
+
+    def score(self, fused: npt.NDArray[np.float32]) -> tuple[float, float, float]:
+        """``(fused RMS, fused / better input, fused / best good input or 0 without one)``."""
+        e = rms_error(fused, self.gt, self.mask & np.isfinite(fused))
+        damage = e / max(min(self.good), 1e-9) if self.good else 0.0
+        return e, e / max(min(self.rms), 1e-9), damage
+
+
 def calibrate_stereo_power(
     estimator: ConfidenceEstimator,
     samples: Iterable[Sample],
@@ -124,12 +159,7 @@ def calibrate_stereo_power(
         if not mask.any():
             continue
         scenes += 1
-        inputs = [rms_error(d, gt, mask) for d in (tof_d, st_d)]
-        good = [
-            e
-            for d, e in zip((tof_d, st_d), inputs, strict=True)
-            if 1.0 - bad_pixel_rate(d, gt, 1.0, mask) >= GOOD_SHARE
-        ]
+        scene = SceneInputs.of((tof_d, st_d), gt, mask)
         for p in ps:
             fused = (
                 out.disparity
@@ -138,10 +168,10 @@ def calibrate_stereo_power(
                     ref, tgt, [tof_d, st_d], [p_t, p_s**p], target_sign=sign, params=params
                 )[0]
             )
-            e = rms_error(fused, gt, mask & np.isfinite(fused))
+            e, r, dmg = scene.score(fused)
             rms[p].append(e)
-            ratio[p].append(e / max(min(inputs), 1e-9))
-            damage[p].append(e / max(min(good), 1e-9) if good else 0.0)
+            ratio[p].append(r)
+            damage[p].append(dmg)
     if scenes == 0:
         raise RgbdError("samples: no scene had pixels valid in both inputs and the ground truth")
     scores = tuple(
