@@ -387,9 +387,9 @@ class PinholeCamera:
         out = _rgbd_rs.undistort_image(img, self._native(), target._native(), interpolation)
         if src.dtype.kind in "iu":
             info = np.iinfo(src.dtype)
-            out = np.clip(np.nan_to_num(np.rint(out), nan=0.0), info.min, info.max).astype(
-                src.dtype
-            )
+            # Clipped in float64: float32 cannot hold int32's bounds (2**31 - 1 rounds up to 2**31).
+            wide = np.rint(np.asarray(out, np.float64))
+            out = np.clip(np.nan_to_num(wide, nan=0.0), info.min, info.max).astype(src.dtype)
         return out[:, :, 0] if was_2d else out
 
 
