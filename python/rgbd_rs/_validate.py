@@ -143,3 +143,28 @@ def shard(name: str, value: object) -> tuple[int, int]:
         raise InvalidArgumentError(f"{name}: got {value!r}, expected (i, n) with 0 <= i < n")
     assert isinstance(value, tuple)
     return int(value[0]), int(value[1])
+
+
+def device(name: str, value: object, *, auto: bool = False, available: bool = True) -> str:
+    """A torch device string: ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` (and ``"auto"`` when
+    ``auto``). With ``available`` a CUDA device must exist on this machine (torch is imported
+    only then), so a bad value fails here with its name instead of deep inside torch."""
+    options = ("auto", "cpu", "cuda", "cuda:N") if auto else ("cpu", "cuda", "cuda:N")
+    ok = isinstance(value, str) and (
+        value in options[:-1] or (value.startswith("cuda:") and value[5:].isdigit())
+    )
+    if not ok:
+        raise InvalidArgumentError(f"{name}: got {value!r}, expected one of {list(options)}")
+    assert isinstance(value, str)
+    if available and value.startswith("cuda"):
+        import torch
+
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0:
+            raise InvalidArgumentError(f"{name}: got {value!r} but CUDA is not available here")
+        if value[5:] and int(value[5:]) >= count:
+            raise InvalidArgumentError(
+                f"{name}: got {value!r}, expected an index below this machine's {count} CUDA "
+                "device(s)"
+            )
+    return value

@@ -50,6 +50,20 @@ def integer(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+def device(*, auto: bool) -> Callable[[str], str]:
+    """An argparse type: a torch device that exists here (``cpu``, ``cuda``, ``cuda:N``; also
+    ``auto`` when ``auto``), so ``--device tpu`` or ``cuda`` without a GPU fail while parsing."""
+    from rgbd_rs import _validate
+
+    def parse(text: str) -> str:
+        try:
+            return _validate.device("device", text, auto=auto)
+        except RgbdError as exc:
+            raise argparse.ArgumentTypeError(str(exc).removeprefix("device: ")) from None
+
+    return parse
+
+
 def real(minimum: float, maximum: float, *, low_open: bool = True) -> Callable[[str], float]:
     """An argparse type: a finite number in ``(minimum, maximum]`` (``[minimum, ...`` when not
     ``low_open``)."""
@@ -187,7 +201,11 @@ def training_run_options(p: argparse.ArgumentParser) -> None:
         "--workers", type=integer(0, 64), default=0, metavar="N", help="data-loader processes (0)"
     )
     p.add_argument(
-        "--device", default="auto", metavar="DEV", help="auto, cpu, cuda or cuda:N (auto)"
+        "--device",
+        type=device(auto=True),
+        default="auto",
+        metavar="DEV",
+        help="auto, cpu, cuda or cuda:N (auto)",
     )
     p.add_argument(
         "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"

@@ -7,7 +7,16 @@ import argparse
 import time
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, Parser, integer, named, real, shard, training_run_options
+from rgbd_rs.cli._args import (
+    Commands,
+    Parser,
+    device,
+    integer,
+    named,
+    real,
+    shard,
+    training_run_options,
+)
 
 
 def register(commands: Commands) -> None:
@@ -124,7 +133,13 @@ def _score(sub: argparse._SubParsersAction[Parser]) -> None:
     p.set_defaults(run=run_score)
     p.add_argument("--cache", type=Path, required=True, metavar="DIR", help="cache folder")
     p.add_argument("--checkpoint", type=Path, metavar="FILE", help="(default: shipped weights)")
-    p.add_argument("--device", default="cpu", metavar="DEV", help="cpu, cuda or cuda:N (cpu)")
+    p.add_argument(
+        "--device",
+        type=device(auto=False),
+        default="cpu",
+        metavar="DEV",
+        help="cpu, cuda or cuda:N (cpu)",
+    )
 
 
 def run_score(args: argparse.Namespace) -> int:

@@ -7,7 +7,16 @@ import argparse
 import time
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, Parser, integer, named, real, shard, training_run_options
+from rgbd_rs.cli._args import (
+    Commands,
+    Parser,
+    device,
+    integer,
+    named,
+    real,
+    shard,
+    training_run_options,
+)
 
 
 def register(commands: Commands) -> None:
@@ -348,7 +357,13 @@ def _eval(commands: Commands) -> None:
     p.add_argument(
         "--batch-size", type=integer(1), default=64, metavar="N", help="shapes per batch (64)"
     )
-    p.add_argument("--device", default="cpu", metavar="DEV", help="cpu, cuda or cuda:N (cpu)")
+    p.add_argument(
+        "--device",
+        type=device(auto=False),
+        default="cpu",
+        metavar="DEV",
+        help="cpu, cuda or cuda:N (cpu)",
+    )
     p.add_argument(
         "--turns",
         action="store_true",

@@ -150,6 +150,7 @@ class ConfidenceEstimator:
         """The shipped weights (``path=None``) or the checkpoint at ``path``."""
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
+        _validate.device("device", device)
         file = WEIGHTS if path is None else Path(path)
         ckpt = load_checkpoint(file, arch=ARCH, normalisation_keys=("sigmas",))
         width = ckpt.arch_config.get("width")

@@ -132,12 +132,7 @@ class TrainConfig:
         _validate.integer("seed", self.seed, maximum=2**32 - 1)  # numpy's seed range
         _validate.integer("num_workers", self.num_workers)
         _validate.integer("checkpoint_steps", self.checkpoint_steps)
-        if not (
-            isinstance(self.device, str)
-            and self.device.startswith("cuda:")
-            and self.device[5:].isdigit()
-        ):
-            _validate.choice("device", self.device, ("auto", "cpu", "cuda"))
+        _validate.device("device", self.device, auto=True, available=False)  # checked at setup
         for name, value in reals.items():  # one type per field, so saved configs compare equal
             object.__setattr__(self, name, value)
         for name in (

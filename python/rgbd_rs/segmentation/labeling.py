@@ -96,6 +96,7 @@ class SemanticLabeler:
         classes refuses a 40-class network with a clear error instead of mislabeling)."""
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
+        _validate.device("device", device)
         if path is None:
             file = weights_path()
             if not file.is_file():

@@ -135,6 +135,7 @@ class ShapeClassifier:
         """The shipped weights (``path=None``) or the checkpoint at ``path``."""
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
+        _validate.device("device", device)
         if path is None:
             file = _default_weights(dataset)
         elif dataset is not None:
