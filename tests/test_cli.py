@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -86,6 +87,45 @@ def test_reproject_undistort_feeds_segment(tmp_path: Path, shared_data: Path) ->
     assert main([*argv, "--segments", "40", "--quiet"]) == 0
     labels = np.load(seg / "labels.npy")
     assert labels.shape == (720, 1280) and len(np.unique(labels[labels >= 0])) > 3
+    # A re-run into the same folders leaves none of the earlier run's files beside its own.
+    for stale in ("semantic.npy", "semantic.png", "network.png", "merge/0000.png"):
+        (seg / stale).parent.mkdir(exist_ok=True)
+        (seg / stale).write_bytes(b"an earlier run's output")
+    (seg / "notes.txt").write_text("the user's own file")
+    assert main([*argv, "--segments", "40", "--quiet"]) == 0
+    assert sorted(p.name for p in seg.iterdir()) == [
+        "labels.npy",
+        "labels.png",
+        "merge",
+        "notes.txt",
+        "over.npy",
+        "overlay.png",
+        "segments.png",
+    ]
+    assert not list((seg / "merge").iterdir())
+    assert main(["reproject", "--frame", str(frame), "--calib", str(calib), "--out", str(rep)]) == 0
+    assert not (rep / "color.png").exists() and not (rep / "camera.json").exists()
+
+
+def test_out_must_be_a_folder_and_reach_the_colour_camera(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    tof = shared_data / "tof"
+    calib = tof / "azure_kinect_calibration.json"
+    frame = ["--frame", str(tof / "azure_kinect_frame.npz")]
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(SystemExit):
+        main(["reproject", *frame, "--calib", str(calib), "--out", str(tmp_path / "file")])
+    assert "argument --out: got " in capsys.readouterr().err
+    # The colour camera's translation in millimetres: no ToF pixel reaches the colour image.
+    cal = json.loads(calib.read_text())
+    far = tmp_path / "far.json"
+    for cam in cal["CalibrationInformation"]["Cameras"]:
+        cam["Rt"]["Translation"] = [v * 1000 for v in cam["Rt"]["Translation"]]
+    far.write_text(json.dumps(cal))
+    out = tmp_path / "rep"
+    assert main(["reproject", *frame, "--calib", str(far), "--out", str(out)]) == 2
+    assert "coverage 0 %" in capsys.readouterr().err and not out.exists()
 
 
 def test_bad_input_is_a_clean_error(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -7,7 +7,8 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import NoReturn, TypeVar
 
 from rgbd_rs.errors import RgbdError
@@ -134,6 +135,33 @@ def flagged(names: Mapping[str, str], call: Callable[[], T]) -> T:
         for w in seen:
             text = str(w.message)
             warnings.warn(worded(text) or text, w.category, stacklevel=2)
+
+
+def folder(text: str) -> Path:
+    """An argparse type: an output folder, which must not be an existing file (checked while
+    parsing, before minutes of work)."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"got {text}, a file; expected a folder")
+    return path
+
+
+def output_folder(out: Path, outputs: Sequence[str], flag: str = "--out") -> Path:
+    """Create the output folder ``out`` and delete the files a previous run of the command
+    left there: ``outputs`` are glob patterns (relative to ``out``) of everything the command
+    may write, so a run that writes fewer files (no ``--undistort``, fit-only instead of the
+    ConvNet) does not leave the other run's files beside its own. Other files are kept."""
+    if out.exists() and not out.is_dir():
+        raise RgbdError(f"{flag}: got {out}, a file; expected a folder (created when missing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for pattern in outputs:
+            for old in out.glob(pattern):
+                if old.is_file() or old.is_symlink():
+                    old.unlink()
+    except OSError as exc:
+        raise RgbdError(f"{flag}: {os_message(exc)}") from None
+    return out
 
 
 def os_message(exc: OSError) -> str:

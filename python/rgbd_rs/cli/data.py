@@ -5,8 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, integer, named, real
+from rgbd_rs.cli._args import Commands, fail, folder, integer, named, output_folder, real
 from rgbd_rs.geometry import MAX_SPLAT_RADIUS
+
+#: Everything ``rgbd reproject`` may write (cleared first: a run without ``--undistort`` must
+#: not leave an earlier run's undistorted colour image and camera beside its distorted depth).
+REPROJECT_OUTPUTS = ("depth.npz", "depth_mm.png", "preview.png", "color.png", "camera.json")
 
 
 def register(commands: Commands) -> None:
@@ -25,7 +29,7 @@ def register(commands: Commands) -> None:
     )
     rep.add_argument("--frame", type=Path, required=True, help="npz with depth_mm, ir, color")
     rep.add_argument("--calib", type=Path, required=True, help="Azure Kinect calibration JSON")
-    rep.add_argument("--out", type=Path, required=True, help="output folder")
+    rep.add_argument("--out", type=folder, required=True, help="output folder")
     rep.add_argument(
         "--splat-radius",
         type=integer(0, MAX_SPLAT_RADIUS),
@@ -121,7 +125,12 @@ def run_reproject(args: argparse.Namespace) -> int:
     cal = named("--calib", lambda: load_azure_kinect_calibration(args.calib))
     frame = named("--frame", lambda: load_azure_kinect_frame(args.frame))
     rep = reproject_to_color(frame, cal, splat_radius=args.splat_radius)
-    args.out.mkdir(parents=True, exist_ok=True)
+    if not np.isfinite(rep.depth).any():
+        return fail(
+            "no ToF pixel reaches the colour camera (coverage 0 %): check that --frame's "
+            "depth_mm is in millimetres and --calib's depth_to_color translation in metres"
+        )
+    output_folder(args.out, REPROJECT_OUTPUTS)
     assert rep.channels is not None  # amplitude was passed as a channel
     depth, amplitude, color = rep.depth, rep.channels, frame.color
     written = "depth.npz, depth_mm.png, preview.png"

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs.cli._args import Commands, flagged, integer, named, real
+from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 #: fuse()'s parameters -> the flags that gave them (errors name the flag).
@@ -89,7 +89,7 @@ def register(commands: Commands) -> None:
         help=DEPTH_SCALE_HELP,
     )
     fz.add_argument("--calib", type=Path, required=True, help="rig calibration JSON")
-    fz.add_argument("--out", type=Path, required=True, help="output folder")
+    fz.add_argument("--out", type=folder, required=True, help="output folder")
     fz.add_argument(
         "--reference",
         choices=("left", "right"),
@@ -302,7 +302,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     }
     if out.tof_confidence is not None and out.stereo_confidence is not None:
         maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
-    args.out.mkdir(parents=True, exist_ok=True)
+    output_folder(args.out, ("fused.npz", "disparity.png", "depth_mm.png", "preview.png"))
     write_npz(args.out / "fused.npz", maps)
     disp16 = np.clip(np.nan_to_num(out.disparity * DISPARITY_PNG_SCALE, nan=0), 0, 65535)
     write_png(args.out / "disparity.png", disp16.astype(np.uint16))

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from rgbd_rs import _rgbd_rs
-from rgbd_rs.cli._args import Commands, flagged, integer, named, real
+from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
 from rgbd_rs.cli.fusion import DEPTH_SCALE_HELP, DEPTH_SCALE_RANGE
 
 DESCRIPTION = (
@@ -29,6 +29,19 @@ DESCRIPTION = (
 
 
 #: segment()'s parameters -> the flags that gave them (errors name the flag).
+#: Everything ``rgbd segment`` may write (cleared first, so no file of an earlier run stays).
+SEGMENT_OUTPUTS = (
+    "labels.png",
+    "labels.npy",
+    "over.npy",
+    "overlay.png",
+    "segments.png",
+    "semantic.npy",
+    "semantic.png",
+    "network.png",
+    "merge/[0-9][0-9][0-9][0-9].png",
+)
+
 SEGMENT_FLAGS = {
     "rgb": "--rgb",
     "depth": "--depth",
@@ -67,7 +80,7 @@ def register(commands: Commands) -> None:
         help="camera JSON {fx, fy, cx, cy, width, height} (examples/nyu_camera.json), or a "
         "`rgbd fuse` rig file (its reference camera)",
     )
-    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--out", type=folder, required=True, help="output folder")
     p.add_argument("--pdfs", type=Path, help="per-pixel class probabilities (.npy, H x W x C)")
     p.add_argument(
         "--labeler",
@@ -144,8 +157,7 @@ def run_segment(args: argparse.Namespace) -> int:
             quiet=args.quiet,
         ),
     )
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(args.out, SEGMENT_OUTPUTS)
     np.save(out / "labels.npy", result.labels)
     np.save(out / "over.npy", result.over)
     ids = np.unique(result.labels[result.labels >= 0], return_inverse=True)[1]
