@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import json
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -94,6 +96,15 @@ def _rig_with_strings() -> object:
     doc = rig_to_dict(synth3_rig(0.125))
     doc["tof"]["fx"] = "365.9"
     return load_rig(_file("rig_strings.json", json.dumps(doc)))
+
+
+def _rig_edited(name: str, edit: Callable[[dict[str, Any]], object]) -> Callable[[], object]:
+    def call() -> object:
+        doc = rig_to_dict(synth3_rig(0.125))
+        edit(doc)
+        return load_rig(_file(name, json.dumps(doc)))
+
+    return call
 
 
 def _middlebury_16bit() -> object:
@@ -205,6 +216,27 @@ CASES: list[Case] = [
         r"rig_list\.json.*JSON object",
         "list",
     ),
+    Case(
+        "load_rig",
+        _rig_edited("rig_typo.json", lambda d: d.update(refrence="left")),
+        FILE,
+        r"rig_typo\.json.*unknown key 'refrence'",
+        "typo",
+    ),
+    Case(
+        "load_rig",
+        _rig_edited("rig_cam_typo.json", lambda d: d["tof"].update(distorsion=[0.1, 0, 0, 0])),
+        FILE,
+        r"camera 'tof' has an unknown key 'distorsion'",
+        "camera typo",
+    ),
+    Case(
+        "load_rig",
+        _rig_edited("rig_fx.json", lambda d: d["stereo"]["left"].update(fx=-1.0)),
+        FILE,
+        r"rig_fx\.json.*camera 'stereo\.left': fx: got -1",
+        "which camera",
+    ),
     Case("save_rig", lambda: save_rig(TMP / "r.json", "rig"), ARG, r"^rig: got str"),
     Case("synth3_rig", lambda: synth3_rig(1000.0), ARG, r"^scale: got 1000"),
     Case("synth3_rig", lambda: synth3_rig(1e-6), ARG, r"^scale: got 1e-06", "tiny"),
@@ -299,6 +331,18 @@ CASES: list[Case] = [
         FILE,
         r"cam_str\.json.*fx",
         "string",
+    ),
+    Case(
+        "load_camera",
+        lambda: load_camera(
+            _file(
+                "cam_skew.json",
+                '{"fx": 5, "fy": 5, "cx": 1, "cy": 1, "width": 4, "height": 4, "skew": 0.1}',
+            )
+        ),
+        FILE,
+        r"cam_skew\.json.*unknown key 'skew'",
+        "unknown key",
     ),
     Case("save_camera", lambda: save_camera(TMP / "c.json", "cam"), ARG, r"^camera: got str"),
     Case("colorize", lambda: colorize(np.zeros((2, 2, 2))), SHAPE, r"^values: got shape"),

@@ -21,6 +21,9 @@ Layout (units: pixels and metres; cameras in OpenCV's frame: x right, y down, z 
   camera's frame (``p_ref = rotation @ p_tof + translation``).
 - ``reference``: ``"right"`` (the thesis' output camera, the default when absent) or ``"left"``.
 - ``distortion``: OpenCV order, 4, 5 or 8 coefficients; optional (no distortion).
+
+Unknown keys are refused, naming them (a misspelt ``"refrence"`` would otherwise leave the
+default in force without a word); keys starting with ``_`` are free for notes.
 """
 
 from __future__ import annotations
@@ -112,24 +115,38 @@ class _MissingKey(Exception):
     """A key of the layout is absent (reported with the file's name by :func:`load_rig`)."""
 
 
-def _require(where: str, obj: dict[str, Any], keys: tuple[str, ...]) -> None:
+def _require(
+    where: str, obj: dict[str, Any], keys: tuple[str, ...], optional: tuple[str, ...] = ()
+) -> None:
+    """Every key of ``keys`` is present and no other than those and ``optional`` (keys that
+    start with ``_`` are free for notes): a misspelt optional key (``"refrence"``) would
+    otherwise be ignored and its default used without a word."""
     for key in keys:
         if key not in obj:
             raise _MissingKey(f"{where} has no key {key!r}")
+    for key in obj:
+        if key not in keys and key not in optional and not str(key).startswith("_"):
+            raise _MissingKey(
+                f"{where} has an unknown key {key!r}, expected only {list(keys + optional)} "
+                "(keys starting with '_' are free for notes)"
+            )
 
 
 def _camera(where: str, value: object) -> PinholeCamera:
     c = _object(f"camera {where!r}", value)
-    _require(f"camera {where!r}", c, CAMERA_KEYS)
-    return PinholeCamera(
-        _number(f"{where}.fx", c["fx"]),
-        _number(f"{where}.fy", c["fy"]),
-        _number(f"{where}.cx", c["cx"]),
-        _number(f"{where}.cy", c["cy"]),
-        _integer(f"{where}.width", c["width"]),
-        _integer(f"{where}.height", c["height"]),
-        Distortion.from_opencv(_numbers(f"{where}.distortion", c.get("distortion", [0.0] * 5))),
-    )
+    _require(f"camera {where!r}", c, CAMERA_KEYS, ("distortion",))
+    try:
+        return PinholeCamera(
+            _number(f"{where}.fx", c["fx"]),
+            _number(f"{where}.fy", c["fy"]),
+            _number(f"{where}.cx", c["cx"]),
+            _number(f"{where}.cy", c["cy"]),
+            _integer(f"{where}.width", c["width"]),
+            _integer(f"{where}.height", c["height"]),
+            Distortion.from_opencv(_numbers(f"{where}.distortion", c.get("distortion", [0.0] * 5))),
+        )
+    except RgbdError as exc:  # the camera's own checks (fx > 0, ...) say which camera
+        raise ValueError(f"camera {where!r}: {exc}") from None
 
 
 def save_camera(path: str | Path, camera: PinholeCamera) -> Path:
@@ -178,7 +195,7 @@ def load_rig(path: str | Path) -> ToFStereoRig:
     cam = _camera
     try:
         top = _object("the file", d)
-        _require("the file", top, ("stereo", "tof", "tof_to_reference"))
+        _require("the file", top, ("stereo", "tof", "tof_to_reference"), ("reference",))
         st = _object("stereo", top["stereo"])
         _require("'stereo'", st, ("left", "right", "baseline"))
         t = _object("tof_to_reference", top["tof_to_reference"])
