@@ -543,6 +543,29 @@ ALL_CASES: list[Case] = [
         "up",
     ),
     Case(
+        "classify",
+        lambda: classify(np.ones((1024, 3), np.float32), checkpoint=CKPT),
+        ARG,
+        r"^shape: got 1024 points that all lie on one point, expected a 3-D shape",
+        "one point",
+    ),
+    Case(
+        "classify",
+        lambda: classify(np.outer(np.arange(50.0), [1.0, 2.0, -1.0]), checkpoint=CKPT),
+        ARG,
+        r"^shape: got 50 points that all lie on one line",
+        "line",
+    ),
+    Case(
+        "classify",
+        lambda: classify(
+            Mesh(np.ones((3, 3), np.float32), np.array([[0, 1, 2]], np.uint32)), checkpoint=CKPT
+        ),
+        ARG,
+        r"^shape: got \d+ surface samples of the mesh that all lie on one point",
+        "degenerate triangle",
+    ),
+    Case(
         "to_z_up",
         lambda: to_z_up(np.zeros((4, 3), np.float32), "up"),
         ARG,
@@ -614,3 +637,14 @@ CASES: list[Case] = [c for c in ALL_CASES if c.name in _public()]
 @pytest.mark.parametrize("case", params(ALL_CASES))
 def test_bad_input(case: Case) -> None:
     check(case)
+
+
+def test_a_dense_cloud_is_classified_from_a_seeded_subset_of_the_network_size() -> None:
+    # The network saw 1024-point clouds; a 2M-point scan is cut to that many (it took minutes).
+    from rgbd_rs.shapes.classify import SAMPLE_SEED
+
+    n = CLF.points_per_shape or 1024
+    dense = np.random.default_rng(3).normal(size=(20 * n, 3)).astype(np.float32)
+    pick = np.sort(np.random.default_rng(SAMPLE_SEED).choice(len(dense), n, replace=False))
+    np.testing.assert_array_equal(CLF.probabilities([dense]), CLF.probabilities([dense[pick]]))
+    assert not np.array_equal(CLF.probabilities([dense]), CLF.probabilities([dense[:n]]))

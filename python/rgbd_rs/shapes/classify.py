@@ -71,6 +71,20 @@ def to_z_up(shape: Mesh | npt.ArrayLike, up: str) -> Shape:
     return (np.asarray(x, np.float64) @ r.T).astype(np.float32)
 
 
+def _spread(name: str, points: npt.NDArray[np.float32], what: str) -> None:
+    """Refuse a shape whose points lie on one point or one line: its views are empty or a
+    stroke, and the network would still name a class with confidence."""
+    p = np.asarray(points, np.float64)
+    c = p - p.mean(axis=0) if len(p) else p
+    ev = np.sort(np.linalg.eigvalsh(c.T @ c))[::-1] if len(p) else np.zeros(3)
+    if not ev[0] > 0 or ev[1] <= 1e-12 * ev[0]:
+        where = "one point" if not ev[0] > 0 else "one line"
+        raise InvalidArgumentError(
+            f"{name}: got {len(p)} {what} that all lie on {where}, expected a 3-D shape "
+            "(a surface or a solid)"
+        )
+
+
 def weights_path(dataset: str) -> Path:
     """Where the package keeps ``dataset``'s shipped weights (the file may be absent)."""
     name = _validate.choice("dataset", dataset, tuple(WEIGHT_FILES))
@@ -169,8 +183,19 @@ class ShapeClassifier:
     def _prepare(self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str], up: str) -> Shape:
         x: Any = load_shape(shape) if isinstance(shape, (str, os.PathLike)) else shape
         x = to_z_up(x, up)
+        n = self.points_per_shape or 1024
         if isinstance(x, Mesh) and self.kind == "points":
-            x = sample_surface(x, self.points_per_shape or 1024, SAMPLE_SEED)
+            x = sample_surface(x, n, SAMPLE_SEED)
+            _spread("shape", x, "surface samples of the mesh")
+        elif isinstance(x, Mesh):
+            _spread("shape", x.vertices, "vertices")
+        else:
+            _spread("shape", x, "points")
+            if self.kind == "points" and len(x) > n:
+                # A dense scan: the network saw n-point clouds (ModelNet's packs), and
+                # rendering millions of points took minutes. A seeded subset of n points.
+                pick = np.random.default_rng(SAMPLE_SEED).choice(len(x), n, replace=False)
+                x = x[np.sort(pick)]
         return x  # type: ignore[no-any-return]
 
     def probabilities(
