@@ -217,3 +217,17 @@ def test_shipped_modelnet40_weights_classify_test_shapes(shared_data: Path) -> N
     assert (prob.argmax(axis=1) == src.labels[idx]).mean() >= 0.65
     _, probs = classify(src.load(int(idx[0])))
     assert len(probs) == 40, "classify() defaults to the ModelNet40 weights when they ship"
+
+
+def test_a_cache_whose_every_shape_failed_is_a_failed_run(
+    pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with np.load(pack) as z:
+        arrays = dict(z)
+    arrays["points"] = np.full_like(arrays["points"], np.nan)
+    bad = tmp_path / "nan.npz"
+    np.savez(bad, **arrays)
+    argv = ["shapes", "cache", "--data", str(bad), "--out", str(tmp_path / "c"), "--quiet"]
+    with pytest.warns(UserWarning, match="marked failed"):
+        assert main([*argv, "--representations", "volume"]) == 2
+    assert "rgbd: error: --data: every shape failed" in capsys.readouterr().err

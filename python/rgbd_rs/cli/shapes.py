@@ -11,6 +11,7 @@ from rgbd_rs.cli._args import (
     Commands,
     Parser,
     device,
+    fail,
     integer,
     named,
     real,
@@ -197,6 +198,8 @@ def run_cache(args: argparse.Namespace) -> int:
         f"{args.out}: {int((done == 1).sum())}/{len(cache)} shapes done, "
         f"{int((done == 2).sum())} failed; this run computed {made} in {seconds:.1f} s{rate}"
     )
+    if (done == 2).any() and not (done == 1).any():
+        return fail(f"--data: every shape failed (see the warnings); {args.out} holds none")
     return 0
 
 
