@@ -149,7 +149,9 @@ def test_labeler_none_is_fit_only_and_bad_labelers(frame) -> None:  # type: igno
         segment(frame.rgb, frame.depth, NYUV2_CAMERA, labeler="/nonexistent/semantic.pt")
 
 
-def test_cli_with_a_checkpoint_writes_classes(tmp_path: Path) -> None:
+def test_cli_with_a_checkpoint_writes_classes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from rgbd_rs.nn.checkpoint import Checkpoint, save_checkpoint
     from rgbd_rs.nn.semantic import ARCH
 
@@ -169,6 +171,15 @@ def test_cli_with_a_checkpoint_writes_classes(tmp_path: Path) -> None:
     for name in ("semantic.npy", "semantic.png", "network.png", "overlay.png"):
         assert (out / name).exists(), name
     assert main([*argv[:-2], "--labeler", str(tmp_path / "nope.pt"), "--quiet"]) == 2
+    # A file that is no checkpoint fails before the features are computed, naming the flag.
+    (tmp_path / "text.pt").write_text("not a checkpoint")
+    capsys.readouterr()
+    assert main([*argv[:-2], "--labeler", str(tmp_path / "text.pt"), "--quiet"]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: --labeler: ")
+    # --pdfs replaces the ConvNet: a --labeler beside it is refused, not silently ignored.
+    np.save(tmp_path / "pdfs.npy", np.full((480, 640, 14), 1 / 14, np.float32))
+    assert main([*argv, "--pdfs", str(tmp_path / "pdfs.npy"), "--quiet"]) == 2
+    assert "--labeler: got " in capsys.readouterr().err
 
 
 def test_cli_warns_on_a_wrong_depth_unit_naming_the_flag(

@@ -4,11 +4,21 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rgbd_rs import _rgbd_rs
-from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
+from rgbd_rs.cli._args import (
+    Commands,
+    fail,
+    flagged,
+    folder,
+    integer,
+    named,
+    output_folder,
+    real,
+)
 from rgbd_rs.cli.fusion import DEPTH_SCALE_HELP, DEPTH_SCALE_RANGE
 
 DESCRIPTION = (
@@ -84,10 +94,10 @@ def register(commands: Commands) -> None:
     p.add_argument("--pdfs", type=Path, help="per-pixel class probabilities (.npy, H x W x C)")
     p.add_argument(
         "--labeler",
-        default="auto",
+        default=None,
         metavar="auto|none|FILE",
-        help="semantic ConvNet: the shipped weights (auto), none (fit-only merging) or a "
-        "checkpoint file",
+        help="semantic ConvNet: the shipped weights (auto, the default), none (fit-only "
+        "merging) or a checkpoint file; not with --pdfs",
     )
     p.add_argument(
         "--segments",
@@ -137,11 +147,16 @@ def run_segment(args: argparse.Namespace) -> int:
             )
     pdfs = None if args.pdfs is None else named("--pdfs", lambda: read_npy(args.pdfs))
     n = DEFAULT_N_SEGMENTS if args.segments is None else args.segments
-    labeler = None if args.labeler == "none" else args.labeler
-    if labeler not in (None, "auto") and not Path(labeler).is_file():
-        from rgbd_rs.errors import RgbdError
+    if pdfs is not None and args.labeler is not None:
+        return fail(f"--labeler: got {args.labeler} with --pdfs, which replaces the ConvNet")
+    labeler: Any = None if args.labeler == "none" else (args.labeler or "auto")
+    if labeler not in (None, "auto"):
+        if not Path(labeler).is_file():
+            return fail(f"--labeler: {labeler}: no such checkpoint file (or auto, none)")
+        from rgbd_rs.segmentation import SemanticLabeler
 
-        raise RgbdError(f"--labeler: {labeler}: no such checkpoint file (or auto, none)")
+        path = labeler  # loaded now: a bad checkpoint fails before the minutes of work
+        labeler = named("--labeler", lambda: SemanticLabeler.load(path))
     result = flagged(
         SEGMENT_FLAGS,
         lambda: segment(
