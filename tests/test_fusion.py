@@ -111,6 +111,17 @@ def test_given_confidences_steer_the_result(scene: SynthSample) -> None:
     gt = scene.gt_disparity
     m = np.isfinite(gt) & np.isfinite(tof_only.disparity) & np.isfinite(st_only.disparity)
     assert rms_error(tof_only.disparity, gt, m) < 0.5 * rms_error(st_only.disparity, gt, m)
+    nan = np.full((270, 480), np.nan, np.float32)
+    with pytest.warns(RuntimeWarning, match="^confidence: neither map gives any pixel a weight"):
+        empty = fuse(
+            scene.left,
+            scene.right,
+            scene.tof_depth,
+            scene.tof_amplitude,
+            RIG,
+            confidence=(nan, zeros),
+        )
+    assert not np.isfinite(empty.disparity).any()
 
 
 def _textured_pair(d: float, w: int = 96, h: int = 40) -> tuple[np.ndarray, np.ndarray]:

@@ -24,6 +24,7 @@ FUSE_FLAGS = {
     "rig": "--calib",
     "confidence[0]": "--tof-confidence",
     "confidence[1]": "--stereo-confidence",
+    "confidence": "--tof-confidence/--stereo-confidence",
     "max_disparity": "--max-disparity",
     "reference": "--reference",
 }

@@ -194,6 +194,13 @@ def fuse(
             unit_map("confidence[0]", confidence[0], (h, w)),
             unit_map("confidence[1]", confidence[1], (h, w)),
         )
+        if not ((given[0] > 0) | (given[1] > 0)).any():  # NaN compares False, as 0 does
+            warnings.warn(
+                "confidence: neither map gives any pixel a weight > 0 (all NaN or 0): the "
+                "fused map will be empty",
+                RuntimeWarning,
+                stacklevel=2,
+            )
     else:
         raise InvalidArgumentError(
             f"confidence: got {type(confidence).__name__}, expected 'convnet', 'uniform', "
