@@ -107,6 +107,15 @@ def _rig_edited(name: str, edit: Callable[[dict[str, Any]], object]) -> Callable
     return call
 
 
+def _frame_npz(name: str, depth_mm: np.ndarray, ir: object = True) -> Path:
+    arrays = {"depth_mm": depth_mm, "color": np.zeros((*depth_mm.shape, 3), np.uint8)}
+    if ir is not None:
+        arrays["ir"] = np.ones(depth_mm.shape, np.uint16)
+    path = TMP / name
+    np.savez(path, **arrays)
+    return path
+
+
 def _middlebury_16bit() -> object:
     """The 2003 layout (disparity = PNG / 4) with 16-bit ground truth: refused, not divided."""
     folder = TMP / "mb16"
@@ -182,6 +191,22 @@ CASES: list[Case] = [
         lambda: load_azure_kinect_frame(_file("frame.npz", b"")),
         ARG,
         r"^path: .*frame\.npz",
+    ),
+    Case(
+        "load_azure_kinect_frame",
+        lambda: load_azure_kinect_frame(_frame_npz("metres.npz", np.full((4, 4), 1.5, np.float32))),
+        ARG,
+        r"^path: .*metres\.npz holds depth_mm as float32, expected integer millimetres",
+        "float depth",
+    ),
+    Case(
+        "load_azure_kinect_frame",
+        lambda: load_azure_kinect_frame(
+            _frame_npz("no_ir.npz", np.ones((4, 4), np.uint16), ir=None)
+        ),
+        ARG,
+        r"^path: could not read .*no_ir\.npz \(no 'ir' in it\)",
+        "missing array",
     ),
     Case(
         "load_azure_kinect_frame",

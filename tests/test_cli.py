@@ -142,7 +142,8 @@ def test_bad_input_is_a_clean_error(tmp_path: Path, capsys) -> None:  # type: ig
     )
     assert code == 2
     err = capsys.readouterr().err
-    assert err.startswith("rgbd: error: --calib: path:") and "missing.json" in err
+    assert err.startswith("rgbd: error: --calib: could not read") and "missing.json" in err
+    assert "(no such file)" in err
 
 
 # -- every bad run: one line on stderr, exit status 2, no traceback -----------------------------

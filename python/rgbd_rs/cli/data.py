@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, fail, folder, integer, named, output_folder, real
+from rgbd_rs.cli._args import Commands, fail, flagged, folder, integer, output_folder, real
 from rgbd_rs.geometry import MAX_SPLAT_RADIUS
 
 #: Everything ``rgbd reproject`` may write (cleared first: a run without ``--undistort`` must
@@ -122,8 +122,8 @@ def run_reproject(args: argparse.Namespace) -> int:
     from rgbd_rs.io import write_npz
     from rgbd_rs.viz import as_bgr, colorize, save_png, tile
 
-    cal = named("--calib", lambda: load_azure_kinect_calibration(args.calib))
-    frame = named("--frame", lambda: load_azure_kinect_frame(args.frame))
+    cal = flagged({"path": "--calib"}, lambda: load_azure_kinect_calibration(args.calib))
+    frame = flagged({"path": "--frame"}, lambda: load_azure_kinect_frame(args.frame))
     rep = reproject_to_color(frame, cal, splat_radius=args.splat_radius)
     if not np.isfinite(rep.depth).any():
         return fail(

@@ -112,10 +112,29 @@ def load_azure_kinect_calibration(
     except (OSError, KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
         # json.JSONDecodeError and the cameras' own InvalidArgumentError are ValueErrors.
         raise InvalidArgumentError(
-            f"path: could not read an Azure Kinect calibration from {path} ({exc!r}), expected the "
+            f"path: could not read an Azure Kinect calibration from {path} ({_reason(exc)}), "
+            "expected the "
             "device's calibration JSON with D0 and PV0 cameras"
         ) from None
     return AzureKinectCalibration(depth_cam, color_cam, pose, radius)
+
+
+def _reason(exc: BaseException) -> str:
+    """What went wrong reading a file, in words (no Python reprs)."""
+    if isinstance(exc, KeyError):
+        if not exc.args:
+            return "a key is missing"
+        key = str(exc.args[0]).split(" is not a file in the archive")[0]  # numpy's npz wording
+        return f"no {key!r} in it"
+    if isinstance(exc, IsADirectoryError):
+        return "a folder, not a file"
+    if isinstance(exc, FileNotFoundError):
+        return "no such file"
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    if isinstance(exc, AttributeError):
+        return "not an npz archive"
+    return str(exc) or type(exc).__name__
 
 
 def _numbers(what: str, values: object, count: int) -> list[float]:
@@ -175,9 +194,15 @@ def load_azure_kinect_frame(path: str | Path) -> AzureKinectFrame:
         TypeError,
     ) as exc:
         raise InvalidArgumentError(
-            f"path: could not read an Azure Kinect frame from {path} ({exc!r}), expected an npz "
+            f"path: could not read an Azure Kinect frame from {path} ({_reason(exc)}), expected "
+            "an npz "
             "with depth_mm, ir and color"
         ) from None
+    if depth_mm.dtype.kind not in "ui" or depth_mm.dtype.itemsize < 2:
+        raise InvalidArgumentError(
+            f"path: {path} holds depth_mm as {depth_mm.dtype}, expected integer millimetres "
+            "(uint16, as the device writes them; metres stored as floats would be 1000x too near)"
+        )
     kinds = (depth_mm.dtype.kind, ir.dtype.kind, color.dtype.kind)
     if any(k not in "uif" for k in kinds) or color.dtype != np.uint8:
         raise InvalidArgumentError(
