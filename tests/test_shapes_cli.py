@@ -95,6 +95,15 @@ def test_bad_runs_end_in_one_line(
     assert main(["classify", str(junk), "--checkpoint", str(tmp_path / "r" / "last.pt")]) == 2
     err = capsys.readouterr().err
     assert "junk.off" in err and "not a valid OFF mesh" in err and err.count("\n") == 1
+    line = tmp_path / "line.npy"
+    np.save(line, np.outer(np.arange(20.0), [1.0, 0.5, 0.0]).astype(np.float32))
+    assert main(["classify", str(line), "--checkpoint", str(tmp_path / "r" / "last.pt")]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: FILE: got 20 points that all lie on")
+    assert main(["classify", str(tmp_path / "nope.off")]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: FILE: got ")
+    with pytest.raises(SystemExit):
+        main(["classify", str(line), "--checkpoint", str(ck), "--dataset", "modelnet10"])
+    assert "not allowed with argument --checkpoint" in capsys.readouterr().err
     for bad in (["--shard", "2/2"], ["--representations", "depth,colour"], ["--resolution", "4"]):
         with pytest.raises(SystemExit) as info:
             main(["shapes", "cache", "--data", str(pack), "--out", str(ok), *bad])

@@ -12,6 +12,7 @@ from rgbd_rs.cli._args import (
     Parser,
     device,
     fail,
+    flagged,
     integer,
     named,
     real,
@@ -50,10 +51,11 @@ def _classify(commands: Commands) -> None:
         "alignment); --up y for y-up files.",
     )
     p.add_argument("file", type=Path, metavar="FILE", help="mesh or point-cloud file")
-    p.add_argument(
-        "--checkpoint", type=Path, metavar="FILE", help="a `rgbd train shapes` checkpoint"
+    weights = p.add_mutually_exclusive_group()
+    weights.add_argument(
+        "--checkpoint", type=Path, metavar="CKPT", help="a `rgbd train shapes` checkpoint"
     )
-    p.add_argument(
+    weights.add_argument(
         "--dataset", choices=("modelnet10", "modelnet40"), help="which shipped weights to use"
     )
     p.add_argument("--top", type=integer(1), default=5, metavar="N", help="classes to print (5)")
@@ -74,8 +76,10 @@ def run_classify(args: argparse.Namespace) -> int:
         "--checkpoint",
         lambda: ShapeClassifier.load(args.checkpoint, dataset=args.dataset),
     )
-    shape = load_shape(args.file)
-    best, probs = clf(shape, up=args.up)
+    where = {"path": "FILE", "shape": "FILE"}  # the library's argument names
+    best, probs = flagged(
+        where, lambda: clf(flagged(where, lambda: load_shape(args.file)), up=args.up)
+    )
     print(f"{args.file}: {best}")
     for name, prob in list(probs.items())[: args.top]:
         print(f"  {prob:6.1%}  {name}")
