@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, integer, real, shard
+from rgbd_rs.cli._args import Commands, folder, integer, real, shard
 
 
 def register(commands: Commands) -> None:
@@ -24,7 +24,12 @@ def register(commands: Commands) -> None:
         "inference-only copy to python/rgbd_rs/nn/weights/confidence.pt.",
     )
     p.add_argument("--data", type=Path, required=True, help="rgbd synth dataset folder")
-    p.add_argument("--out", type=Path, default=Path("out/train_confidence"), help="output folder")
+    p.add_argument(
+        "--out",
+        type=folder,
+        default=Path("out/train_confidence"),
+        help="output folder (out/train_confidence)",
+    )
     p.add_argument("--width", type=integer(1, 1024), default=32, help="filters per layer (32)")
     p.add_argument("--epochs", type=integer(1), default=10, help="epochs (10)")
     p.add_argument("--batch-size", type=integer(1), default=16, help="patches per step (16)")

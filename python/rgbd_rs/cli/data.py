@@ -51,7 +51,7 @@ def register(commands: Commands) -> None:
         "truth. Resumable and bit-reproducible for a given seed. With --preview, only writes "
         "OUT/preview.png (one test scene with per-effect ToF error maps).",
     )
-    syn.add_argument("--out", type=Path, required=True, help="dataset folder")
+    syn.add_argument("--out", type=folder, required=True, help="dataset folder")
     syn.add_argument("--train", type=_scenes, default=40, help="training scenes (default 40)")
     syn.add_argument("--test", type=_scenes, default=15, help="test scenes (default 15)")
     syn.add_argument(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, integer
+from rgbd_rs.cli._args import Commands, folder, integer
 
 
 def register(commands: Commands) -> None:
@@ -18,7 +18,9 @@ def register(commands: Commands) -> None:
         "semantic labeling of a real NYUv2 frame, and shape classification of real ModelNet "
         "shapes; prints measurements and writes PNGs.",
     )
-    demo.add_argument("--out", type=Path, default=Path("out/demo"), help="folder for the pictures")
+    demo.add_argument(
+        "--out", type=folder, default=Path("out/demo"), help="folder for the pictures (out/demo)"
+    )
     demo.add_argument("--no-pictures", action="store_true", help="print only")
     demo.add_argument(
         "--seed", type=integer(0, 2**32 - 1), default=0, help="random seed (default 0)"

@@ -160,7 +160,12 @@ def register(commands: Commands) -> None:
         help="confidence ConvNet checkpoint for the 'LC ConvNet' row (default: the shipped one)",
     )
     ef.add_argument("--no-convnet", action="store_true", help="leave out the 'LC ConvNet' row")
-    ef.add_argument("--out", type=Path, default=Path("out/eval_fusion"), help="output folder")
+    ef.add_argument(
+        "--out",
+        type=folder,
+        default=Path("out/eval_fusion"),
+        help="output folder (out/eval_fusion)",
+    )
     ef.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, integer, shard
+from rgbd_rs.cli._args import Commands, folder, integer, shard
 
 #: Frames the preview shows.
 PREVIEW_FRAMES = 4
@@ -23,7 +23,7 @@ def register(commands: Commands) -> None:
         "complete frames are skipped (resume). --preview writes OUT/preview.png only; --stats "
         "prints the class pixel frequencies of OUT's frames beside the real NYUv2 frames'.",
     )
-    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--out", type=folder, required=True, help="output folder")
     p.add_argument(
         "--count", type=integer(1, 1_000_000), required=True, help="frames 0..N-1 of the seed"
     )

@@ -8,7 +8,7 @@ import math
 import time
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, integer
+from rgbd_rs.cli._args import Commands, folder, integer
 from rgbd_rs.errors import RgbdError
 
 DESCRIPTION = (
@@ -50,7 +50,12 @@ def register(commands: Commands) -> None:
         help="semantic ConvNet of the full-method row: the shipped weights (auto) or a "
         "`rgbd train semantic` checkpoint",
     )
-    p.add_argument("--out", type=Path, default=Path("out/eval_segmentation"), help="output folder")
+    p.add_argument(
+        "--out",
+        type=folder,
+        default=Path("out/eval_segmentation"),
+        help="output folder (out/eval_segmentation)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

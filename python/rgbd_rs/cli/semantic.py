@@ -12,6 +12,7 @@ from rgbd_rs.cli._args import (
     Parser,
     device,
     fail,
+    folder,
     integer,
     named,
     real,
@@ -75,7 +76,7 @@ def _cache(sub: argparse._SubParsersAction[Parser]) -> None:
         help="NYUv2 split (train, so evaluation frames never reach training by default; of the "
         ".mat: the official 795/654)",
     )
-    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="cache folder")
+    p.add_argument("--out", type=folder, required=True, metavar="DIR", help="cache folder")
     p.add_argument(
         "--size",
         type=size_arg,
@@ -177,7 +178,11 @@ def _train(commands: Commands) -> None:
     )
     p.add_argument("--cache", type=Path, required=True, metavar="DIR", help="cache folder")
     p.add_argument(
-        "--out", type=Path, default=Path("out/train_semantic"), metavar="DIR", help="output folder"
+        "--out",
+        type=folder,
+        default=Path("out/train_semantic"),
+        metavar="DIR",
+        help="output folder (out/train_semantic)",
     )
     p.add_argument(
         "--val-cache", type=Path, metavar="DIR", help="validate on this cache's frames instead"

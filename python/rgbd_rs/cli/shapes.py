@@ -13,6 +13,7 @@ from rgbd_rs.cli._args import (
     device,
     fail,
     flagged,
+    folder,
     integer,
     named,
     real,
@@ -113,7 +114,7 @@ def _cache(commands: Commands) -> None:
         help="modelnet10, modelnet40 (the shared point packs), a point pack .npz or a ModelNet "
         "OFF tree folder (CLASS/{train,test}/*.off)",
     )
-    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="cache folder")
+    p.add_argument("--out", type=folder, required=True, metavar="DIR", help="cache folder")
     p.add_argument(
         "--resolution",
         type=integer(8, 4096),
@@ -225,7 +226,11 @@ def _train(commands: Commands) -> None:
         "--cache", type=Path, required=True, metavar="DIR", help="`rgbd shapes cache` folder"
     )
     p.add_argument(
-        "--out", type=Path, default=Path("out/train_shapes"), metavar="DIR", help="output folder"
+        "--out",
+        type=folder,
+        default=Path("out/train_shapes"),
+        metavar="DIR",
+        help="output folder (out/train_shapes)",
     )
     p.add_argument(
         "--representations",
@@ -359,7 +364,11 @@ def _eval(commands: Commands) -> None:
         "--label", metavar="NAME", help="dataset column name of the ablation table (from the cache)"
     )
     p.add_argument(
-        "--out", type=Path, default=Path("out/eval_shapes"), metavar="DIR", help="report folder"
+        "--out",
+        type=folder,
+        default=Path("out/eval_shapes"),
+        metavar="DIR",
+        help="report folder (out/eval_shapes)",
     )
     p.add_argument(
         "--batch-size", type=integer(1), default=64, metavar="N", help="shapes per batch (64)"
