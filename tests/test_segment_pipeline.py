@@ -60,6 +60,10 @@ def test_depth_in_a_wrong_unit_warns(frame) -> None:  # type: ignore[no-untyped-
     from rgbd_rs.segmentation.pipeline import depth_unit_warning
 
     assert depth_unit_warning(NYUV2_CAMERA.depth_to_points(frame.depth)) is None
+    # ... and 1000x too near (kilometres, or metres scaled twice) as well.
+    too_near = depth_unit_warning(NYUV2_CAMERA.depth_to_points(frame.depth / 1000))
+    assert too_near is not None and too_near.startswith("depth: median 0.00")
+    assert "below the ~0.05 m" in too_near
 
 
 def test_cli_writes_labels_overlay_and_frames(tmp_path: Path) -> None:

@@ -40,6 +40,9 @@ ADJACENCY_NORMAL_RADIUS = GRAVITY_RADIUS
 #: refused by the features). It catches 0.1 mm read as millimetres (10x too far) on any scene
 #: beyond 1 m; TUM's 1/5000 m read as millimetres (5x) only on scenes beyond 2 m.
 MAX_PLAUSIBLE_MEDIAN_DEPTH_M = 10.0
+#: A median valid depth below this (metres) warns too: no RGB-D camera of that class focuses a
+#: scene at under 5 cm (depth in kilometres, or metres scaled twice, lands here).
+MIN_PLAUSIBLE_MEDIAN_DEPTH_M = 0.05
 
 
 def depth_unit_warning(points: npt.NDArray[np.float32]) -> str | None:
@@ -48,12 +51,16 @@ def depth_unit_warning(points: npt.NDArray[np.float32]) -> str | None:
     z = points[..., 2]
     z = z[np.isfinite(z)]
     med = float(np.median(z)) if z.size else 0.0
-    if med <= MAX_PLAUSIBLE_MEDIAN_DEPTH_M:
+    if MIN_PLAUSIBLE_MEDIAN_DEPTH_M <= med <= MAX_PLAUSIBLE_MEDIAN_DEPTH_M or not z.size:
         return None
+    where = (
+        f"beyond the ~{MAX_PLAUSIBLE_MEDIAN_DEPTH_M:g} m"
+        if med > MAX_PLAUSIBLE_MEDIAN_DEPTH_M
+        else f"below the ~{MIN_PLAUSIBLE_MEDIAN_DEPTH_M:g} m"
+    )
     return (
-        f"depth: median {med:.3g} m, beyond the ~{MAX_PLAUSIBLE_MEDIAN_DEPTH_M:g} m an RGB-D "
-        "camera measures: check the depth unit (metres; with `rgbd segment`, --depth-scale for "
-        "a PNG that is not in millimetres)"
+        f"depth: median {med:.3g} m, {where} an RGB-D camera measures: check the depth unit "
+        "(metres; with `rgbd segment`, --depth-scale for a PNG that is not in millimetres)"
     )
 
 
