@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs import _rgbd_rs
 from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
@@ -30,6 +31,8 @@ FUSE_FLAGS = {
 }
 #: 16-bit disparity PNGs store disparity x 256 (the KITTI convention); 0 = invalid.
 DISPARITY_PNG_SCALE = 256.0
+#: Largest LC window half-size (crates/rgbd-fusion).
+MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 
 FUSE_DESCRIPTION = (
     "Reproject + upsample the ToF depth onto the reference camera, run SGM on the pair, weight "
@@ -126,10 +129,16 @@ def register(commands: Commands) -> None:
         "pixels, at most a third of the width)",
     )
     fz.add_argument(
-        "--radius", type=integer(1), help="LC window half-size (default: 39x39 at 1920 px)"
+        "--radius",
+        type=integer(1, MAX_RADIUS),
+        help=f"LC window half-size, 1..{MAX_RADIUS} (default: grows with the image width: 10 at "
+        "960 px, 19 at 1920 px, the thesis' 39x39 window)",
     )
     fz.add_argument(
-        "--stride", type=integer(1), default=2, help="LC window sampling step (default 2)"
+        "--stride",
+        type=integer(1),
+        default=2,
+        help="LC window sampling step, at most the radius (default 2)",
     )
     fz.add_argument(
         "--cross-check", action="store_true", help="keep only pixels both views agree on (eq. 2.18)"
@@ -151,7 +160,10 @@ def register(commands: Commands) -> None:
     )
     ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes only")
     ef.add_argument(
-        "--stride", type=integer(1), default=2, help="LC window sampling step (default 2)"
+        "--stride",
+        type=integer(1),
+        default=2,
+        help="LC window sampling step, at most the radius (default 2)",
     )
     ef.add_argument("--cross-check", action="store_true", help="LC with the two-view cross-check")
     ef.add_argument(
