@@ -72,9 +72,9 @@ def _cache(sub: argparse._SubParsersAction[Parser]) -> None:
     p.add_argument(
         "--split",
         choices=("train", "test", "all"),
-        default="train",
-        help="NYUv2 split (train, so evaluation frames never reach training by default; of the "
-        ".mat: the official 795/654)",
+        default=None,
+        help="NYUv2 split (default train, so evaluation frames never reach training; of the "
+        ".mat: the official 795/654); other folders have only all (their default)",
     )
     p.add_argument("--out", type=folder, required=True, metavar="DIR", help="cache folder")
     p.add_argument(
@@ -97,6 +97,10 @@ def _cache(sub: argparse._SubParsersAction[Parser]) -> None:
 def run_cache(args: argparse.Namespace) -> int:
     from rgbd_rs.segmentation.semantic_data import build_semantic_cache, open_frames
 
+    if args.split is None:
+        from rgbd_rs.segmentation.semantic_data import frames_have_splits
+
+        args.split = "train" if frames_have_splits(args.frames, args.calib) else "all"
     frames = named("--frames", lambda: open_frames(args.frames, args.split, args.calib))
     source = (
         f"nyuv2-{args.split}"

@@ -227,6 +227,24 @@ class SyntheticFrames:
         return self.frames[k]
 
 
+def frames_have_splits(  # for the CLI; not in __all__
+    frames: str | os.PathLike[str], camera: PinholeCamera | str | os.PathLike[str] | None = None
+) -> bool:
+    """Whether :func:`open_frames` takes a ``split`` other than ``"all"`` for ``frames``: the
+    shared NYUv2 frames, the official ``.mat`` and NYUv2-layout folders (without a camera)."""
+    if isinstance(frames, str) and frames.lower() == "nyuv2":
+        return True
+    p = Path(frames)
+    if p.is_file() and p.suffix.lower() == ".mat":
+        return True
+    return (
+        p.is_dir()
+        and camera is None
+        and not (p / "camera.json").is_file()
+        and any(p.glob("[0-9][0-9][0-9][0-9]_label40.png"))
+    )
+
+
 def open_frames(
     frames: str | os.PathLike[str],
     split: str = "all",
