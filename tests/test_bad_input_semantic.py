@@ -273,6 +273,13 @@ ALL_CASES: list[Case] = [
     Case("SemanticCache", lambda: SemanticCache(TMP / "empty"), RgbdError, r"empty: no meta\.json"),
     Case(
         "SemanticCache",
+        lambda: SemanticCache(TMP / "absent"),
+        RgbdError,
+        r"absent: no such folder, expected a cache .*`rgbd semantic cache`",
+        "absent",
+    ),
+    Case(
+        "SemanticCache",
         lambda: SemanticCache(TMP / "notcache"),
         RgbdError,
         r"meta\.json: format 'other'",

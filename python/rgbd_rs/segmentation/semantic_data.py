@@ -533,7 +533,9 @@ class SemanticCache:
         meta_path = self.path / "meta.json"
         if not meta_path.is_file():
             raise RgbdError(
-                f"{self.path}: no meta.json, expected a folder written by build_semantic_cache"
+                f"{self.path}: "
+                + ("no such folder" if not self.path.exists() else "no meta.json")
+                + ", expected a cache written by build_semantic_cache (`rgbd semantic cache`)"
             )
         try:
             meta = json.loads(meta_path.read_text())

@@ -782,7 +782,11 @@ class ShapeCache:
         self.path = Path(path)
         meta_path = self.path / "meta.json"
         if not meta_path.is_file():
-            raise RgbdError(f"{self.path}: no meta.json, expected a folder written by build_cache")
+            raise RgbdError(
+                f"{self.path}: "
+                + ("no such folder" if not self.path.exists() else "no meta.json")
+                + ", expected a cache written by build_cache (`rgbd shapes cache`)"
+            )
         try:
             meta = json.loads(meta_path.read_text())
         except (ValueError, UnicodeDecodeError) as exc:
