@@ -128,7 +128,8 @@ def run_reproject(args: argparse.Namespace) -> int:
     if not np.isfinite(rep.depth).any():
         return fail(
             "no ToF pixel reaches the colour camera (coverage 0 %): check that --frame's "
-            "depth_mm is in millimetres and --calib's depth_to_color translation in metres"
+            "depth_mm is in millimetres and --calib's colour-camera translation (PV0 Rt) in "
+            "metres"
         )
     output_folder(args.out, REPROJECT_OUTPUTS)
     assert rep.channels is not None  # amplitude was passed as a channel

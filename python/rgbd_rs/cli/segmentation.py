@@ -38,7 +38,6 @@ DESCRIPTION = (
 )
 
 
-#: segment()'s parameters -> the flags that gave them (errors name the flag).
 #: Everything ``rgbd segment`` may write (cleared first, so no file of an earlier run stays).
 SEGMENT_OUTPUTS = (
     "labels.png",
@@ -52,6 +51,7 @@ SEGMENT_OUTPUTS = (
     "merge/[0-9][0-9][0-9][0-9].png",
 )
 
+#: segment()'s parameters -> the flags that gave them (errors name the flag).
 SEGMENT_FLAGS = {
     "rgb": "--rgb",
     "depth": "--depth",
