@@ -78,9 +78,7 @@ def run_classify(args: argparse.Namespace) -> int:
         lambda: ShapeClassifier.load(args.checkpoint, dataset=args.dataset),
     )
     where = {"path": "FILE", "shape": "FILE"}  # the library's argument names
-    best, probs = flagged(
-        where, lambda: clf(flagged(where, lambda: load_shape(args.file)), up=args.up)
-    )
+    best, probs = flagged(where, lambda: clf(load_shape(args.file), up=args.up))
     print(f"{args.file}: {best}")
     for name, prob in list(probs.items())[: args.top]:
         print(f"  {prob:6.1%}  {name}")
