@@ -151,9 +151,7 @@ def output_folder(out: Path, outputs: Sequence[str], flag: str = "--out") -> Pat
     left there: ``outputs`` are glob patterns (relative to ``out``) of everything the command
     may write, so a run that writes fewer files (no ``--undistort``, fit-only instead of the
     ConvNet) does not leave the other run's files beside its own. Other files are kept."""
-    if out.exists() and not out.is_dir():
-        raise RgbdError(f"{flag}: got {out}, a file; expected a folder (created when missing)")
-    try:
+    try:  # a file at ``out`` (the ``folder`` type refused one while parsing) fails in mkdir
         out.mkdir(parents=True, exist_ok=True)
         for pattern in outputs:
             for old in out.glob(pattern):
