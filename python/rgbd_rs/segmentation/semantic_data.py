@@ -237,9 +237,13 @@ def frames_have_splits(  # for the CLI; not in __all__
     p = Path(frames)
     if p.is_file() and p.suffix.lower() == ".mat":
         return True
+    return p.is_dir() and _nyu_layout(p, camera)
+
+
+def _nyu_layout(p: Path, camera: object) -> bool:
+    """A folder of NYUv2 frames (``NNNN_label40.png``, no camera of its own or given)."""
     return (
-        p.is_dir()
-        and camera is None
+        camera is None
         and not (p / "camera.json").is_file()
         and any(p.glob("[0-9][0-9][0-9][0-9]_label40.png"))
     )
@@ -280,8 +284,7 @@ def open_frames(
         raise InvalidArgumentError(
             f"frames: got {str(frames)!r}, expected 'nyuv2', nyu_depth_v2_labeled.mat or a folder"
         )
-    nyu_layout = any(p.glob("[0-9][0-9][0-9][0-9]_label40.png"))
-    if camera is None and not (p / "camera.json").is_file() and nyu_layout:
+    if _nyu_layout(p, camera):
         return NyuFrames(split, p)
     if split != "all":
         raise InvalidArgumentError(
