@@ -11,6 +11,7 @@ mod oversegment;
 mod render;
 mod segment;
 mod spline;
+mod stereo;
 mod views;
 mod voxel;
 
@@ -73,6 +74,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     oversegment::register(m)?;
     segment::register(m)?;
     voxel::register(m)?;
+    stereo::register(m)?;
     views::register(m)?;
     // Limits defined once in the core crates, read by the Python layer.
     m.add("MAX_RADIUS", rgbd_fusion::MAX_RADIUS)?;

@@ -32,6 +32,12 @@ from rgbd_rs.data.nyuv2_mat import (
     load_nyuv2_splits,
 )
 from rgbd_rs.data.paths import data_root
+from rgbd_rs.data.stereo_scenes import (
+    StereoScene,
+    load_stereo_scene,
+    load_stereo_scenes,
+    scene_names,
+)
 from rgbd_rs.data.synth import SynthDataset, SynthSample, synth3_rig, write_dataset
 from rgbd_rs.data.synth3 import Synth3Dataset, Synth3Sample
 from rgbd_rs.data.synth_indoor import (
@@ -54,6 +60,7 @@ __all__ = [
     "NyuMatDataset",
     "NyuSplits",
     "NyuTestLabels",
+    "StereoScene",
     "Synth3Dataset",
     "Synth3Sample",
     "SynthDataset",
@@ -65,12 +72,15 @@ __all__ = [
     "load_azure_kinect_frame",
     "load_camera",
     "load_middlebury",
+    "load_stereo_scene",
+    "load_stereo_scenes",
     "load_nyuv2_frame",
     "load_nyuv2_mapping",
     "load_nyuv2_splits",
     "load_rig",
     "nyuv2_frames",
     "region_ground_truth",
+    "scene_names",
     "render_indoor_frame",
     "reproject_to_color",
     "save_camera",

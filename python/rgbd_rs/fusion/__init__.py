@@ -16,6 +16,7 @@ Example:
 """
 
 from rgbd_rs.fusion.clues import compute_clues
+from rgbd_rs.fusion.census import CensusMatch, CensusParams, census_match
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.fuse import FusionResult, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse, lc_refine
@@ -28,9 +29,12 @@ from rgbd_rs.fusion.upsample import (
 )
 
 __all__ = [
+    "CensusMatch",
+    "CensusParams",
     "FusionResult",
     "LcParams",
     "ToFOnReference",
+    "census_match",
     "compute_clues",
     "cost_curve_stats",
     "fuse",

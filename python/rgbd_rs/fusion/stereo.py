@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from typing import Literal, cast
 
 import cv2
 import numpy as np
@@ -22,6 +23,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._inputs import F32, rgb8
+from rgbd_rs.fusion.census import CensusParams, census_match
 
 #: SGBM block size (thesis §3.7) and smoothness penalties (OpenCV's documented 8/32 x 3 x n^2).
 BLOCK_SIZE = 7
@@ -111,6 +113,10 @@ def same_search(a: int, b: int, min_disparity: int = 0) -> bool:
     return _num_disparities(min_disparity, a) == _num_disparities(min_disparity, b)
 
 
+#: The matchers :func:`sgm` runs.
+METHODS = ("census", "opencv")
+
+
 def sgm(
     left: npt.ArrayLike,
     right: npt.ArrayLike,
@@ -119,19 +125,51 @@ def sgm(
     max_disparity: int = 128,
     min_disparity: int = 0,
     block_size: int = BLOCK_SIZE,
+    method: str = "opencv",
+    params: CensusParams | None = None,
 ) -> F32:
-    """SGBM disparity (``d = u_left - u_right``) on the ``reference`` view; NaN = invalid.
+    """Semi-global matching disparity (``d = u_left - u_right``) on the ``reference`` view;
+    NaN = invalid.
 
-    Invalid means what SGBM marks invalid (left-right check, uniqueness, the image border) and
-    its outputs at the lower end of the search, ``d = min_disparity`` (``d = 0`` by default):
-    SGBM parks pixels there that it could not match and cannot refine them to sub-pixel.
+    ``method="census"`` runs our matcher (:func:`~rgbd_rs.fusion.census.census_match`: census
+    costs, 8 paths, sub-pixel, left-right check; ``params`` sets its knobs, the search range is
+    ``min_disparity..max_disparity`` inclusive). ``method="opencv"`` runs OpenCV's SGBM (MODE_HH,
+    Birchfield-Tomasi costs over ``block_size`` blocks: the thesis' matcher, and the one the
+    shipped confidence ConvNet was trained on, so :func:`~rgbd_rs.fusion.fuse` still uses it);
+    there, invalid means what SGBM marks invalid (left-right check, uniqueness, the image
+    border) and its outputs at the lower end of the search, ``d = min_disparity``: SGBM parks
+    pixels there that it could not match and cannot refine them to sub-pixel.
 
     Args:
         left, right: the rectified pair, uint8 RGB (or grey) of equal size.
         reference: ``"right"`` (the thesis' output camera) or ``"left"``.
-        max_disparity, min_disparity: search range in pixels (rounded up to a multiple of 16).
-        block_size: odd matching window (7 as in the thesis).
+        max_disparity, min_disparity: search range in pixels (OpenCV rounds it up to a multiple
+            of 16).
+        block_size: OpenCV's odd matching window (7 as in the thesis).
+        method: ``"opencv"`` or ``"census"``.
+        params: :class:`~rgbd_rs.fusion.census.CensusParams` (``method="census"`` only).
     """
+    kind = _validate.choice("method", method, METHODS)
+    if kind == "census":
+        if block_size != BLOCK_SIZE:
+            raise InvalidArgumentError(
+                f"block_size: got {block_size!r}, expected the default with method='census' "
+                "(the census window is params.census_width x params.census_height)"
+            )
+        ref_c = _validate.choice("reference", reference, ("left", "right"))
+        return census_match(
+            left,
+            right,
+            reference=cast(Literal["left", "right"], ref_c),
+            max_disparity=max_disparity,
+            min_disparity=min_disparity,
+            params=params,
+        ).disparity
+    if params is not None:
+        raise InvalidArgumentError(
+            "params: got CensusParams, expected None with method='opencv' (OpenCV's knob is "
+            "block_size)"
+        )
     lft = rgb8("left", left)
     rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
     ref = _validate.choice("reference", reference, ("left", "right"))
