@@ -70,6 +70,8 @@ EXEMPT: dict[str, str] = {
     "PinholeCamera.without_distortion": "no arguments",
     "Reprojection": "result container built by reproject_depth",
     "FusionResult": "result container built by fuse",
+    "CensusMatch": "result container built by census_match",
+    "StereoScene": "plain record of validated scene arrays, built by load_stereo_scene",
     "ToFOnReference": "result container built by tof_to_reference",
     "SurfaceMaps": "result container built by the surface fits",
     "SurfaceFit": "result container built by fit_mask / fit_grid",

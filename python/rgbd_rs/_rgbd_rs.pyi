@@ -8,6 +8,7 @@ __all__ = [
     "HHA_ANGLE_RADIUS",
     "HHA_GRAVITY_RADIUS",
     "HHA_MAX_MEDIAN_DEPTH_M",
+    "MAX_ELEMENTS",
     "MAX_PIXELS",
     "MAX_RADIUS",
     "MAX_SIDE",
@@ -36,6 +37,7 @@ __all__ = [
     "NativeScene",
     "RgbdError",
     "SegmentFits",
+    "SgmConfig",
     "ShapeMismatchError",
     "UpsampleConfig",
     "check_metric_depth",
@@ -88,6 +90,7 @@ class ShapeMismatchError(RgbdError): ...
 MAX_RADIUS: int
 MAX_SIDE: int
 MAX_PIXELS: int
+MAX_ELEMENTS: int
 SPLINE_MAX_DEGREE: int
 SPLINE_DEFAULT_LAMBDA: float
 
@@ -260,6 +263,33 @@ def cost_curve_stats(
     max_disparity: int,
     block: int,
 ) -> tuple[_F32, _F32, _F32]: ...
+
+@final
+class SgmConfig:
+    def __new__(
+        cls,
+        min_disparity: int,
+        max_disparity: int,
+        census_width: int,
+        census_height: int,
+        census_reference: str,
+        p1: int,
+        p2: int,
+        p2_contrast: float,
+        paths: int,
+        subpixel: str,
+        lr_tolerance: int | None,
+        uniqueness: int,
+        median: int,
+        speckle_size: int,
+        speckle_range: float,
+        stats: bool,
+    ) -> SgmConfig: ...
+
+def sgm_defaults() -> dict[str, object]: ...
+def census_sgm(
+    left: _U8, right: _U8, reference: str, config: SgmConfig
+) -> tuple[_F32, _F32 | None, _F32 | None]: ...
 
 @final
 class UpsampleConfig:

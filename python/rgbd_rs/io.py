@@ -32,6 +32,7 @@ __all__ = [
     "write_json",
     "write_npz",
     "write_png",
+    "write_text",
 ]
 
 #: Timestamp stored in every npz member, so equal arrays give equal bytes.
@@ -67,6 +68,13 @@ def _atomic_bytes(path: Path, data: bytes) -> Path:
     tmp.write_bytes(data)
     tmp.replace(path)
     return path
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write UTF-8 ``text`` to ``path`` atomically (creating parent folders)."""
+    if not isinstance(text, str):
+        raise InvalidArgumentError(f"text: got {type(text).__name__}, expected str")
+    return _atomic_bytes(_path(path), text.encode())
 
 
 def write_npz(path: str | Path, arrays: Mapping[str, npt.ArrayLike]) -> Path:

@@ -13,7 +13,15 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.io import write_png
 
-__all__ = ["as_bgr", "colorize", "outline_segments", "paint_segments", "save_png", "tile"]
+__all__ = [
+    "as_bgr",
+    "colorize",
+    "colorize_with_bar",
+    "outline_segments",
+    "paint_segments",
+    "save_png",
+    "tile",
+]
 
 U8 = npt.NDArray[np.uint8]
 
@@ -46,6 +54,47 @@ def colorize(
     out = cv2.applyColorMap((scaled * 255).astype(np.uint8), colormap)
     out[~finite] = 0
     return np.asarray(out, dtype=np.uint8)
+
+
+#: Colour of "no data" pixels in :func:`colorize_with_bar` (BGR, mid grey: distinct from every
+#: TURBO colour and from black image content).
+NO_DATA_BGR = (128, 128, 128)
+
+
+def colorize_with_bar(
+    values: npt.ArrayLike,
+    vmin: float | None = None,
+    vmax: float | None = None,
+    unit: str = "px",
+    colormap: int = cv2.COLORMAP_TURBO,
+) -> U8:
+    """:func:`colorize` with "no data" in grey and a colour bar below the map: the range's ends
+    and middle labelled in ``unit``, and a grey swatch labelled "no data"."""
+    v = np.asarray(_validate.array("values", values, shape=(None, None)), np.float32)
+    finite = np.isfinite(v)
+    lo = float(np.percentile(v[finite], 1)) if vmin is None and finite.any() else (vmin or 0.0)
+    hi = float(np.percentile(v[finite], 99)) if vmax is None and finite.any() else (vmax or 1.0)
+    if hi <= lo:
+        hi = lo + 1.0
+    img = colorize(v, lo, hi, colormap)
+    img[~finite] = NO_DATA_BGR
+    h, w = v.shape
+    bar_h, text_h = max(10, h // 30), 22
+    ramp = np.linspace(0, 255, max(w - 110, 16)).astype(np.uint8)[None, :]
+    bar = cv2.applyColorMap(np.repeat(ramp, bar_h, axis=0), colormap)
+    panel = np.full((bar_h + text_h + 6, max(w, bar.shape[1] + 110), 3), 255, np.uint8)
+    panel[3 : 3 + bar_h, 5 : 5 + bar.shape[1]] = bar
+    sw = panel.shape[1] - 100
+    panel[3 : 3 + bar_h, sw : sw + bar_h] = NO_DATA_BGR
+    font, y = cv2.FONT_HERSHEY_SIMPLEX, 3 + bar_h + 17
+    cv2.putText(panel, "no data", (sw - 2, y), font, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    for frac in (0.0, 0.5, 1.0):
+        label = f"{lo + frac * (hi - lo):.3g} {unit}"
+        x = 5 + int(frac * (bar.shape[1] - 1)) - int(frac * 9 * len(label))
+        cv2.putText(panel, label, (max(0, x), y), font, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    if panel.shape[1] > w:
+        img = np.pad(img, ((0, 0), (0, panel.shape[1] - w), (0, 0)), constant_values=255)
+    return np.ascontiguousarray(np.vstack([img, panel]))
 
 
 def _u8_image(name: str, value: object) -> U8:

@@ -80,6 +80,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_RADIUS", rgbd_fusion::MAX_RADIUS)?;
     m.add("MAX_SIDE", rgbd_error::MAX_SIDE)?;
     m.add("MAX_PIXELS", rgbd_error::MAX_PIXELS)?;
+    m.add("MAX_ELEMENTS", rgbd_error::MAX_ELEMENTS)?;
     m.add("SPLINE_MAX_DEGREE", rgbd_spline::MAX_DEGREE)?;
     m.add("SPLINE_DEFAULT_LAMBDA", rgbd_spline::DEFAULT_LAMBDA)?;
     Ok(())

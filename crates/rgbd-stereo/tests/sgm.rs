@@ -141,6 +141,8 @@ proptest! {
         p1 in 1u16..20, extra in 1u16..200, contrast in prop_oneof![Just(0.0f32), 1.0f32..40.0],
         paths in 0u8..3, cw in prop_oneof![Just(3usize), Just(5), Just(9)], mean in any::<bool>(),
         seed in any::<u64>(), right in any::<bool>(),
+        lr in prop_oneof![Just(None), (0u16..3).prop_map(Some)], uniqueness in 0u8..20,
+        median in prop_oneof![Just(1usize), Just(3), Just(5)], speckle in 0usize..6,
     ) {
         let max_disparity = dmin + nd - 1;
         prop_assume!(max_disparity < w);
@@ -153,6 +155,10 @@ proptest! {
             census_width: cw,
             census_height: 3,
             census_reference: if mean { CensusReference::Mean } else { CensusReference::Center },
+            lr_tolerance: lr,
+            uniqueness,
+            median,
+            speckle_size: speckle,
             ..SgmParams::new(max_disparity)
         };
         let l = noise_image(w, h, seed);

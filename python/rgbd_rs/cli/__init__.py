@@ -30,6 +30,7 @@ from rgbd_rs.cli import (
     segmentation_eval,
     semantic,
     shapes,
+    stereo,
 )
 from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message
 from rgbd_rs.errors import RgbdError
@@ -42,6 +43,7 @@ PIPELINES = (
     data,
     indoor,
     fusion,
+    stereo,
     confidence,
     segmentation,
     segmentation_eval,

@@ -48,6 +48,20 @@ class StereoScene:
     max_disparity: float
 
 
+def _folder(root: str | Path | None) -> Path:
+    if root is not None:
+        if not isinstance(root, (str, Path)) or not str(root):
+            raise InvalidArgumentError(f"root: got {root!r}, expected a folder path or None")
+        return Path(root)
+    shared = data_root()
+    if shared is None:
+        raise RgbdError(
+            "stereo scenes: the shared data was not found; set RGBD_DATA to the folder that "
+            "holds stereo/scenes.csv"
+        )
+    return shared / "stereo"
+
+
 def _manifest(root: Path) -> list[dict[str, str]]:
     path = root / "scenes.csv"
     if not path.is_file():
@@ -77,13 +91,13 @@ def scene_names(split: str | None = None, root: str | Path | None = None) -> lis
     order."""
     if split is not None:
         _validate.choice("split", split, SPLITS)
-    folder = Path(root) if root is not None else data_root() / "stereo"
+    folder = _folder(root)
     return [r["scene"] for r in _manifest(folder) if split is None or r["split"] == split]
 
 
 def load_stereo_scene(name: str, root: str | Path | None = None) -> StereoScene:
     """One scene by name (e.g. ``"Cones"``); ``root`` defaults to ``<data>/stereo``."""
-    folder = Path(root) if root is not None else data_root() / "stereo"
+    folder = _folder(root)
     rows = {r["scene"]: r for r in _manifest(folder)}
     if not isinstance(name, str) or name not in rows:
         raise InvalidArgumentError(

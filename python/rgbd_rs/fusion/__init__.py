@@ -15,8 +15,8 @@ Example:
     >>> out.disparity, out.depth  # doctest: +SKIP
 """
 
-from rgbd_rs.fusion.clues import compute_clues
 from rgbd_rs.fusion.census import CensusMatch, CensusParams, census_match
+from rgbd_rs.fusion.clues import compute_clues
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.fuse import FusionResult, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse, lc_refine

@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._inputs import F32, rgb8
 
 _DEFAULTS = _rgbd_rs.sgm_defaults()
@@ -121,9 +121,27 @@ class CensusMatch:
     second: F32 | None
 
 
+def _image(name: str, value: object) -> np.ndarray:
+    """``value`` as an array after the checks that need no copy: uint8, ``H x W`` or
+    ``H x W x 3``, not empty."""
+    arr = _validate.asarray(name, value)
+    if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3):
+        raise ShapeMismatchError(f"{name}: got shape {arr.shape}, expected (H, W, 3) or (H, W)")
+    if arr.dtype != np.uint8:
+        raise InvalidArgumentError(f"{name}: got dtype {arr.dtype}, expected uint8 (0-255)")
+    if arr.size == 0:
+        raise ShapeMismatchError(f"{name}: got an empty image, expected at least 1x2 pixels")
+    return arr
+
+
 def grey(image: npt.ArrayLike, name: str = "image") -> npt.NDArray[np.uint8]:
-    """A uint8 grey copy of an RGB (or already grey) image."""
+    """A uint8 grey copy of an RGB (or already grey) image (its size checked before copying)."""
     arr = _validate.asarray(name, image)
+    if arr.ndim in (2, 3) and arr.shape[0] * arr.shape[1] > _rgbd_rs.MAX_PIXELS:
+        raise ShapeMismatchError(
+            f"{name}: got {arr.shape[1]} x {arr.shape[0]} pixels, expected at most "
+            f"{_rgbd_rs.MAX_PIXELS}"
+        )
     if arr.ndim == 2 and arr.dtype == np.uint8 and arr.size > 0:
         return np.ascontiguousarray(arr)
     rgb = rgb8(name, arr)
@@ -149,21 +167,33 @@ def census_match(
         params: :class:`CensusParams` (default: the shipped defaults).
         stats: also return the aggregated cost curve's best and second-best costs.
     """
-    lft = grey(left, "left")
-    rgt = grey(right, "right")
-    if rgt.shape != lft.shape:
-        raise InvalidArgumentError(
-            f"right: got {rgt.shape[1]}x{rgt.shape[0]} pixels, expected {lft.shape[1]}x"
-            f"{lft.shape[0]} (the left image's size)"
+    raw = _image("left", left)
+    raw_r = _image("right", right)
+    if raw_r.shape[:2] != raw.shape[:2]:
+        raise ShapeMismatchError(
+            f"right: got {raw_r.shape[1]}x{raw_r.shape[0]} pixels, expected {raw.shape[1]}x"
+            f"{raw.shape[0]} (the left image's size)"
+        )
+    # Sizes next: a huge (e.g. broadcast) input is refused before it is copied.
+    h, w = raw.shape[:2]
+    if h * w > _rgbd_rs.MAX_PIXELS:
+        raise ShapeMismatchError(
+            f"left: got {w} x {h} pixels, expected at most {_rgbd_rs.MAX_PIXELS}"
         )
     ref = _validate.choice("reference", reference, ("left", "right"))
-    w = lft.shape[1]
     lo = _validate.integer("min_disparity", min_disparity, minimum=0, maximum=max(0, w - 2))
     hi = _validate.integer("max_disparity", max_disparity, minimum=lo + 1)
     if hi >= w:
         raise InvalidArgumentError(
             f"max_disparity: got {hi}, expected less than the image width {w}"
         )
+    if h * w * (hi - lo + 1) > _rgbd_rs.MAX_ELEMENTS:
+        raise InvalidArgumentError(
+            f"max_disparity: got {hi}, expected a search whose cost volume ({w} x {h} x "
+            f"{hi - lo + 1}) holds at most {_rgbd_rs.MAX_ELEMENTS} elements"
+        )
+    lft = grey(raw, "left")
+    rgt = grey(raw_r, "right")
     if params is None:
         params = CensusParams()
     elif not isinstance(params, CensusParams):

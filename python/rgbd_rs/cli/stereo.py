@@ -1,0 +1,140 @@
+"""``rgbd stereo`` (our census SGM, or OpenCV's, on one rectified pair) and ``rgbd eval stereo``
+(both on the real Middlebury scenes of the shared data)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder
+from rgbd_rs.errors import InvalidArgumentError
+
+#: What ``rgbd stereo`` writes (cleared from --out first).
+STEREO_OUTPUTS = ("disparity.npz", "disparity.png", "preview.png")
+#: OpenCV block sizes ``rgbd eval stereo`` compares against.
+OPENCV_BLOCKS = (3, 5, 7, 9)
+
+
+def register(commands: Commands) -> None:
+    st = commands.command(
+        "stereo",
+        run_stereo,
+        help="disparity of a rectified stereo pair (census SGM, or OpenCV's)",
+        description="Semi-global matching on a rectified pair: our census matcher (default) or "
+        "OpenCV's SGBM. Writes OUT/disparity.npz (float32 px, NaN = none), disparity.png "
+        "(16-bit, px x 256, 0 = none) and preview.png (colour, with a scale bar).",
+    )
+    st.add_argument("--left", type=Path, required=True, help="left image (PNG)")
+    st.add_argument("--right", type=Path, required=True, help="right image (PNG)")
+    rng = st.add_mutually_exclusive_group(required=True)
+    rng.add_argument("--max-disparity", type=integer(1), help="search range in px (inclusive)")
+    rng.add_argument(
+        "--calib",
+        type=Path,
+        help="rig calibration JSON: the search range covers depths down to --min-depth",
+    )
+    st.add_argument(
+        "--min-depth",
+        type=float,
+        default=0.5,
+        help="with --calib: nearest depth searched, metres (default 0.5)",
+    )
+    st.add_argument("--reference", choices=("left", "right"), default="left", help="default left")
+    st.add_argument(
+        "--method", choices=("census", "opencv"), default="census", help="default census (ours)"
+    )
+    st.add_argument("--out", type=folder, required=True, help="output folder")
+
+    ev = commands.group_command(
+        "eval",
+        "stereo",
+        run_eval_stereo,
+        help="census SGM vs OpenCV SGBM on the real Middlebury scenes",
+        description="Scores our census matcher and OpenCV's SGBM (HH and 3WAY, block sizes "
+        f"{', '.join(map(str, OPENCV_BLOCKS))}) on the Middlebury scenes of the shared data "
+        "(stereo/scenes.csv): bad-1, bad-2 (a missing output counts as bad), RMS, coverage and "
+        "bad-1 in the 2 px band around depth edges, on the non-occluded pixels of the left "
+        "view. Writes OUT/<split>.md.",
+    )
+    ev.add_argument(
+        "--split", choices=("train", "val", "test", "all"), default="test", help="default test"
+    )
+    ev.add_argument(
+        "--out", type=folder, default=Path("out/eval_stereo"), help="(default out/eval_stereo)"
+    )
+    ev.add_argument("--quiet", action="store_true", help="no progress")
+
+
+def _search_range(args: argparse.Namespace, width: int) -> int:
+    if args.max_disparity is not None:
+        dmax = int(args.max_disparity)
+    else:
+        from rgbd_rs.data.calibration import load_rig
+
+        if not (args.min_depth > 0 and math.isfinite(args.min_depth)):
+            raise InvalidArgumentError(f"--min-depth: got {args.min_depth}, expected metres > 0")
+        rig = named("--calib", lambda: load_rig(args.calib))
+        dmax = math.ceil(rig.stereo.baseline * rig.stereo.focal / args.min_depth)
+    if dmax >= width:
+        flag = "--max-disparity" if args.max_disparity is not None else "--min-depth"
+        raise InvalidArgumentError(
+            f"{flag}: a search range of {dmax} px, expected less than the image width {width}"
+        )
+    return dmax
+
+
+def run_stereo(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from rgbd_rs.fusion.stereo import max_search, sgm
+    from rgbd_rs.io import read_png, write_npz, write_png
+    from rgbd_rs.viz import colorize_with_bar, save_png
+
+    left = named("--left", lambda: read_png(args.left))
+    right = named("--right", lambda: read_png(args.right))
+    dmax = _search_range(args, left.shape[1])
+    if args.method == "opencv":
+        dmax = min(dmax, max_search(left.shape[1]))
+    out = output_folder(args.out, STEREO_OUTPUTS)
+    disp = flagged(
+        {"left": "--left", "right": "--right", "max_disparity": "--max-disparity"},
+        lambda: sgm(left, right, reference=args.reference, max_disparity=dmax, method=args.method),
+    )
+    write_npz(out / "disparity.npz", {"disparity": disp})
+    scaled = np.where(np.isfinite(disp), np.clip(np.rint(disp * 256), 0, 65535), 0)
+    write_png(out / "disparity.png", scaled.astype(np.uint16), rgb=False)
+    save_png(out / "preview.png", colorize_with_bar(disp, 0.0, float(dmax), unit="px"))
+    cover = float(np.isfinite(disp).mean())
+    print(f"{args.method} SGM on the {args.reference} view, 0..{dmax} px: {cover:.1%} matched")
+    print(f"wrote {out}/disparity.npz, disparity.png, preview.png")
+    return 0
+
+
+def run_eval_stereo(args: argparse.Namespace) -> int:
+    from rgbd_rs.data.stereo_scenes import load_stereo_scenes
+    from rgbd_rs.fusion.evaluate_stereo import census_matcher, evaluate, opencv_matcher
+    from rgbd_rs.io import write_text
+
+    split = None if args.split == "all" else args.split
+    scenes = load_stereo_scenes(split)
+    methods = {"census (ours)": census_matcher()}
+    for b in OPENCV_BLOCKS:
+        methods[f"OpenCV HH {b}x{b}"] = opencv_matcher(b, "hh")
+    for b in OPENCV_BLOCKS:
+        methods[f"OpenCV 3WAY {b}x{b}"] = opencv_matcher(b, "3way")
+
+    def progress(msg: str) -> None:
+        if not args.quiet and sys.stderr.isatty():
+            print(f"\r{msg:<60}", end="", file=sys.stderr, flush=True)
+
+    table = evaluate(scenes, methods, progress)
+    if not args.quiet and sys.stderr.isatty():
+        print(file=sys.stderr)
+    text = table.markdown(f"{args.split} split ({len(scenes)} scenes)")
+    out = output_folder(args.out, (f"{args.split}.md",))
+    write_text(out / f"{args.split}.md", text)
+    print(text)
+    print(f"wrote {out}/{args.split}.md")
+    return 0

@@ -1,0 +1,129 @@
+"""Our census SGM on real Middlebury scenes (train split only: the test split is for reporting)
+and on synthetic pairs: better than OpenCV's SGBM-HH 7x7, both reference views, invariant to a
+change of the target camera's gain and bias, the cost statistics, the CLI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rgbd_rs.cli import main
+from rgbd_rs.data import load_stereo_scene, scene_names
+from rgbd_rs.fusion import CensusParams, census_match, sgm
+from rgbd_rs.fusion.evaluate_stereo import measures, opencv_matcher, search_range
+from rgbd_rs.io import read_npz
+
+
+def test_the_manifest_gives_the_split_and_the_scale(shared_data: Path) -> None:
+    assert len(scene_names()) == 27
+    assert len(scene_names("train")) == 14 and len(scene_names("val")) == 6
+    tsukuba = load_stereo_scene("Tsukuba")
+    assert tsukuba.scale == 16 and tsukuba.disparity_right is None
+    assert np.nanmax(tsukuba.disparity_left) <= 16
+
+
+@pytest.mark.parametrize("name", ["Rocks2", "Wood1"])
+def test_census_beats_opencv_hh_on_train_scenes(shared_data: Path, name: str) -> None:
+    scene = load_stereo_scene(name)
+    dmax = search_range(scene)
+    ours = measures(
+        census_match(scene.left, scene.right, reference="left", max_disparity=dmax).disparity, scene
+    )
+    peer = measures(opencv_matcher(7)(scene, dmax), scene)
+    assert ours["bad2"] <= 0.75 * peer["bad2"], (ours, peer)
+    assert ours["coverage"] >= peer["coverage"]
+
+
+def test_the_right_view_is_matched_too(shared_data: Path) -> None:
+    scene = load_stereo_scene("Rocks2")
+    gt = scene.disparity_right
+    assert gt is not None
+    d = census_match(
+        scene.left, scene.right, reference="right", max_disparity=search_range(scene)
+    ).disparity
+    ok = np.isfinite(gt)
+    # The right view's last columns see nothing of the left view; skip them.
+    ok[:, -search_range(scene) :] = False
+    good = np.abs(d[ok] - gt[ok]) <= 2
+    assert good.mean() > 0.9, good.mean()
+
+
+def _pair(w: int = 120, h: int = 60, d: int = 9, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    wide = (rng.random((h, w + d)) * 200 + 20).astype(np.uint8)
+    return np.ascontiguousarray(wide[:, :w]), np.ascontiguousarray(wide[:, d : d + w])
+
+
+def test_a_gain_and_bias_of_the_target_change_nothing() -> None:
+    left, right = _pair()
+    a = census_match(left, right, reference="left", max_disparity=20).disparity
+    # Gain 1.25, bias -25: strictly increasing and one-to-one on the pair's 20..219 levels.
+    brighter = np.rint((right.astype(np.float32) - 20) * 1.25).astype(np.uint8)
+    b = census_match(left, brighter, reference="left", max_disparity=20).disparity
+    np.testing.assert_array_equal(a, b)
+    ok = np.isfinite(a[:, 20:])
+    assert ok.mean() > 0.95 and np.abs(a[:, 20:][ok] - 9).max() < 0.5
+
+
+def test_statistics_and_the_unsearched_columns() -> None:
+    left, right = _pair()
+    m = census_match(left, right, reference="left", min_disparity=4, max_disparity=20, stats=True)
+    assert m.best is not None and m.second is not None
+    assert np.isnan(m.disparity[:, :4]).all() and np.isnan(m.best[:, :4]).all()
+    fin = np.isfinite(m.second)
+    assert (m.best[fin] <= m.second[fin]).all()
+    plain = census_match(left, right, reference="left", min_disparity=4, max_disparity=20)
+    assert plain.best is None
+    np.testing.assert_array_equal(plain.disparity, m.disparity)
+
+
+def test_the_checks_only_remove_pixels() -> None:
+    left, right = _pair(seed=3)
+    free = census_match(left, right, reference="left", max_disparity=20).disparity
+    checked = census_match(
+        left,
+        right,
+        reference="left",
+        max_disparity=20,
+        params=CensusParams(lr_tolerance=1, uniqueness=10, median=1),
+    ).disparity
+    plain = census_match(
+        left, right, reference="left", max_disparity=20, params=CensusParams(median=1)
+    ).disparity
+    both = np.isfinite(checked)
+    np.testing.assert_array_equal(checked[both], plain[both])
+    assert both.sum() < np.isfinite(free).sum()
+
+
+def test_sgm_runs_either_matcher() -> None:
+    left, right = _pair(w=160)
+    a = sgm(left, right, reference="right", max_disparity=32, method="census")
+    b = census_match(left, right, reference="right", max_disparity=32).disparity
+    np.testing.assert_array_equal(a, b)
+    c = sgm(left, right, reference="right", max_disparity=32, method="opencv")
+    assert c.shape == a.shape
+
+
+def test_cli_stereo_writes_the_maps(tmp_path: Path) -> None:
+    from rgbd_rs.io import write_png
+
+    left, right = _pair(w=160)
+    write_png(tmp_path / "l.png", np.dstack([left] * 3))
+    write_png(tmp_path / "r.png", np.dstack([right] * 3))
+    out = tmp_path / "out"
+    argv = ["stereo", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png")]
+    assert main([*argv, "--max-disparity", "24", "--out", str(out)]) == 0
+    d = read_npz(out / "disparity.npz")["disparity"]
+    assert np.nanmedian(d[:, 24:]) == pytest.approx(9, abs=0.5)
+    assert (out / "preview.png").stat().st_size > 1000 and (out / "disparity.png").exists()
+    assert main([*argv, "--max-disparity", "200", "--out", str(out)]) == 2
+
+
+def test_cli_eval_stereo_on_val(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["eval", "stereo", "--split", "val", "--out", str(tmp_path), "--quiet"]) == 0
+    text = (tmp_path / "val.md").read_text()
+    assert "census (ours)" in text and "OpenCV HH 7x7" in text and "Tsukuba" in text
