@@ -21,6 +21,8 @@ import os
 import resource
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -31,11 +33,21 @@ REPEATS = 5
 D = 128
 
 
-def scene() -> tuple[np.ndarray, np.ndarray]:
+#: The rendered pair, written once by the parent process for the children (so a child's peak
+#: memory holds no rendering).
+PAIR = Path(tempfile.gettempdir()) / "rgbd_bench_stereo_pair.npz"
+
+
+def render_pair() -> None:
     from rgbd_rs.data.synth import generate, synth3_rig
 
     s, _ = generate(0, "test", 1, synth3_rig(0.5))
-    return s.left, s.right
+    np.savez(PAIR, left=s.left, right=s.right)
+
+
+def scene() -> tuple[np.ndarray, np.ndarray]:
+    with np.load(PAIR) as z:
+        return z["left"], z["right"]
 
 
 def resized(img: np.ndarray, w: int, h: int) -> np.ndarray:
@@ -126,6 +138,7 @@ def main() -> None:
     if args.child:
         child(args.child, args.threads)
         return
+    render_pair()
     print(f"960x540, {D} disparities, rendered test scene 1; median of {REPEATS} runs")
     print("| threads | OpenCV SGBM-HH 7x7 ms | census SGM ms | + statistics ms | speed-up |")
     print("|---|---|---|---|---|")

@@ -128,6 +128,7 @@ multiversion!(horizontal => horizontal_body(p: &Problem<'_>, y: usize, from_left
 /// the chunk's slots of every path (`[pixel][path][d]`, `[pixel][path]`), `prev` the whole
 /// previous row of every path. `cost` is the chunk's costs.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn vertical_body(
     p: &Problem<'_>,
     y: usize,

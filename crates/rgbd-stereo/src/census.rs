@@ -11,6 +11,8 @@
 
 use rayon::prelude::*;
 
+use crate::kernel::{multiversion, Kernel};
+
 /// What the window's pixels are compared with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CensusReference {
@@ -37,6 +39,19 @@ pub fn census(
     win_h: usize,
     reference: CensusReference,
 ) -> Vec<u64> {
+    census_with(img, width, height, win_w, win_h, reference, Kernel::best())
+}
+
+/// [`census`] with a chosen build of its loops.
+pub(crate) fn census_with(
+    img: &[u8],
+    width: usize,
+    height: usize,
+    win_w: usize,
+    win_h: usize,
+    reference: CensusReference,
+    kernel: Kernel,
+) -> Vec<u64> {
     let (rx, ry) = (win_w / 2, win_h / 2);
     // The image with its border replicated, so every window is a plain slice.
     let pw = width + 2 * rx;
@@ -58,12 +73,12 @@ pub fn census(
     };
     out.par_chunks_mut(width).enumerate().for_each_init(
         || vec![0u32; width],
-        |refv, (y, row)| win.row(y, reference, refv, row),
+        |refv, (y, row)| census_row(kernel, &win, y, reference, refv, row),
     );
     out
 }
 
-struct Window<'a> {
+pub(crate) struct Window<'a> {
     pad: &'a [u8],
     pw: usize,
     w: usize,
@@ -73,11 +88,13 @@ struct Window<'a> {
 
 impl Window<'_> {
     /// The window pixels at offset `(dx, dy)` (0-based in the window) of output row `y`.
+    #[inline(always)]
     fn slice(&self, y: usize, dx: usize, dy: usize) -> &[u8] {
         let s = (y + dy) * self.pw + dx;
         &self.pad[s..s + self.w]
     }
 
+    #[inline(always)]
     fn row(&self, y: usize, reference: CensusReference, refv: &mut [u32], out: &mut [u64]) {
         let (rx, ry) = (self.win_w / 2, self.win_h / 2);
         match reference {
@@ -115,6 +132,19 @@ impl Window<'_> {
     }
 }
 
+#[inline(always)]
+fn census_row_body(
+    win: &Window<'_>,
+    y: usize,
+    reference: CensusReference,
+    refv: &mut [u32],
+    out: &mut [u64],
+) {
+    win.row(y, reference, refv, out)
+}
+multiversion!(census_row => census_row_body(win: &Window<'_>, y: usize, reference: CensusReference,
+    refv: &mut [u32], out: &mut [u64]) -> ());
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -124,8 +154,8 @@ mod tests {
         // A horizontal ramp: in a 3x3 window the left column is darker than the centre.
         let img: Vec<u8> = (0..5 * 4).map(|i| (i % 5) as u8 * 10).collect();
         let c = census(&img, 5, 4, 3, 3, CensusReference::Center);
-        // Row-major bits without the centre: (L C R) (L R) (L C R) -> 100 10 100.
-        assert_eq!(c[5 + 2], 0b100_10_100);
+        // Row-major bits without the centre: (L C R) (L R) (L C R) = 100, 10, 100.
+        assert_eq!(c[5 + 2], 0b1001_0100);
         // At the left border the replicated column equals the centre: nothing darker.
         assert_eq!(c[5], 0);
     }

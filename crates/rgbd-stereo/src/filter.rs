@@ -23,12 +23,14 @@ pub fn median(disp: &[f32], w: usize, h: usize, side: usize) -> Vec<f32> {
                     }
                 }
             }
-            win.sort_unstable_by(f32::total_cmp);
             let m = win.len();
+            // A selection, not a sort: the upper middle, then the largest value below it.
+            let (below, &mut mid, _) = win.select_nth_unstable_by(m / 2, f32::total_cmp);
             *o = if m % 2 == 1 {
-                win[m / 2]
+                mid
             } else {
-                0.5 * (win[m / 2 - 1] + win[m / 2])
+                let lower = below.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+                0.5 * (lower + mid)
             };
         }
     });

@@ -108,7 +108,7 @@ fn sgm_on_pool(
 ) -> Result<SgmOutput> {
     let (sum, mirrored) = aggregated_with(left, right, width, height, reference, params, kernel)?;
     let (w, h) = (width, height);
-    let sel = select::select(&sum, w, h, params);
+    let sel = select::select(&sum, w, h, params, kernel);
     drop(sum);
     let mut disp = sel.disparity;
     if params.median > 1 {
@@ -169,8 +169,8 @@ pub fn aggregated_with(
         params.census_height,
         params.census_reference,
     );
-    let cref = census::census(&r_img, w, h, cw, ch, cr);
-    let mut trev = census::census(&t_img, w, h, cw, ch, cr);
+    let cref = census::census_with(&r_img, w, h, cw, ch, cr, kernel);
+    let mut trev = census::census_with(&t_img, w, h, cw, ch, cr, kernel);
     for row in trev.chunks_exact_mut(w) {
         row.reverse();
     }

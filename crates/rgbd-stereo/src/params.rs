@@ -195,7 +195,7 @@ impl SgmParams {
                 "a percentage in 0..=99",
             ));
         }
-        if self.median % 2 == 0 || self.median > MAX_MEDIAN {
+        if self.median.is_multiple_of(2) || self.median > MAX_MEDIAN {
             return Err(invalid(
                 "median",
                 self.median,

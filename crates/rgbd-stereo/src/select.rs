@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 
+use crate::kernel::{multiversion, Kernel};
 use crate::params::{SgmParams, Subpixel};
 
 /// The selected map and the cost statistics (`H x W` each; NaN where no disparity could be
@@ -40,7 +41,13 @@ pub(crate) fn offset(mode: Subpixel, a: u16, b: u16, c: u16) -> f32 {
 }
 
 /// Selects every row of `sum` (`H x W x nd`, disparities `dmin + k`).
-pub(crate) fn select(sum: &[u16], w: usize, h: usize, params: &SgmParams) -> Selected {
+pub(crate) fn select(
+    sum: &[u16],
+    w: usize,
+    h: usize,
+    params: &SgmParams,
+    kernel: Kernel,
+) -> Selected {
     let nd = params.disparities();
     let n = w * h;
     let mut out = Selected {
@@ -53,12 +60,13 @@ pub(crate) fn select(sum: &[u16], w: usize, h: usize, params: &SgmParams) -> Sel
         .zip(out.best.par_chunks_mut(w))
         .zip(out.second.par_chunks_mut(w))
         .zip(sum.par_chunks(w * nd))
-        .for_each(|(((d, b), s2), srow)| select_row(srow, w, params, d, b, s2));
+        .for_each(|(((d, b), s2), srow)| select_row(kernel, srow, w, params, d, b, s2));
     let _ = h;
     out
 }
 
-fn select_row(
+#[inline(always)]
+fn select_row_body(
     srow: &[u16],
     w: usize,
     params: &SgmParams,
@@ -112,6 +120,9 @@ fn select_row(
         disp[x] = (dmin + k) as f32 + off;
     }
 }
+
+multiversion!(select_row => select_row_body(srow: &[u16], w: usize, params: &SgmParams,
+    disp: &mut [f32], best: &mut [f32], second: &mut [f32]) -> ());
 
 #[cfg(test)]
 mod tests {
