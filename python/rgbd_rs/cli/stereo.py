@@ -8,7 +8,7 @@ import math
 import sys
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder
+from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
 from rgbd_rs.errors import InvalidArgumentError
 
 #: What ``rgbd stereo`` writes (cleared from --out first).
@@ -37,7 +37,7 @@ def register(commands: Commands) -> None:
     )
     st.add_argument(
         "--min-depth",
-        type=float,
+        type=real(0.0, 1e6),
         default=0.5,
         help="with --calib: nearest depth searched, metres (default 0.5)",
     )
@@ -73,8 +73,6 @@ def _search_range(args: argparse.Namespace, width: int) -> int:
     else:
         from rgbd_rs.data.calibration import load_rig
 
-        if not (args.min_depth > 0 and math.isfinite(args.min_depth)):
-            raise InvalidArgumentError(f"--min-depth: got {args.min_depth}, expected metres > 0")
         rig = named("--calib", lambda: load_rig(args.calib))
         dmax = math.ceil(rig.stereo.baseline * rig.stereo.focal / args.min_depth)
     if dmax >= width:
