@@ -1,5 +1,5 @@
 # Hand-written stub of the native module; checked against it by mypy.stubtest.
-from typing import final
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
@@ -40,6 +40,7 @@ __all__ = [
     "SgmConfig",
     "ShapeMismatchError",
     "UpsampleConfig",
+    "census_sgm",
     "check_metric_depth",
     "cost_curve_stats",
     "density_profiles",
@@ -70,6 +71,7 @@ __all__ = [
     "render_points",
     "reproject_depth",
     "segment_boundaries",
+    "sgm_defaults",
     "square_normals",
     "undistort_image",
     "undistort_map",
@@ -286,7 +288,7 @@ class SgmConfig:
         stats: bool,
     ) -> SgmConfig: ...
 
-def sgm_defaults() -> dict[str, object]: ...
+def sgm_defaults() -> dict[str, Any]: ...
 def census_sgm(
     left: _U8, right: _U8, reference: str, config: SgmConfig
 ) -> tuple[_F32, _F32 | None, _F32 | None]: ...

@@ -102,7 +102,7 @@ class CensusParams:
                 f"changes: got unknown parameter(s) {unknown}, expected some of {sorted(values)}"
             )
         values.update(changes)
-        return CensusParams(**values)  # type: ignore[arg-type]
+        return CensusParams(**values)
 
 
 @dataclass(frozen=True)
