@@ -2,15 +2,16 @@
 //! keeps just its previous row (`W x D` u16), so memory is `2 W H D` bytes plus `O(W D)`.
 //!
 //! The reference pixel `x` matches the target pixel `x - d` (a left reference; the right one is
-//! matched on mirrored images, see [`crate::sgm`]). Two sweeps:
+//! matched on mirrored images, see [`crate::sgm`]). Three passes, each computing the census
+//! costs it needs (they are never stored):
 //!
-//! 1. top-down: per row, the census costs (parallel over pixel chunks), then the two horizontal
-//!    paths (one task, sequential along the row) beside the paths from above (parallel over
-//!    pixel chunks, each reading the previous row): the sum goes into `S`;
-//! 2. bottom-up: the paths from below, added into `S`.
+//! 1. the horizontal paths, every row on its own (rows in parallel);
+//! 2. the paths from above, rows top-down, the pixels of a row in parallel chunks that read the
+//!    previous row;
+//! 3. the paths from below, likewise bottom-up.
 //!
-//! Rows are sequential within a sweep; the sum of each cell is independent of how the chunks
-//! are scheduled, so the result is the same for any thread count.
+//! Each pass adds its paths into `S`; a cell's sum does not depend on how the chunks are
+//! scheduled, so the result is the same for any thread count.
 
 use rayon::prelude::*;
 use rgbd_error::{check_interrupt, Result};
@@ -210,12 +211,8 @@ pub(crate) fn aggregate(p: &Problem<'_>, params: &SgmParams, kernel: Kernel) -> 
             rows: Rows::new(w * dirs.len(), nd),
             dirs,
         };
-        let ys: Box<dyn Iterator<Item = usize>> = if dy > 0 {
-            Box::new(0..h)
-        } else {
-            Box::new((0..h).rev())
-        };
-        for y in ys {
+        for i in 0..h {
+            let y = if dy > 0 { i } else { h - 1 - i };
             check_interrupt()?;
             let row = &mut sum[y * w * nd..(y + 1) * w * nd];
             vertical_rows(kernel, p, y, dy, &mut sweep, row);

@@ -26,6 +26,8 @@ mod params;
 mod select;
 mod volume;
 
+use std::borrow::Cow;
+
 use rgbd_error::{check_len, checked_len, image_len, Result};
 
 pub use census::CensusReference;
@@ -86,7 +88,28 @@ pub fn sgm_with(
 ) -> Result<SgmOutput> {
     // The whole call runs on one pool worker: the many short parallel steps (one per row and
     // sweep) then hand work to the other workers instead of blocking this thread each time.
-    on_pool(|| sgm_on_pool(left, right, width, height, reference, params, kernel))
+    on_pool(|| {
+        let sum = aggregated_with(left, right, width, height, reference, params, kernel)?;
+        let (w, h) = (width, height);
+        let sel = select::select(&sum, w, params, kernel);
+        drop(sum);
+        let mut disp = sel.disparity;
+        if params.median > 1 {
+            disp = filter::median(&disp, w, h, params.median);
+        }
+        filter::remove_speckles(&mut disp, w, h, params.speckle_size, params.speckle_range);
+        let (mut best, mut second) = (sel.best, sel.second);
+        if reference == Reference::Right {
+            for m in [&mut disp, &mut best, &mut second] {
+                mirror(m, w);
+            }
+        }
+        Ok(SgmOutput {
+            disparity: disp,
+            best: params.stats.then_some(best),
+            second: params.stats.then_some(second),
+        })
+    })
 }
 
 /// Runs `f` on a worker of rayon's global pool (where a blocking wait costs no context switch
@@ -97,40 +120,9 @@ fn on_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
     out.expect("the scope ran its body")
 }
 
-fn sgm_on_pool(
-    left: &[u8],
-    right: &[u8],
-    width: usize,
-    height: usize,
-    reference: Reference,
-    params: &SgmParams,
-    kernel: Kernel,
-) -> Result<SgmOutput> {
-    let (sum, mirrored) = aggregated_with(left, right, width, height, reference, params, kernel)?;
-    let (w, h) = (width, height);
-    let sel = select::select(&sum, w, h, params, kernel);
-    drop(sum);
-    let mut disp = sel.disparity;
-    if params.median > 1 {
-        disp = filter::median(&disp, w, h, params.median);
-    }
-    filter::remove_speckles(&mut disp, w, h, params.speckle_size, params.speckle_range);
-    let (mut best, mut second) = (sel.best, sel.second);
-    if mirrored {
-        for m in [&mut disp, &mut best, &mut second] {
-            mirror(m, w);
-        }
-    }
-    Ok(SgmOutput {
-        disparity: disp,
-        best: params.stats.then_some(best),
-        second: params.stats.then_some(second),
-    })
-}
-
 /// The summed path costs `S` (`H x W x D` u16, disparities `min_disparity + k`) of the problem
-/// as solved, and whether it was mirrored (a right reference: then column `x` of `S` is the
-/// right view's column `W - 1 - x`). For tests against a reference implementation.
+/// as solved: for a right reference the pair is mirrored, so column `x` of `S` is the right
+/// view's column `W - 1 - x`. For tests against a reference implementation.
 #[doc(hidden)]
 pub fn aggregated_with(
     left: &[u8],
@@ -140,7 +132,7 @@ pub fn aggregated_with(
     reference: Reference,
     params: &SgmParams,
     kernel: Kernel,
-) -> Result<(Vec<u16>, bool)> {
+) -> Result<Vec<u16>> {
     let n = image_len("left", width, height)?;
     check_len("left", left, n, "H x W grey")?;
     check_len("right", right, n, "H x W grey, the left image's size")?;
@@ -153,16 +145,15 @@ pub fn aggregated_with(
         Kernel::Portable
     };
     let (w, h) = (width, height);
-    let mirrored = reference == Reference::Right;
     // The reference image and the target, oriented so the match of x lies at x - d.
-    let (r_img, t_img): (Vec<u8>, Vec<u8>) = if mirrored {
+    let (r_img, t_img): (Cow<'_, [u8]>, Cow<'_, [u8]>) = if reference == Reference::Right {
         let mut r = right.to_vec();
         let mut t = left.to_vec();
         mirror(&mut r, w);
         mirror(&mut t, w);
-        (r, t)
+        (r.into(), t.into())
     } else {
-        (left.to_vec(), right.to_vec())
+        (left.into(), right.into())
     };
     let (cw, ch, cr) = (
         params.census_width,
@@ -186,7 +177,7 @@ pub fn aggregated_with(
         p1: params.p1,
         p2: params.p2_table(),
     };
-    Ok((aggregate::aggregate(&problem, params, kernel)?, mirrored))
+    aggregate::aggregate(&problem, params, kernel)
 }
 
 /// Reverses every row of an `H x W` map in place.

@@ -40,16 +40,10 @@ pub(crate) fn offset(mode: Subpixel, a: u16, b: u16, c: u16) -> f32 {
     }
 }
 
-/// Selects every row of `sum` (`H x W x nd`, disparities `dmin + k`).
-pub(crate) fn select(
-    sum: &[u16],
-    w: usize,
-    h: usize,
-    params: &SgmParams,
-    kernel: Kernel,
-) -> Selected {
+/// Selects every row of `sum` (`H x W x nd`, rows `W` wide, disparities `dmin + k`).
+pub(crate) fn select(sum: &[u16], w: usize, params: &SgmParams, kernel: Kernel) -> Selected {
     let nd = params.disparities();
-    let n = w * h;
+    let n = sum.len() / nd;
     let mut out = Selected {
         disparity: vec![f32::NAN; n],
         best: vec![f32::NAN; n],
@@ -61,7 +55,6 @@ pub(crate) fn select(
         .zip(out.second.par_chunks_mut(w))
         .zip(sum.par_chunks(w * nd))
         .for_each(|(((d, b), s2), srow)| select_row(kernel, srow, w, params, d, b, s2));
-    let _ = h;
     out
 }
 
@@ -76,9 +69,10 @@ fn select_row_body(
 ) {
     let (nd, dmin) = (params.disparities(), params.min_disparity);
     // The other view's winners at its pixel xr = x - dmin - k (smallest k on ties).
-    let mut r_cost = vec![u16::MAX; w];
-    let mut r_k = vec![0usize; w];
     let check = params.lr_tolerance;
+    let slots = if check.is_some() { w } else { 0 };
+    let mut r_cost = vec![u16::MAX; slots];
+    let mut r_k = vec![0usize; slots];
     if check.is_some() {
         for x in dmin..w {
             let kv = (x - dmin + 1).min(nd);
