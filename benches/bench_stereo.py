@@ -55,18 +55,10 @@ def resized(img: np.ndarray, w: int, h: int) -> np.ndarray:
 
 
 def opencv(left: np.ndarray, right: np.ndarray, nd: int) -> np.ndarray:
-    bs = 7
-    m = cv2.StereoSGBM.create(
-        minDisparity=0,
-        numDisparities=16 * -(-nd // 16),
-        blockSize=bs,
-        P1=8 * 3 * bs * bs,
-        P2=32 * 3 * bs * bs,
-        disp12MaxDiff=1,
-        uniquenessRatio=5,
-        mode=cv2.STEREO_SGBM_MODE_HH,
-    )
-    return np.asarray(m.compute(left, right))
+    """OpenCV's SGBM-HH 7x7 as ``sgm(method="opencv")`` configures it, raw output."""
+    from rgbd_rs.fusion.stereo import sgbm_matcher
+
+    return np.asarray(sgbm_matcher(0, nd - 1, 7).compute(left, right))
 
 
 def ours(left: np.ndarray, right: np.ndarray, nd: int, stats: bool) -> object:

@@ -199,6 +199,20 @@ CASES = [
         SHAPE,
         r"^values: got shape",
     ),
+    Case(
+        "colorize_with_bar",
+        lambda: viz.colorize_with_bar(np.zeros((3, 3)), vmin="0"),
+        ARG,
+        r"^vmin: got '0'",
+        "vmin",
+    ),
+    Case(
+        "colorize_with_bar",
+        lambda: viz.colorize_with_bar(np.zeros((3, 3)), unit=1),
+        ARG,
+        r"^unit: got int",
+        "unit",
+    ),
     Case("write_text", lambda: io.write_text("/tmp/x.md", b"x"), ARG, r"^text: got bytes"),
 ]
 

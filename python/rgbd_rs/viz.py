@@ -33,6 +33,14 @@ MAX_TILE_WIDTH = 8192
 MAX_TILE_COLUMNS = 64
 
 
+def _range(finite: np.ndarray, vmin: float | None, vmax: float | None) -> tuple[float, float]:
+    """The colour range: ``vmin`` / ``vmax``, else the 1st / 99th percentile of the ``finite``
+    values (0 / 1 when there are none)."""
+    lo = vmin if vmin is not None else float(np.percentile(finite, 1)) if finite.size else 0.0
+    hi = vmax if vmax is not None else float(np.percentile(finite, 99)) if finite.size else 1.0
+    return lo, hi
+
+
 def colorize(
     values: npt.ArrayLike,
     vmin: float | None = None,
@@ -48,8 +56,7 @@ def colorize(
     finite = np.isfinite(v)
     if not finite.any():
         return np.zeros((*v.shape, 3), np.uint8)
-    lo = float(np.percentile(v[finite], 1)) if vmin is None else vmin
-    hi = float(np.percentile(v[finite], 99)) if vmax is None else vmax
+    lo, hi = _range(v[finite], vmin, vmax)
     scaled = np.clip((np.nan_to_num(v, nan=lo) - lo) / max(hi - lo, 1e-12), 0, 1)
     out = cv2.applyColorMap((scaled * 255).astype(np.uint8), colormap)
     out[~finite] = 0
@@ -71,9 +78,12 @@ def colorize_with_bar(
     """:func:`colorize` with "no data" in grey and a colour bar below the map: the range's ends
     and middle labelled in ``unit``, and a grey swatch labelled "no data"."""
     v = np.asarray(_validate.array("values", values, shape=(None, None)), np.float32)
+    vmin = None if vmin is None else _validate.real("vmin", vmin)
+    vmax = None if vmax is None else _validate.real("vmax", vmax)
+    if not isinstance(unit, str):
+        raise InvalidArgumentError(f"unit: got {type(unit).__name__}, expected str")
     finite = np.isfinite(v)
-    lo = float(np.percentile(v[finite], 1)) if vmin is None and finite.any() else (vmin or 0.0)
-    hi = float(np.percentile(v[finite], 99)) if vmax is None and finite.any() else (vmax or 1.0)
+    lo, hi = _range(v[finite], vmin, vmax)
     if hi <= lo:
         hi = lo + 1.0
     img = colorize(v, lo, hi, colormap)

@@ -15,17 +15,24 @@ F32 = npt.NDArray[np.float32]
 U8 = npt.NDArray[np.uint8]
 
 
-def rgb8(name: str, value: object, size: tuple[int, int] | None = None) -> U8:
-    """An ``H x W x 3`` uint8 image (grey ``H x W`` is replicated); ``size`` = ``(W, H)``."""
+def image8(name: str, value: object) -> U8:
+    """``value`` as an array after the checks that need no copy (so a huge input is not copied
+    before it is refused): uint8, ``H x W x 3`` or grey ``H x W``, not empty."""
     arr = _validate.asarray(name, value)
-    if arr.ndim == 2:
-        arr = np.repeat(arr[:, :, None], 3, axis=2)
-    if arr.ndim != 3 or arr.shape[2] != 3:
+    if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3):
         raise ShapeMismatchError(f"{name}: got shape {arr.shape}, expected (H, W, 3) or (H, W)")
     if arr.dtype != np.uint8:
         raise InvalidArgumentError(f"{name}: got dtype {arr.dtype}, expected uint8 (0-255)")
     if arr.size == 0:
         raise ShapeMismatchError(f"{name}: got an empty image, expected at least 1x2 pixels")
+    return arr
+
+
+def rgb8(name: str, value: object, size: tuple[int, int] | None = None) -> U8:
+    """An ``H x W x 3`` uint8 image (grey ``H x W`` is replicated); ``size`` = ``(W, H)``."""
+    arr = image8(name, value)
+    if arr.ndim == 2:
+        arr = np.repeat(arr[:, :, None], 3, axis=2)
     if size is not None and (arr.shape[1], arr.shape[0]) != size:
         raise ShapeMismatchError(
             f"{name}: got {arr.shape[1]}x{arr.shape[0]} pixels, expected {size[0]}x{size[1]} "

@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.fusion._inputs import F32, rgb8
+from rgbd_rs.fusion._inputs import F32, image8
 
 _DEFAULTS = _rgbd_rs.sgm_defaults()
 #: Largest ``p2`` (eight paths of cost + P2 must fit a u16 sum) and median window side.
@@ -121,30 +121,12 @@ class CensusMatch:
     second: F32 | None
 
 
-def _image(name: str, value: object) -> np.ndarray:
-    """``value`` as an array after the checks that need no copy: uint8, ``H x W`` or
-    ``H x W x 3``, not empty."""
-    arr = _validate.asarray(name, value)
-    if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3):
-        raise ShapeMismatchError(f"{name}: got shape {arr.shape}, expected (H, W, 3) or (H, W)")
-    if arr.dtype != np.uint8:
-        raise InvalidArgumentError(f"{name}: got dtype {arr.dtype}, expected uint8 (0-255)")
-    if arr.size == 0:
-        raise ShapeMismatchError(f"{name}: got an empty image, expected at least 1x2 pixels")
-    return arr
-
-
 def grey(image: npt.ArrayLike, name: str = "image") -> npt.NDArray[np.uint8]:
-    """A uint8 grey copy of an RGB (or already grey) image (its size checked before copying)."""
-    arr = _validate.asarray(name, image)
-    if arr.ndim in (2, 3) and arr.shape[0] * arr.shape[1] > _rgbd_rs.MAX_PIXELS:
-        raise ShapeMismatchError(
-            f"{name}: got {arr.shape[1]} x {arr.shape[0]} pixels, expected at most "
-            f"{_rgbd_rs.MAX_PIXELS}"
-        )
-    if arr.ndim == 2 and arr.dtype == np.uint8 and arr.size > 0:
+    """A C-contiguous uint8 grey image of an RGB (or already grey) uint8 image."""
+    arr = image8(name, image)
+    if arr.ndim == 2:
         return np.ascontiguousarray(arr)
-    rgb = rgb8(name, arr)
+    rgb = np.ascontiguousarray(arr)
     return np.ascontiguousarray(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), dtype=np.uint8)
 
 
@@ -167,8 +149,8 @@ def census_match(
         params: :class:`CensusParams` (default: the shipped defaults).
         stats: also return the aggregated cost curve's best and second-best costs.
     """
-    raw = _image("left", left)
-    raw_r = _image("right", right)
+    raw = image8("left", left)
+    raw_r = image8("right", right)
     if raw_r.shape[:2] != raw.shape[:2]:
         raise ShapeMismatchError(
             f"right: got {raw_r.shape[1]}x{raw_r.shape[0]} pixels, expected {raw.shape[1]}x"

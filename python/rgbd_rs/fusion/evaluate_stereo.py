@@ -26,7 +26,7 @@ from rgbd_rs.data.stereo_scenes import StereoScene
 from rgbd_rs.fusion._inputs import F32
 from rgbd_rs.fusion.census import CensusParams, census_match
 from rgbd_rs.fusion.evaluate import non_occluded
-from rgbd_rs.fusion.stereo import max_search, sgm
+from rgbd_rs.fusion.stereo import max_search, sgbm_disparity, sgm
 
 #: A ground-truth disparity step above this many pixels between 4-neighbours is a depth edge.
 EDGE_JUMP = 2.0
@@ -124,22 +124,8 @@ def opencv_matcher(block_size: int, mode: str = "hh") -> Matcher:
 
 def _opencv_3way(block_size: int) -> Matcher:
     def run(scene: StereoScene, dmax: int) -> F32:
-        bs = block_size
-        nd = 16 * math.ceil(dmax / 16)
-        m = cv2.StereoSGBM.create(
-            minDisparity=0,
-            numDisparities=nd,
-            blockSize=bs,
-            P1=8 * 3 * bs * bs,
-            P2=32 * 3 * bs * bs,
-            disp12MaxDiff=1,
-            uniquenessRatio=5,
-            mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
-        )
-        raw = m.compute(scene.left, scene.right)
-        d = raw.astype(np.float32) / 16.0
-        d[raw <= 0] = np.nan
-        return d
+        mode = cv2.STEREO_SGBM_MODE_SGBM_3WAY
+        return sgbm_disparity(scene.left, scene.right, "left", 0, dmax, block_size, mode)
 
     return run
 

@@ -132,10 +132,12 @@ def sgm(
     NaN = invalid.
 
     ``method="census"`` runs our matcher (:func:`~rgbd_rs.fusion.census.census_match`: census
-    costs, 8 paths, sub-pixel, left-right check; ``params`` sets its knobs, the search range is
-    ``min_disparity..max_disparity`` inclusive). ``method="opencv"`` runs OpenCV's SGBM (MODE_HH,
-    Birchfield-Tomasi costs over ``block_size`` blocks: the thesis' matcher, and the one the
-    shipped confidence ConvNet was trained on, so :func:`~rgbd_rs.fusion.fuse` still uses it);
+    costs, SGM paths, sub-pixel, optional left-right and uniqueness checks; ``params`` sets its
+    knobs, the search range is ``min_disparity..max_disparity`` inclusive).
+
+    ``method="opencv"`` runs OpenCV's SGBM (MODE_HH, Birchfield-Tomasi costs over
+    ``block_size`` blocks: the thesis' matcher, and the one the shipped confidence ConvNet was
+    trained on, so :func:`~rgbd_rs.fusion.fuse` still uses it);
     there, invalid means what SGBM marks invalid (left-right check, uniqueness, the image
     border) and its outputs at the lower end of the search, ``d = min_disparity``: SGBM parks
     pixels there that it could not match and cannot refine them to sub-pixel.
@@ -195,7 +197,13 @@ def sgm(
             f"wide (OpenCV SGBM searches in steps of {DISPARITY_STEP} and needs a "
             f"{bs // 2 + 1} px margin)"
         )
-    matcher = cv2.StereoSGBM.create(
+    return sgbm_disparity(lft, rgt, ref, lo, hi, bs)
+
+
+def sgbm_matcher(lo: int, hi: int, bs: int, mode: int = cv2.STEREO_SGBM_MODE_HH) -> cv2.StereoSGBM:
+    """OpenCV's SGBM as :func:`sgm` configures it (``mode`` HH by default; benchmarks and the
+    stereo evaluation also run 3WAY), arguments unchecked."""
+    return cv2.StereoSGBM.create(
         minDisparity=lo,
         numDisparities=_num_disparities(lo, hi),
         blockSize=bs,
@@ -203,8 +211,22 @@ def sgm(
         P2=P2_FACTOR * 3 * bs * bs,
         disp12MaxDiff=DISP12_MAX_DIFF,
         uniquenessRatio=UNIQUENESS,
-        mode=cv2.STEREO_SGBM_MODE_HH,
+        mode=mode,
     )
+
+
+def sgbm_disparity(
+    lft: npt.NDArray[np.uint8],
+    rgt: npt.NDArray[np.uint8],
+    ref: str,
+    lo: int,
+    hi: int,
+    bs: int,
+    mode: int = cv2.STEREO_SGBM_MODE_HH,
+) -> F32:
+    """:func:`sgm`'s OpenCV path on checked inputs: the right reference matches the mirrored,
+    swapped pair; outputs at ``d <= lo`` are NaN (see :func:`sgm`)."""
+    matcher = sgbm_matcher(lo, hi, bs, mode)
     if ref == "left":
         raw = matcher.compute(lft, rgt)
     else:
