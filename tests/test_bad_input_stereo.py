@@ -213,6 +213,13 @@ CASES = [
         r"^unit: got int",
         "unit",
     ),
+    Case(
+        "colorize_with_bar",
+        lambda: viz.colorize_with_bar(np.zeros((3, 3)), title=None),
+        ARG,
+        r"^title: got NoneType",
+        "title",
+    ),
     Case("write_text", lambda: io.write_text("/tmp/x.md", b"x"), ARG, r"^text: got bytes"),
 ]
 

@@ -74,14 +74,17 @@ def colorize_with_bar(
     vmax: float | None = None,
     unit: str = "px",
     colormap: int = cv2.COLORMAP_TURBO,
+    title: str = "",
 ) -> U8:
     """:func:`colorize` with "no data" in grey and a colour bar below the map: the range's ends
-    and middle labelled in ``unit``, and a grey swatch labelled "no data"."""
+    and middle labelled in ``unit``, and a grey swatch labelled "no data"; ``title`` (if any)
+    is written in a strip above the map."""
     v = np.asarray(_validate.array("values", values, shape=(None, None)), np.float32)
     vmin = None if vmin is None else _validate.real("vmin", vmin)
     vmax = None if vmax is None else _validate.real("vmax", vmax)
-    if not isinstance(unit, str):
-        raise InvalidArgumentError(f"unit: got {type(unit).__name__}, expected str")
+    for name, text in (("unit", unit), ("title", title)):
+        if not isinstance(text, str):
+            raise InvalidArgumentError(f"{name}: got {type(text).__name__}, expected str")
     finite = np.isfinite(v)
     lo, hi = _range(v[finite], vmin, vmax)
     if hi <= lo:
@@ -104,7 +107,12 @@ def colorize_with_bar(
         cv2.putText(panel, label, (max(0, x), y), font, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
     if panel.shape[1] > w:
         img = np.pad(img, ((0, 0), (0, panel.shape[1] - w), (0, 0)), constant_values=255)
-    return np.ascontiguousarray(np.vstack([img, panel]))
+    parts = [img, panel]
+    if title:
+        strip = np.full((text_h + 6, panel.shape[1], 3), 255, np.uint8)
+        cv2.putText(strip, title, (5, text_h - 2), font, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+        parts.insert(0, strip)
+    return np.ascontiguousarray(np.vstack(parts))
 
 
 def _u8_image(name: str, value: object) -> U8:

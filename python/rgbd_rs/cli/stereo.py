@@ -103,7 +103,9 @@ def run_stereo(args: argparse.Namespace) -> int:
     write_npz(out / "disparity.npz", {"disparity": disp})
     scaled = np.where(np.isfinite(disp), np.clip(np.rint(disp * 256), 0, 65535), 0)
     write_png(out / "disparity.png", scaled.astype(np.uint16), rgb=False)
-    save_png(out / "preview.png", colorize_with_bar(disp, 0.0, float(dmax), unit="px"))
+    name = "census SGM (rgbd_rs)" if args.method == "census" else "OpenCV SGBM-HH 7x7"
+    title = f"{name}: disparity on the {args.reference} view"
+    save_png(out / "preview.png", colorize_with_bar(disp, 0.0, float(dmax), "px", title=title))
     cover = float(np.isfinite(disp).mean())
     print(f"{args.method} SGM on the {args.reference} view, 0..{dmax} px: {cover:.1%} matched")
     print(f"wrote {out}/disparity.npz, disparity.png, preview.png")
