@@ -406,7 +406,10 @@ class StereoRig:
     def __post_init__(self) -> None:
         _camera_arg("left", self.left)
         _camera_arg("right", self.right)
-        _validate.real("baseline", self.baseline, positive=True)
+        # Stored as the float it was checked as (an int such as 2**64 reached numpy as an object).
+        object.__setattr__(
+            self, "baseline", _validate.real("baseline", self.baseline, positive=True)
+        )
         if self.left.size != self.right.size or not math.isclose(self.left.fx, self.right.fx):
             raise InvalidArgumentError(
                 f"right: got {self.right.size} fx={self.right.fx}, expected a rectified pair with "
