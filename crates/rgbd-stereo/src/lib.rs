@@ -22,6 +22,7 @@ mod aggregate;
 pub mod census;
 pub mod filter;
 mod kernel;
+mod median;
 mod params;
 mod select;
 mod volume;
@@ -95,7 +96,7 @@ pub fn sgm_with(
         drop(sum);
         let mut disp = sel.disparity;
         if params.median > 1 {
-            disp = filter::median(&disp, w, h, params.median);
+            disp = median::median_with(kernel, &disp, w, h, params.median);
         }
         filter::remove_speckles(&mut disp, w, h, params.speckle_size, params.speckle_range);
         let (mut best, mut second) = (sel.best, sel.second);

@@ -88,11 +88,11 @@ fn select_row_body(
     for x in dmin..w {
         let kv = (x - dmin + 1).min(nd);
         let s = &srow[x * nd..x * nd + kv];
-        let s1 = *s.iter().min().unwrap_or(&u16::MAX);
-        let k = s.iter().position(|&v| v == s1).unwrap_or(0);
-        let lo = s[..k.saturating_sub(1)].iter().copied().min();
-        let hi = s.get(k + 2..).and_then(|t| t.iter().copied().min());
-        let s2 = lo.into_iter().chain(hi).min();
+        let s1 = min_of(s);
+        let k = first_of(s, s1);
+        // The second best lies outside k - 1 ..= k + 1 (none if that is empty).
+        let s2 = (k >= 2 || k + 2 < kv)
+            .then(|| min_of(&s[..k.saturating_sub(1)]).min(min_of(s.get(k + 2..).unwrap_or(&[]))));
         best[x] = f32::from(s1);
         second[x] = s2.map_or(f32::INFINITY, f32::from);
         if let Some(s2) = s2 {
@@ -113,6 +113,24 @@ fn select_row_body(
         };
         disp[x] = (dmin + k) as f32 + off;
     }
+}
+
+/// The smallest value (`u16::MAX` for none), written as a fold so that it vectorizes.
+#[inline(always)]
+fn min_of(s: &[u16]) -> u16 {
+    s.iter().fold(u16::MAX, |m, &v| m.min(v))
+}
+
+/// The first index of `v` in `s` (which holds it), searched a vector-wide block at a time.
+#[inline(always)]
+fn first_of(s: &[u16], v: u16) -> usize {
+    const BLOCK: usize = 32;
+    for (b, chunk) in s.chunks(BLOCK).enumerate() {
+        if chunk.iter().fold(false, |f, &c| f | (c == v)) {
+            return b * BLOCK + chunk.iter().position(|&c| c == v).unwrap_or(0);
+        }
+    }
+    0
 }
 
 multiversion!(select_row => select_row_body(srow: &[u16], w: usize, params: &SgmParams,
