@@ -1,5 +1,6 @@
-//! SGM path aggregation, streamed: the only volume is the sum `S` (`H x W x D` u16); every path
-//! keeps just its previous row (`W x D` u16), so memory is `2 W H D` bytes plus `O(W D)`.
+//! SGM path aggregation, streamed: the only volume is the sum `S` (u16, each pixel's searchable
+//! disparities: [`Layout`]); every path keeps just its previous row (`W x D` u16), so memory is
+//! under `2 W H D` bytes plus `O(W D)`.
 //!
 //! The reference pixel `x` matches the target pixel `x - d` (a left reference; the right one is
 //! matched on mirrored images, see [`crate::sgm`]). Three passes, each computing the census
@@ -16,7 +17,8 @@
 use rayon::prelude::*;
 use rgbd_error::{check_interrupt, Result};
 
-use crate::kernel::{costs, multiversion, start, step, Kernel};
+use crate::kernel::{costs, multiversion, start, step, Kernel, EDGE};
+use crate::layout::Layout;
 use crate::params::{SgmParams, DIRECTIONS};
 
 /// Pixels per parallel task of a row.
@@ -36,6 +38,7 @@ pub(crate) struct Problem<'a> {
     pub cmax: u8,
     pub p1: u16,
     pub p2: [u16; 256],
+    pub layout: Layout,
 }
 
 impl Problem<'_> {
@@ -62,7 +65,8 @@ impl Problem<'_> {
     }
 }
 
-/// One vertical or diagonal path's previous and current rows.
+/// One sweep's previous and current rows of path costs: a slot (`D + 2`, see [`EDGE`]) per
+/// pixel and path, and each slot's minimum.
 struct Rows {
     prev: Vec<u16>,
     prev_min: Vec<u16>,
@@ -74,9 +78,9 @@ impl Rows {
     /// `slots` = pixels x paths.
     fn new(slots: usize, nd: usize) -> Self {
         Rows {
-            prev: vec![0; slots * nd],
+            prev: vec![EDGE; slots * (nd + 2)],
             prev_min: vec![0; slots],
-            cur: vec![0; slots * nd],
+            cur: vec![EDGE; slots * (nd + 2)],
             cur_min: vec![0; slots],
         }
     }
@@ -102,8 +106,8 @@ fn horizontal_body(
 ) {
     let (w, nd) = (p.w, p.nd);
     costs_chunk_body(p, y, 0, cost);
-    let mut prev = vec![0u16; nd];
-    let mut cur = vec![0u16; nd];
+    let mut prev = vec![EDGE; nd + 2];
+    let mut cur = vec![EDGE; nd + 2];
     for (on, dx) in [(from_left, 1isize), (from_right, -1)] {
         if !on {
             continue;
@@ -112,7 +116,7 @@ fn horizontal_body(
         for i in 0..w {
             let x = if dx > 0 { i } else { w - 1 - i };
             let c = &cost[x * nd..(x + 1) * nd];
-            let a = &mut acc[x * nd..(x + 1) * nd];
+            let a = &mut acc[p.layout.run(x)];
             pmin = if i == 0 {
                 start(c, &mut cur, a)
             } else {
@@ -127,7 +131,7 @@ multiversion!(horizontal => horizontal_body(p: &Problem<'_>, y: usize, from_left
 
 /// The vertical / diagonal paths of pixels `x0..x0 + len` of row `y`: `cur` and `cur_min` hold
 /// the chunk's slots of every path (`[pixel][path][d]`, `[pixel][path]`), `prev` the whole
-/// previous row of every path. `cost` is the chunk's costs.
+/// previous row of every path. `cost` is the chunk's costs, `acc` its pixels' runs of `S`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn vertical_body(
@@ -144,15 +148,17 @@ fn vertical_body(
     acc: &mut [u16],
 ) {
     let (w, nd, np) = (p.w, p.nd, dirs.len());
-    let len = acc.len() / nd;
+    let len = cur_min.len() / np;
+    let base = p.layout.run(x0).start;
     let first_row = (dy > 0 && y == 0) || (dy < 0 && y + 1 == p.h);
     let py = (y as isize - dy) as usize;
     for i in 0..len {
         let x = x0 + i;
         let c = &cost[i * nd..(i + 1) * nd];
-        let a = &mut acc[i * nd..(i + 1) * nd];
+        let run = p.layout.run(x);
+        let a = &mut acc[run.start - base..run.end - base];
         for (j, &(dx, _)) in dirs.iter().enumerate() {
-            let o = &mut cur[(i * np + j) * nd..(i * np + j + 1) * nd];
+            let o = &mut cur[(i * np + j) * (nd + 2)..(i * np + j + 1) * (nd + 2)];
             let px = x as isize - dx;
             cur_min[i * np + j] = if first_row || px < 0 || px >= w as isize {
                 start(c, o, a)
@@ -161,7 +167,7 @@ fn vertical_body(
                 let slot = px * np + j;
                 step(
                     c,
-                    &prev[slot * nd..(slot + 1) * nd],
+                    &prev[slot * (nd + 2)..(slot + 1) * (nd + 2)],
                     prev_min[slot],
                     p.p1,
                     p.p2_at(x, y, px, py),
@@ -183,15 +189,16 @@ struct Sweep {
     rows: Rows,
 }
 
-/// Aggregates every path the parameters ask for; returns `S` (`H x W x D`, row-major).
+/// Aggregates every path the parameters ask for; returns `S` (rows of [`Layout::row_len`]).
 pub(crate) fn aggregate(p: &Problem<'_>, params: &SgmParams, kernel: Kernel) -> Result<Vec<u16>> {
     let (w, h, nd) = (p.w, p.h, p.nd);
-    let mut sum = crate::volume::zeroed(w * h * nd);
+    let row_len = p.layout.row_len();
+    let mut sum = crate::volume::zeroed(h * row_len);
     let uses = |i: usize| params.paths.uses(i);
     let (from_left, from_right) = (uses(0), uses(1));
     // The horizontal paths: every row on its own, in parallel (this also spreads the volume's
     // first touch over the workers).
-    sum.par_chunks_mut(w * nd).enumerate().try_for_each_init(
+    sum.par_chunks_mut(row_len).enumerate().try_for_each_init(
         || vec![0u8; w * nd],
         |cost, (y, row)| {
             check_interrupt()?;
@@ -214,7 +221,7 @@ pub(crate) fn aggregate(p: &Problem<'_>, params: &SgmParams, kernel: Kernel) -> 
         for i in 0..h {
             let y = if dy > 0 { i } else { h - 1 - i };
             check_interrupt()?;
-            let row = &mut sum[y * w * nd..(y + 1) * w * nd];
+            let row = &mut sum[y * row_len..(y + 1) * row_len];
             vertical_rows(kernel, p, y, dy, &mut sweep, row);
             std::mem::swap(&mut sweep.rows.prev, &mut sweep.rows.cur);
             std::mem::swap(&mut sweep.rows.prev_min, &mut sweep.rows.cur_min);
@@ -236,15 +243,17 @@ fn vertical_rows(
     let dirs = &sweep.dirs;
     let r = &mut sweep.rows;
     let (prev, prev_min) = (&r.prev, &r.prev_min);
-    row.par_chunks_mut(CHUNK * nd)
-        .zip(r.cur.par_chunks_mut(CHUNK * np * nd))
+    p.layout
+        .blocks(row, CHUNK)
+        .into_par_iter()
+        .zip(r.cur.par_chunks_mut(CHUNK * np * (nd + 2)))
         .zip(r.cur_min.par_chunks_mut(CHUNK * np))
         .enumerate()
         .for_each_init(
             || vec![0u8; CHUNK * nd],
             |scratch, (c, ((acc, cur), cur_min))| {
                 let x0 = c * CHUNK;
-                let len = acc.len() / nd;
+                let len = cur_min.len() / np;
                 let c = &mut scratch[..len * nd];
                 costs_chunk(kernel, p, y, x0, c);
                 vertical(

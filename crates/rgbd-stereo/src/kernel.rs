@@ -78,22 +78,38 @@ macro_rules! multiversion {
 }
 pub(crate) use multiversion;
 
-/// The first pixel of a path: `L = C`. Adds `L` to `acc` and returns `min L`.
+/// Path costs of one pixel are kept in a *slot* of `D + 2` u16: `[EDGE, L(0) .. L(D-1), EDGE]`,
+/// so the neighbours `L(d - 1)` and `L(d + 1)` of every disparity are plain loads. `EDGE` is
+/// larger than any path cost plus P2 and stays below `u16::MAX - P1` (see
+/// [`crate::params::MAX_P2`]), so `EDGE + P1` never wins a minimum and never overflows.
+pub(crate) const EDGE: u16 = 0x7fff;
+
+/// Disparities computed together (one AVX-512 register of u16).
+const LANES: usize = 32;
+
+/// The first pixel of a path: `L = C` into `out` (a slot). Adds `L` to `acc` (the pixel's
+/// searchable disparities: a prefix of `L`) and returns `min L`.
 #[inline(always)]
 pub(crate) fn start(c: &[u8], out: &mut [u16], acc: &mut [u16]) -> u16 {
+    let n = c.len();
+    out[0] = EDGE;
+    out[n + 1] = EDGE;
     let mut m = u16::MAX;
-    for ((o, a), &cv) in out.iter_mut().zip(acc.iter_mut()).zip(c) {
+    for (o, &cv) in out[1..=n].iter_mut().zip(c) {
         let v = u16::from(cv);
         *o = v;
-        *a += v;
         m = m.min(v);
+    }
+    for (a, &o) in acc.iter_mut().zip(&out[1..]) {
+        *a += o;
     }
     m
 }
 
 /// One SGM step (Hirschmüller eq. 13): `L(p, d) = C(p, d) + min(L(p-r, d), L(p-r, d±1) + P1,
-/// min L(p-r) + P2) - min L(p-r)`, for every disparity (at least two). Adds `L` to `acc` and
-/// returns `min L`.
+/// min L(p-r) + P2) - min L(p-r)`, for every disparity, from the slot `prev` into the slot
+/// `out`. Adds `L` to `acc` (the pixel's searchable disparities: a prefix of `L`) and returns
+/// `min L`.
 #[inline(always)]
 pub(crate) fn step(
     c: &[u8],
@@ -106,24 +122,42 @@ pub(crate) fn step(
 ) -> u16 {
     let n = c.len();
     let base = prev_min + p2;
-    let first = u16::from(c[0]) + prev[0].min(prev[1] + p1).min(base) - prev_min;
-    out[0] = first;
-    acc[0] += first;
-    let last = u16::from(c[n - 1]) + prev[n - 1].min(prev[n - 2] + p1).min(base) - prev_min;
-    let mut m = first.min(last);
-    let inner = out[1..n - 1]
-        .iter_mut()
-        .zip(acc[1..n - 1].iter_mut())
-        .zip(&c[1..n - 1])
-        .zip(prev[..n - 2].iter().zip(&prev[1..n - 1]).zip(&prev[2..]));
-    for (((o, a), &cv), ((&lo, &mid), &hi)) in inner {
-        let v = u16::from(cv) + mid.min(lo.min(hi) + p1).min(base) - prev_min;
-        *o = v;
-        *a += v;
+    let l = |cv: u8, lo: u16, mid: u16, hi: u16| {
+        u16::from(cv) + mid.min(lo.min(hi) + p1).min(base) - prev_min
+    };
+    out[0] = EDGE;
+    out[n + 1] = EDGE;
+    let full = acc.len() == n;
+    let blocks = n / LANES;
+    let mut mv = [u16::MAX; LANES];
+    for b in 0..blocks {
+        let d0 = b * LANES;
+        let cb: &[u8; LANES] = c[d0..d0 + LANES].try_into().expect("a block");
+        let pb: &[u16; LANES + 2] = prev[d0..d0 + LANES + 2].try_into().expect("a block");
+        let mut v = [0u16; LANES];
+        for i in 0..LANES {
+            v[i] = l(cb[i], pb[i], pb[i + 1], pb[i + 2]);
+            mv[i] = mv[i].min(v[i]);
+        }
+        out[d0 + 1..d0 + 1 + LANES].copy_from_slice(&v);
+        if full {
+            let ab: &mut [u16; LANES] = (&mut acc[d0..d0 + LANES]).try_into().expect("a block");
+            for i in 0..LANES {
+                ab[i] += v[i];
+            }
+        }
+    }
+    let mut m = mv.iter().fold(u16::MAX, |m, &v| m.min(v));
+    let tail = blocks * LANES;
+    for d in tail..n {
+        let v = l(c[d], prev[d], prev[d + 1], prev[d + 2]);
+        out[d + 1] = v;
         m = m.min(v);
     }
-    out[n - 1] = last;
-    acc[n - 1] += last;
+    let from = if full { tail } else { 0 }.min(acc.len());
+    for (a, &o) in acc[from..].iter_mut().zip(&out[from + 1..]) {
+        *a += o;
+    }
     m
 }
 
@@ -146,14 +180,39 @@ mod tests {
     #[test]
     fn one_step_by_hand() {
         let c = [3u8, 0, 5, 1];
-        let prev = [10u16, 2, 7, 30];
-        let (mut out, mut acc) = ([0u16; 4], [1u16; 4]);
+        let prev = [EDGE, 10u16, 2, 7, 30, EDGE];
+        let (mut out, mut acc) = ([0u16; 6], [1u16; 4]);
         let m = step(&c, &prev, 2, 1, 6, &mut out, &mut acc);
         // d0: 3 + min(10, 2+1, 8) - 2 = 4; d1: 0 + min(2, 7+1, 8) - 2 = 0;
         // d2: 5 + min(7, 2+1, 8) - 2 = 6; d3: 1 + min(30, 7+1, 8) - 2 = 7.
-        assert_eq!(out, [4, 0, 6, 7]);
+        assert_eq!(out, [EDGE, 4, 0, 6, 7, EDGE]);
         assert_eq!(acc, [5, 1, 7, 8]);
         assert_eq!(m, 0);
+        // A pixel searching two disparities: the same path costs, only two sums.
+        let (mut out2, mut acc2) = ([0u16; 6], [1u16; 2]);
+        assert_eq!(step(&c, &prev, 2, 1, 6, &mut out2, &mut acc2), 0);
+        assert_eq!((out2, acc2), (out, [5, 1]));
+        // Forty disparities: a whole block and a remainder give the scalar formula.
+        let c: Vec<u8> = (0..40).map(|d| (d * 7 % 13) as u8).collect();
+        let mut prev = vec![EDGE; 42];
+        for d in 0..40 {
+            prev[d + 1] = (d * 5 % 11) as u16 + 3;
+        }
+        let pm = *prev.iter().min().unwrap();
+        let (mut out, mut acc) = (vec![0u16; 42], vec![0u16; 40]);
+        let m = step(&c, &prev, pm, 2, 9, &mut out, &mut acc);
+        for d in 0..40 {
+            let mut best = prev[d + 1].min(pm + 9);
+            if d > 0 {
+                best = best.min(prev[d] + 2);
+            }
+            if d + 1 < 40 {
+                best = best.min(prev[d + 2] + 2);
+            }
+            assert_eq!(out[d + 1], u16::from(c[d]) + best - pm, "d {d}");
+        }
+        assert_eq!(acc[..], out[1..41]);
+        assert_eq!(m, *acc.iter().min().unwrap());
         let mut cst = [0u8; 5];
         costs(0b1011, &[0b0011, 0b1011, 0], 2, 9, &mut cst);
         assert_eq!(cst, [1, 0, 9, 9, 9]);

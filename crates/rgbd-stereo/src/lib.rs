@@ -10,8 +10,9 @@
 //!   cost curve's best and second-best costs (the heuristic stereo confidence's input);
 //! - both views as reference: the right one is matched on mirrored images.
 //!
-//! Memory: one `H x W x D` u16 volume (the sum over paths) plus `O(W D)` per path; costs are
-//! recomputed from the census strings in each sweep instead of being stored. Rows are
+//! Memory: one u16 volume (the sum over paths, each pixel's searchable disparities only: at
+//! most `H x W x D`) plus `O(W D)` per path; costs are recomputed from the census strings in
+//! each sweep instead of being stored. Rows are
 //! parallel (rayon) where the paths allow; the inner loops are compiled for the portable
 //! baseline, AVX2 and AVX-512 and chosen at run time ([`Kernel`]), all with the same bits.
 //!
@@ -22,6 +23,7 @@ mod aggregate;
 pub mod census;
 pub mod filter;
 mod kernel;
+mod layout;
 mod median;
 mod params;
 mod select;
@@ -90,9 +92,9 @@ pub fn sgm_with(
     // The whole call runs on one pool worker: the many short parallel steps (one per row and
     // sweep) then hand work to the other workers instead of blocking this thread each time.
     on_pool(|| {
-        let sum = aggregated_with(left, right, width, height, reference, params, kernel)?;
+        let (sum, layout) = solve(left, right, width, height, reference, params, kernel)?;
         let (w, h) = (width, height);
-        let sel = select::select(&sum, w, params, kernel);
+        let sel = select::select(&sum, w, &layout, params, kernel);
         drop(sum);
         let mut disp = sel.disparity;
         if params.median > 1 {
@@ -122,8 +124,9 @@ fn on_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
 }
 
 /// The summed path costs `S` (`H x W x D` u16, disparities `min_disparity + k`) of the problem
-/// as solved: for a right reference the pair is mirrored, so column `x` of `S` is the right
-/// view's column `W - 1 - x`. For tests against a reference implementation.
+/// as solved, 0 where a pixel cannot search a disparity (`x < min_disparity + k`): for a right
+/// reference the pair is mirrored, so column `x` of `S` is the right view's column `W - 1 - x`.
+/// For tests against a reference implementation.
 #[doc(hidden)]
 pub fn aggregated_with(
     left: &[u8],
@@ -134,6 +137,29 @@ pub fn aggregated_with(
     params: &SgmParams,
     kernel: Kernel,
 ) -> Result<Vec<u16>> {
+    let (sum, layout) = solve(left, right, width, height, reference, params, kernel)?;
+    let nd = params.disparities();
+    let mut full = vec![0u16; width * height * nd];
+    for (y, row) in sum.chunks_exact(layout.row_len()).enumerate() {
+        for x in 0..width {
+            let run = &row[layout.run(x)];
+            let at = (y * width + x) * nd;
+            full[at..at + run.len()].copy_from_slice(run);
+        }
+    }
+    Ok(full)
+}
+
+/// Checks the call and aggregates: `S` in its [`layout::Layout`].
+fn solve(
+    left: &[u8],
+    right: &[u8],
+    width: usize,
+    height: usize,
+    reference: Reference,
+    params: &SgmParams,
+    kernel: Kernel,
+) -> Result<(Vec<u16>, layout::Layout)> {
     let n = image_len("left", width, height)?;
     check_len("left", left, n, "H x W grey")?;
     check_len("right", right, n, "H x W grey, the left image's size")?;
@@ -177,8 +203,10 @@ pub fn aggregated_with(
         cmax: params.max_cost() as u8,
         p1: params.p1,
         p2: params.p2_table(),
+        layout: layout::Layout::new(w, params.min_disparity, nd),
     };
-    aggregate::aggregate(&problem, params, kernel)
+    let sum = aggregate::aggregate(&problem, params, kernel)?;
+    Ok((sum, problem.layout))
 }
 
 /// Reverses every row of an `H x W` map in place.

@@ -5,6 +5,7 @@
 use rayon::prelude::*;
 
 use crate::kernel::{multiversion, Kernel};
+use crate::layout::Layout;
 use crate::params::{SgmParams, Subpixel};
 
 /// The selected map and the cost statistics (`H x W` each; NaN where no disparity could be
@@ -40,10 +41,15 @@ pub(crate) fn offset(mode: Subpixel, a: u16, b: u16, c: u16) -> f32 {
     }
 }
 
-/// Selects every row of `sum` (`H x W x nd`, rows `W` wide, disparities `dmin + k`).
-pub(crate) fn select(sum: &[u16], w: usize, params: &SgmParams, kernel: Kernel) -> Selected {
-    let nd = params.disparities();
-    let n = sum.len() / nd;
+/// Selects every row of `sum` (rows `W` wide laid out by `layout`, disparities `dmin + k`).
+pub(crate) fn select(
+    sum: &[u16],
+    w: usize,
+    layout: &Layout,
+    params: &SgmParams,
+    kernel: Kernel,
+) -> Selected {
+    let n = sum.len() / layout.row_len().max(1) * w;
     let mut out = Selected {
         disparity: vec![f32::NAN; n],
         best: vec![f32::NAN; n],
@@ -53,21 +59,21 @@ pub(crate) fn select(sum: &[u16], w: usize, params: &SgmParams, kernel: Kernel) 
         .par_chunks_mut(w)
         .zip(out.best.par_chunks_mut(w))
         .zip(out.second.par_chunks_mut(w))
-        .zip(sum.par_chunks(w * nd))
-        .for_each(|(((d, b), s2), srow)| select_row(kernel, srow, w, params, d, b, s2));
+        .zip(sum.par_chunks(layout.row_len().max(1)))
+        .for_each(|(((d, b), s2), srow)| select_row(kernel, srow, layout, params, d, b, s2));
     out
 }
 
 #[inline(always)]
 fn select_row_body(
     srow: &[u16],
-    w: usize,
+    layout: &Layout,
     params: &SgmParams,
     disp: &mut [f32],
     best: &mut [f32],
     second: &mut [f32],
 ) {
-    let (nd, dmin) = (params.disparities(), params.min_disparity);
+    let (w, dmin) = (disp.len(), params.min_disparity);
     // The other view's winners at its pixel xr = x - dmin - k (smallest k on ties).
     let check = params.lr_tolerance;
     let slots = if check.is_some() { w } else { 0 };
@@ -75,8 +81,7 @@ fn select_row_body(
     let mut r_k = vec![0usize; slots];
     if check.is_some() {
         for x in dmin..w {
-            let kv = (x - dmin + 1).min(nd);
-            for (k, &s) in srow[x * nd..x * nd + kv].iter().enumerate() {
+            for (k, &s) in srow[layout.run(x)].iter().enumerate() {
                 let xr = x - dmin - k;
                 if s < r_cost[xr] {
                     r_cost[xr] = s;
@@ -86,13 +91,13 @@ fn select_row_body(
         }
     }
     for x in dmin..w {
-        let kv = (x - dmin + 1).min(nd);
-        let s = &srow[x * nd..x * nd + kv];
-        let s1 = min_of(s);
+        let s = &srow[layout.run(x)];
+        let kv = s.len();
+        #[allow(clippy::reversed_empty_ranges)]
+        let s1 = min_of(s, usize::MAX..=0);
         let k = first_of(s, s1);
         // The second best lies outside k - 1 ..= k + 1 (none if that is empty).
-        let s2 = (k >= 2 || k + 2 < kv)
-            .then(|| min_of(&s[..k.saturating_sub(1)]).min(min_of(s.get(k + 2..).unwrap_or(&[]))));
+        let s2 = (k >= 2 || k + 2 < kv).then(|| min_of(s, k.saturating_sub(1)..=k + 1));
         best[x] = f32::from(s1);
         second[x] = s2.map_or(f32::INFINITY, f32::from);
         if let Some(s2) = s2 {
@@ -115,10 +120,35 @@ fn select_row_body(
     }
 }
 
-/// The smallest value (`u16::MAX` for none), written as a fold so that it vectorizes.
+/// Values reduced together (one AVX-512 register of u16).
+const LANES: usize = 32;
+
+/// The smallest value of `s` outside the indices `skip` (`u16::MAX` for none), a vector-wide
+/// block at a time.
 #[inline(always)]
-fn min_of(s: &[u16]) -> u16 {
-    s.iter().fold(u16::MAX, |m, &v| m.min(v))
+fn min_of(s: &[u16], skip: std::ops::RangeInclusive<usize>) -> u16 {
+    let (lo, hi) = (*skip.start(), *skip.end());
+    let mut mv = [u16::MAX; LANES];
+    let mut blocks = s.chunks_exact(LANES);
+    for (b, chunk) in blocks.by_ref().enumerate() {
+        for i in 0..LANES {
+            let at = b * LANES + i;
+            let v = if at >= lo && at <= hi {
+                u16::MAX
+            } else {
+                chunk[i]
+            };
+            mv[i] = mv[i].min(v);
+        }
+    }
+    let tail_at = s.len() - blocks.remainder().len();
+    let mut m = mv.iter().fold(u16::MAX, |m, &v| m.min(v));
+    for (i, &v) in blocks.remainder().iter().enumerate() {
+        if !(lo..=hi).contains(&(tail_at + i)) {
+            m = m.min(v);
+        }
+    }
+    m
 }
 
 /// The first index of `v` in `s` (which holds it), searched a vector-wide block at a time.
@@ -133,7 +163,7 @@ fn first_of(s: &[u16], v: u16) -> usize {
     0
 }
 
-multiversion!(select_row => select_row_body(srow: &[u16], w: usize, params: &SgmParams,
+multiversion!(select_row => select_row_body(srow: &[u16], layout: &Layout, params: &SgmParams,
     disp: &mut [f32], best: &mut [f32], second: &mut [f32]) -> ());
 
 #[cfg(test)]

@@ -97,7 +97,18 @@ fn naive_sum(r_img: &[u8], t_img: &[u8], w: usize, h: usize, p: &SgmParams) -> V
             *s += v;
         }
     }
-    sum.into_iter().map(|v| u16::try_from(v).unwrap()).collect()
+    // Only the searchable disparities are kept (the matcher reports 0 for the others).
+    sum.iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let (x, k) = ((i / nd) % w, i % nd);
+            if x >= p.min_disparity + k {
+                u16::try_from(v).unwrap()
+            } else {
+                0
+            }
+        })
+        .collect()
 }
 
 fn noise_image(w: usize, h: usize, seed: u64) -> Vec<u8> {
