@@ -7,8 +7,9 @@ SGBM (MODE_HH, 7x7 blocks: the matcher ``fuse()`` used) on the rendered 960x540 
   (best / second-best aggregated cost) and without;
 - time against pixels x disparities (480x270 to 1920x1080, 64 to 256 disparities): ours should
   be linear, i.e. a constant ns per pixel-disparity;
-- the peak extra memory of one call (the process's peak RSS growth during it, in a fresh
-  process), beside OpenCV's and beside one u16 volume (2 W H D bytes).
+- the peak extra memory of one call (the process's peak RSS during it less its RSS just
+  before, in a fresh process; on Linux the peak is reset before the call), beside OpenCV's and
+  beside one u16 volume (2 W H D bytes).
 
     python benches/bench_stereo.py             # tables on stdout
 """
@@ -67,6 +68,38 @@ def ours(left: np.ndarray, right: np.ndarray, nd: int, stats: bool) -> object:
     return census_match(left, right, reference="left", max_disparity=nd - 1, stats=stats)
 
 
+def _status(field: str) -> int | None:
+    """A ``/proc/self/status`` size in bytes (Linux), else None."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def peak_reset() -> int:
+    """Resets the process's peak RSS to its current RSS where Linux allows it (then the peak of
+    the next call is measured from here, not from an earlier peak); returns the baseline."""
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        rss = _status("VmRSS")
+        if rss is not None:
+            return rss
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def peak() -> int:
+    """The process's peak RSS in bytes."""
+    hwm = _status("VmHWM")
+    return hwm if hwm is not None else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
 def child(mode: str, threads: int) -> None:
     """Runs in a subprocess with the pool sizes set; prints one JSON line."""
     cv2.setNumThreads(threads)
@@ -87,13 +120,17 @@ def child(mode: str, threads: int) -> None:
     if mode.startswith("memory-"):
         name = mode.split("-", 1)[1]
         g_l = cv2.cvtColor(left, cv2.COLOR_RGB2GRAY)
-        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        g_r = cv2.cvtColor(right, cv2.COLOR_RGB2GRAY)
+        # The matchers' modules are imported first: their import is not the call's memory.
+        import rgbd_rs.fusion.census
+        import rgbd_rs.fusion.stereo  # noqa: F401
+
+        before = peak_reset()
         if name == "ours":
-            ours(g_l, cv2.cvtColor(right, cv2.COLOR_RGB2GRAY), D, True)
+            ours(g_l, g_r, D, True)
         else:
             opencv(left, right, D)
-        after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-        print(json.dumps({name: (after - before) * 1024}))
+        print(json.dumps({name: peak() - before}))
         return
     res: dict[str, float] = {}
     res["opencv"] = timeit(lambda: opencv(left, right, D), REPEATS)

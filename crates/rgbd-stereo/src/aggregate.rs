@@ -27,9 +27,7 @@ const CHUNK: usize = 32;
 /// One matching problem: census strings of both views, the reference's grey image (for the
 /// adaptive P2) and the constants.
 pub(crate) struct Problem<'a> {
-    pub cref: &'a [u64],
-    /// The target's census, every row reversed.
-    pub trev: &'a [u64],
+    pub census: Strings<'a>,
     pub grey: &'a [u8],
     pub w: usize,
     pub h: usize,
@@ -51,9 +49,11 @@ impl Problem<'_> {
             return;
         }
         let valid = (x - dmin + 1).min(nd);
-        let row = &self.trev[y * w..(y + 1) * w];
-        let from = w - 1 - x + dmin;
-        costs(self.cref[y * w + x], &row[from..], valid, self.cmax, out);
+        let (at, from) = (y * w + x, y * w + w - 1 - x + dmin);
+        match self.census {
+            Strings::Narrow(r, t) => costs(r[at], &t[from..], valid, self.cmax, out),
+            Strings::Wide(r, t) => costs(r[at], &t[from..], valid, self.cmax, out),
+        }
     }
 
     /// P2 for the step from `(px, py)` to `(x, y)`.
@@ -63,6 +63,15 @@ impl Problem<'_> {
         let b = self.grey[py * self.w + px];
         self.p2[a.abs_diff(b) as usize]
     }
+}
+
+/// The census strings of the reference view and of the target (every target row reversed).
+#[derive(Clone, Copy)]
+pub(crate) enum Strings<'a> {
+    /// Windows of up to 32 bits.
+    Narrow(&'a [u32], &'a [u32]),
+    /// Wider windows.
+    Wide(&'a [u64], &'a [u64]),
 }
 
 /// One sweep's previous and current rows of path costs: a slot (`D + 2`, see [`EDGE`]) per

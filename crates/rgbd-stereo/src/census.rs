@@ -39,11 +39,42 @@ pub fn census(
     win_h: usize,
     reference: CensusReference,
 ) -> Vec<u64> {
-    census_with(img, width, height, win_w, win_h, reference, Kernel::best())
+    census_with::<u64>(img, width, height, win_w, win_h, reference, Kernel::best())
 }
 
-/// [`census`] with a chosen build of its loops.
-pub(crate) fn census_with(
+/// A census string: `u32` for windows of up to 32 bits (half the memory), else `u64`.
+pub(crate) trait Word: Copy + Default + Send + Sync {
+    /// The string's low bits.
+    fn narrow(v: u64) -> Self;
+    /// The Hamming distance of two strings.
+    fn distance(self, other: Self) -> u8;
+}
+
+impl Word for u32 {
+    #[inline(always)]
+    fn narrow(v: u64) -> Self {
+        v as u32
+    }
+    #[inline(always)]
+    fn distance(self, other: Self) -> u8 {
+        (self ^ other).count_ones() as u8
+    }
+}
+
+impl Word for u64 {
+    #[inline(always)]
+    fn narrow(v: u64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn distance(self, other: Self) -> u8 {
+        (self ^ other).count_ones() as u8
+    }
+}
+
+/// [`census`] with a chosen build of its loops, as strings of type `T` (which must hold the
+/// window's bits).
+pub(crate) fn census_with<T: Word>(
     img: &[u8],
     width: usize,
     height: usize,
@@ -51,7 +82,7 @@ pub(crate) fn census_with(
     win_h: usize,
     reference: CensusReference,
     kernel: Kernel,
-) -> Vec<u64> {
+) -> Vec<T> {
     let (rx, ry) = (win_w / 2, win_h / 2);
     // The image with its border replicated, so every window is a plain slice.
     let pw = width + 2 * rx;
@@ -63,7 +94,7 @@ pub(crate) fn census_with(
         prow[rx..rx + width].copy_from_slice(src);
         prow[rx + width..].fill(src[width - 1]);
     }
-    let mut out = vec![0u64; width * height];
+    let mut out = vec![T::default(); width * height];
     let win = Window {
         pad: &pad,
         pw,
@@ -72,8 +103,13 @@ pub(crate) fn census_with(
         win_h,
     };
     out.par_chunks_mut(width).enumerate().for_each_init(
-        || vec![0u32; width],
-        |refv, (y, row)| census_row(kernel, &win, y, reference, refv, row),
+        || (vec![0u32; width], vec![0u64; width]),
+        |(refv, wide), (y, row)| {
+            census_row(kernel, &win, y, reference, refv, wide);
+            for (o, &v) in row.iter_mut().zip(wide.iter()) {
+                *o = T::narrow(v);
+            }
+        },
     );
     out
 }

@@ -5,6 +5,8 @@
 //! builds give the same bits; `tests/sgm.rs` checks them against each other and against a
 //! naive full-volume reference.
 
+use crate::census::Word;
+
 /// Which build of the inner loops runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kernel {
@@ -165,10 +167,10 @@ pub(crate) fn step(
 /// target's census row reversed starting at the pixel `x - dmin` (so `rev[k]` is the target
 /// pixel `x - dmin - k`), `valid` how many of those lie in the image; the rest cost `cmax`.
 #[inline(always)]
-pub(crate) fn costs(cref: u64, rev: &[u64], valid: usize, cmax: u8, out: &mut [u8]) {
+pub(crate) fn costs<T: Word>(cref: T, rev: &[T], valid: usize, cmax: u8, out: &mut [u8]) {
     let (inside, outside) = out.split_at_mut(valid);
     for (o, &t) in inside.iter_mut().zip(rev) {
-        *o = (cref ^ t).count_ones() as u8;
+        *o = cref.distance(t);
     }
     outside.fill(cmax);
 }
@@ -214,7 +216,7 @@ mod tests {
         assert_eq!(acc[..], out[1..41]);
         assert_eq!(m, *acc.iter().min().unwrap());
         let mut cst = [0u8; 5];
-        costs(0b1011, &[0b0011, 0b1011, 0], 2, 9, &mut cst);
+        costs(0b1011u64, &[0b0011, 0b1011, 0], 2, 9, &mut cst);
         assert_eq!(cst, [1, 0, 9, 9, 9]);
         assert!(Kernel::available().contains(&Kernel::best()));
     }

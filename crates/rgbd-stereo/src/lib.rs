@@ -182,31 +182,77 @@ fn solve(
     } else {
         (left.into(), right.into())
     };
+    let layout = layout::Layout::new(w, params.min_disparity, nd);
+    // Strings of up to 32 bits are kept as u32: half the memory beside the volume.
+    let sum = if params.max_cost() <= 32 {
+        let (cref, trev) = census_pair::<u32>(&r_img, &t_img, w, h, params, kernel);
+        let problem = problem(
+            aggregate::Strings::Narrow(&cref, &trev),
+            &r_img,
+            w,
+            h,
+            params,
+            layout.clone(),
+        );
+        aggregate::aggregate(&problem, params, kernel)?
+    } else {
+        let (cref, trev) = census_pair::<u64>(&r_img, &t_img, w, h, params, kernel);
+        let problem = problem(
+            aggregate::Strings::Wide(&cref, &trev),
+            &r_img,
+            w,
+            h,
+            params,
+            layout.clone(),
+        );
+        aggregate::aggregate(&problem, params, kernel)?
+    };
+    Ok((sum, layout))
+}
+
+/// The census strings of the reference and of the target, every target row reversed.
+fn census_pair<T: census::Word>(
+    r_img: &[u8],
+    t_img: &[u8],
+    w: usize,
+    h: usize,
+    params: &SgmParams,
+    kernel: Kernel,
+) -> (Vec<T>, Vec<T>) {
     let (cw, ch, cr) = (
         params.census_width,
         params.census_height,
         params.census_reference,
     );
-    let cref = census::census_with(&r_img, w, h, cw, ch, cr, kernel);
-    let mut trev = census::census_with(&t_img, w, h, cw, ch, cr, kernel);
+    let cref = census::census_with::<T>(r_img, w, h, cw, ch, cr, kernel);
+    let mut trev = census::census_with::<T>(t_img, w, h, cw, ch, cr, kernel);
     for row in trev.chunks_exact_mut(w) {
         row.reverse();
     }
-    let problem = aggregate::Problem {
-        cref: &cref,
-        trev: &trev,
-        grey: &r_img,
+    (cref, trev)
+}
+
+/// The matching problem of the checked call.
+fn problem<'a>(
+    census: aggregate::Strings<'a>,
+    grey: &'a [u8],
+    w: usize,
+    h: usize,
+    params: &SgmParams,
+    layout: layout::Layout,
+) -> aggregate::Problem<'a> {
+    aggregate::Problem {
+        census,
+        grey,
         w,
         h,
         dmin: params.min_disparity,
-        nd,
+        nd: params.disparities(),
         cmax: params.max_cost() as u8,
         p1: params.p1,
         p2: params.p2_table(),
-        layout: layout::Layout::new(w, params.min_disparity, nd),
-    };
-    let sum = aggregate::aggregate(&problem, params, kernel)?;
-    Ok((sum, problem.layout))
+        layout,
+    }
 }
 
 /// Reverses every row of an `H x W` map in place.

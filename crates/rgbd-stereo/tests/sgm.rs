@@ -151,6 +151,8 @@ proptest! {
         w in 6usize..28, h in 1usize..9, dmin in 0usize..3, nd in 2usize..9,
         p1 in 1u16..20, extra in 1u16..200, contrast in prop_oneof![Just(0.0f32), 1.0f32..40.0],
         paths in 0u8..3, cw in prop_oneof![Just(3usize), Just(5), Just(9)], mean in any::<bool>(),
+        // 3 rows: strings of up to 32 bits (kept as u32); 7 rows with 9 columns: 62 or 63.
+        ch in prop_oneof![Just(3usize), Just(7)],
         seed in any::<u64>(), right in any::<bool>(),
         lr in prop_oneof![Just(None), (0u16..3).prop_map(Some)], uniqueness in 0u8..20,
         median in prop_oneof![Just(1usize), Just(3), Just(5)], speckle in 0usize..6,
@@ -164,7 +166,7 @@ proptest! {
             p2_contrast: contrast,
             paths: paths_of(paths),
             census_width: cw,
-            census_height: 3,
+            census_height: ch,
             census_reference: if mean { CensusReference::Mean } else { CensusReference::Center },
             lr_tolerance: lr,
             uniqueness,
