@@ -94,6 +94,13 @@ CASES: list[Case] = [
         "reference",
     ),
     Case(
+        "fuse",
+        lambda: F.fuse(LEFT, LEFT, TOF, TOF, RIG, stereo="sgbm"),
+        ARG,
+        r"^stereo: got 'sgbm'",
+        "stereo",
+    ),
+    Case(
         "LcParams",
         lambda: F.lc_fuse(I4, I4, [D4], params=F.LcParams(radius="x")),
         ARG,

@@ -11,7 +11,7 @@ confidence P_T, channel 1 the stereo confidence P_S; training regresses them wit
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -112,6 +112,10 @@ def predict(
 WEIGHTS = Path(__file__).parent / "weights" / "confidence.pt"
 #: Checkpoint normalisation key of :attr:`ConfidenceEstimator.stereo_power` (optional; 1 if absent).
 STEREO_POWER_KEY = "lc_stereo_power"
+#: Checkpoint normalisation key of :attr:`ConfidenceEstimator.matcher` (optional; ``"opencv"``,
+#: the matcher of the checkpoints written before it existed, if absent).
+MATCHER_KEY = "stereo_matcher"
+MATCHERS = ("census", "opencv")
 
 
 class ConfidenceEstimator:
@@ -125,6 +129,10 @@ class ConfidenceEstimator:
     returns ``P_S ** stereo_power``. It is stored in the checkpoint (normalisation key
     :data:`STEREO_POWER_KEY`, written by ``rgbd train calibrate-confidence``, which chooses it on
     validation scenes); a checkpoint without it uses 1 (the network's output as it is).
+
+    ``matcher`` is the stereo matcher whose disparities the network was trained on (its clues
+    come from them; :func:`~rgbd_rs.fusion.fuse` runs that matcher with this estimator),
+    normalisation key :data:`MATCHER_KEY`.
     """
 
     def __init__(
@@ -134,16 +142,22 @@ class ConfidenceEstimator:
         source: str = "",
         *,
         stereo_power: float = 1.0,
+        matcher: str = "opencv",
     ) -> None:
         # Channels-last weights to match predict()'s channels-last inputs.
         self.net = net.to(memory_format=torch.channels_last)
         self.sigmas = _validate.array("sigmas", sigmas, shape=(IN_CHANNELS,), finite=True)
         self.source = source
         self.stereo_power = _validate.real("stereo_power", stereo_power, positive=True)
+        self.matcher: Literal["census", "opencv"] = cast(
+            Literal["census", "opencv"], _validate.choice("matcher", matcher, MATCHERS)
+        )
 
     def with_stereo_power(self, power: float) -> ConfidenceEstimator:
         """The same network and normalisation with another stereo calibration power."""
-        return ConfidenceEstimator(self.net, self.sigmas, self.source, stereo_power=power)
+        return ConfidenceEstimator(
+            self.net, self.sigmas, self.source, stereo_power=power, matcher=self.matcher
+        )
 
     @classmethod
     def load(cls, path: str | Path | None = None, *, device: str = "cpu") -> ConfidenceEstimator:
@@ -164,7 +178,18 @@ class ConfidenceEstimator:
             raise RgbdError(
                 f"{file}: normalisation {STEREO_POWER_KEY!r} is {power!r}, expected a number > 0"
             )
-        return cls(net, ckpt.normalisation["sigmas"], str(file), stereo_power=float(power))
+        matcher = ckpt.normalisation.get(MATCHER_KEY, "opencv")
+        if matcher not in MATCHERS:
+            raise RgbdError(
+                f"{file}: normalisation {MATCHER_KEY!r} is {matcher!r}, expected one of {MATCHERS}"
+            )
+        return cls(
+            net,
+            ckpt.normalisation["sigmas"],
+            str(file),
+            stereo_power=float(power),
+            matcher=str(matcher),
+        )
 
     def __call__(
         self,

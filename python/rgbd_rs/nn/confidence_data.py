@@ -35,8 +35,9 @@ from rgbd_rs.io import read_npz, write_npz
 TARGET_T = ORACLE_T
 
 
-def scene_arrays(s: Sample) -> dict[str, np.ndarray]:
-    """Clues, targets and per-scene sigma of one sample (what :func:`prepare` caches)."""
+def scene_arrays(s: Sample, matcher: str = "opencv") -> dict[str, np.ndarray]:
+    """Clues, targets and per-scene sigma of one sample (what :func:`prepare` caches), with the
+    stereo disparities of ``matcher`` (``"census"`` or ``"opencv"``)."""
     from rgbd_rs.fusion import LcParams, fuse
 
     # The smallest LC window: only the stages before LC matter here, and fuse() runs them as
@@ -49,6 +50,7 @@ def scene_arrays(s: Sample) -> dict[str, np.ndarray]:
         s.rig,
         confidence="uniform",
         params=LcParams(radius=1, stride=1),
+        stereo=_validate.choice("matcher", matcher, ("census", "opencv")),  # type: ignore[arg-type]
     )
     ref_name = out.reference
     ref, tgt, _ = views(s.left, s.right, ref_name)
@@ -75,6 +77,7 @@ def prepare(
     *,
     shard: tuple[int, int] = (0, 1),
     quiet: bool = False,
+    matcher: str = "opencv",
 ) -> list[Path]:
     """Cache every sample's arrays as ``out/<sample.name>.npz``; returns the files of this shard.
 
@@ -92,7 +95,7 @@ def prepare(
             continue
         path = folder / f"{s.name}.npz"
         if not path.is_file():
-            write_npz(path, scene_arrays(s))
+            write_npz(path, scene_arrays(s, matcher))
         written.append(path)
     return written
 

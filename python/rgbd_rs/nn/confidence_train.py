@@ -69,9 +69,39 @@ def train_confidence(
 ) -> Path:
     """Prepare (or reuse) the caches, train, and return the best checkpoint's path. ``init``
     starts from a checkpoint's weights (fine-tuning) instead of Xavier initialisation."""
+    out = Path(out)
+    cache_dir = Path(cache) if cache is not None else out / "cache"
+    train_files, val_files = prepare_caches(Path(data), cache_dir, quiet=quiet)
+    return train_on_caches(
+        train_files,
+        val_files,
+        out,
+        recipe=recipe,
+        config=config,
+        init=init,
+        resume=resume,
+        quiet=quiet,
+    )
+
+
+def train_on_caches(
+    train_files: list[Path],
+    val_files: list[Path],
+    out: str | Path,
+    *,
+    recipe: Recipe | None = None,
+    config: object | None = None,
+    init: str | Path | None = None,
+    resume: bool = True,
+    quiet: bool = False,
+    matcher: str = "opencv",
+) -> Path:
+    """Train on clue caches written by :func:`~rgbd_rs.nn.confidence_data.prepare` (with
+    ``matcher``'s stereo disparities, recorded in the checkpoint) and return the best
+    checkpoint's path (lowest validation loss; the last one without validation files)."""
     import numpy as np
 
-    from rgbd_rs.nn.confidence import ARCH, ConfidenceNet
+    from rgbd_rs.nn.confidence import ARCH, MATCHER_KEY, MATCHERS, ConfidenceNet
     from rgbd_rs.nn.confidence_data import (
         DisagreementMSE,
         PatchDataset,
@@ -86,10 +116,9 @@ def train_confidence(
     cfg = config if config is not None else TrainConfig()
     if not isinstance(cfg, TrainConfig):
         raise RgbdError(f"config: got {type(cfg).__name__}, expected a TrainConfig")
-    data = Path(data)
+    if matcher not in MATCHERS:
+        raise RgbdError(f"matcher: got {matcher!r}, expected one of {MATCHERS}")
     out = Path(out)
-    cache_dir = Path(cache) if cache is not None else out / "cache"
-    train_files, val_files = prepare_caches(data, cache_dir, quiet=quiet)
     scenes = load_scenes(sorted(train_files))
     sig = sigmas_of(scenes)
     train_set = PatchDataset(
@@ -123,7 +152,11 @@ def train_confidence(
         out,
         arch=ARCH,
         arch_config={"width": r.width},
-        normalisation={"sigmas": [float(v) for v in np.asarray(sig)], "target_t": r.target_t},
+        normalisation={
+            "sigmas": [float(v) for v in np.asarray(sig)],
+            "target_t": r.target_t,
+            MATCHER_KEY: matcher,
+        },
         quiet=quiet,
         resume=resume,
     )

@@ -1,0 +1,126 @@
+"""Real stereo scenes as fusion cases: the 27 Middlebury pairs of ``../shared/data/stereo``
+(:mod:`rgbd_rs.data.stereo_scenes`, their train / val / test split) with a ToF frame simulated
+from each scene's ground truth under a sensor *law* drawn per case.
+
+A law is drawn the way the synthetic set's sensors are (:mod:`rgbd_rs.data.tof_variation`:
+modulation frequency, emitter power, read and shot noise, multipath rays, mixed-pixel
+sub-sampling, flying pixels, the amplitude's unit over five orders of magnitude), plus what a
+real scene needs beyond it: the ToF resolution, 1/4 to 1/2 of the colour camera's width (a real
+ToF sensor is coarser than the colour camera beside it), and dark dropouts (blobs where the
+ToF returns nothing, 0-3 % of its pixels, as on dark or glossy surfaces; the scenes' untextured
+IR albedo would otherwise never drop a pixel).
+
+The rig is virtual (the 2005 sets' focal scaled with the width, 160 mm baseline, the ToF 4 cm
+below the left camera, reference = left view, where the ground truth lives), as in
+:func:`~rgbd_rs.fusion.evaluate.middlebury_sample`. Validation and test cases use fixed seeds
+(law ``k`` of a scene always draws the same sensor); training redraws them per epoch
+(``epoch`` enters the seed).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from rgbd_rs import _validate
+from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
+from rgbd_rs.data import tof_variation
+from rgbd_rs.data.stereo_scenes import SPLITS, StereoScene, load_stereo_scene, scene_names
+from rgbd_rs.fusion.evaluate import (
+    MIDDLEBURY_BASELINE,
+    MIDDLEBURY_FOCAL_PER_WIDTH,
+    Sample,
+    depth_mesh,
+)
+from rgbd_rs.render import Material, Scene
+
+#: The ToF camera's width as a fraction of the colour camera's (uniform).
+TOF_SCALE = (0.25, 0.5)
+#: The ToF sees slightly more than the colour camera (its focal is this much shorter).
+TOF_FOV_MARGIN = 1.1
+#: Fraction of ToF pixels lost to dark dropouts (uniform) and the blobs' size (ToF pixels).
+DROPOUT_FRACTION = (0.0, 0.03)
+DROPOUT_BLOB = 6.0
+#: The ToF camera sits this far below the left camera (metres).
+TOF_OFFSET_Y = 0.04
+
+
+@dataclass(frozen=True)
+class Law:
+    """One case's sensor: the simulator's variation, the ToF size and the dropout share."""
+
+    variation: tof_variation.ToFVariation
+    tof_size: tuple[int, int]
+    dropout: float
+
+
+def _seed(name: str, law: int, epoch: int | None) -> int:
+    """A stable seed of (scene, law, epoch): independent of Python's hash randomisation."""
+    key = f"{name}/{law}/{'fixed' if epoch is None else epoch}".encode()
+    return int.from_bytes(hashlib.sha256(key).digest()[:8], "little")
+
+
+def draw_law(rng: np.random.Generator, width: int, height: int) -> Law:
+    """A sensor for a ``width x height`` colour camera."""
+    variation = tof_variation.random_variation(rng)
+    scale = float(rng.uniform(*TOF_SCALE))
+    tw = max(16, round(width * scale))
+    th = max(16, round(height * scale))
+    return Law(variation, (tw, th), float(rng.uniform(*DROPOUT_FRACTION)))
+
+
+def _dropouts(depth: np.ndarray, fraction: float, rng: np.random.Generator) -> np.ndarray:
+    """``depth`` with blobs covering ``fraction`` of its pixels set to NaN."""
+    if fraction <= 0:
+        return depth
+    noise = rng.standard_normal(depth.shape).astype(np.float32)
+    field = np.asarray(cv2.GaussianBlur(noise, (0, 0), DROPOUT_BLOB), np.float32)
+    cut = np.quantile(field, fraction)
+    out = depth.copy()
+    out[field <= cut] = np.nan
+    return out
+
+
+def real_sample(scene: StereoScene, law: int = 0, *, epoch: int | None = None) -> Sample:
+    """Scene ``scene`` with the ToF frame of its law ``law`` (``epoch=None``: the fixed law of
+    validation and test; an epoch number: that epoch's training draw). The sample's name is
+    ``<scene>_law<k>``."""
+    law = _validate.integer("law", law, minimum=0)
+    if epoch is not None:
+        epoch = _validate.integer("epoch", epoch, minimum=0)
+    rng = np.random.default_rng(_seed(scene.name, law, epoch))
+    h, w = scene.left.shape[:2]
+    drawn = draw_law(rng, w, h)
+    f = MIDDLEBURY_FOCAL_PER_WIDTH * w
+    cam = PinholeCamera(f, f, (w - 1) / 2, (h - 1) / 2, w, h)
+    gt = scene.disparity_left
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(gt > 0, MIDDLEBURY_BASELINE * f / gt, np.nan).astype(np.float32)
+    tw, th = drawn.tof_size
+    tof_f = f * tw / w * TOF_FOV_MARGIN
+    tof_cam = PinholeCamera(tof_f, tof_f, (tw - 1) / 2, (th - 1) / 2, tw, th)
+    to_ref = Pose(np.eye(3), np.array([0.0, TOF_OFFSET_Y, 0.0]))
+    mesh = Scene().add(depth_mesh(z, cam), Material(albedo_ir=0.5)).build()
+    frame = mesh.tof(
+        tof_cam, to_ref.inverse(), drawn.variation.model, seed=int(rng.integers(2**31))
+    )
+    depth, amplitude = tof_variation.apply(frame.depth, frame.amplitude, drawn.variation, rng)
+    depth = _dropouts(depth, drawn.dropout, rng)
+    rig = ToFStereoRig(tof_cam, StereoRig(cam, cam, MIDDLEBURY_BASELINE), to_ref, "left")
+    return Sample(f"{scene.name}_law{law}", scene.left, scene.right, depth, amplitude, rig, gt)
+
+
+def real_samples(
+    split: str, laws: int = 2, *, epoch: int | None = None, root: str | None = None
+) -> Iterator[Sample]:
+    """Every scene of ``split`` under ``laws`` sensor laws each (scene-major order)."""
+    _validate.choice("split", split, SPLITS)
+    laws = _validate.integer("laws", laws, minimum=1, maximum=64)
+    for name in scene_names(split, root):
+        scene = load_stereo_scene(name, root)
+        for k in range(laws):
+            yield real_sample(scene, k, epoch=epoch)

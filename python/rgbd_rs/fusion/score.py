@@ -1,0 +1,109 @@
+"""What a user of :func:`~rgbd_rs.fusion.fuse` gets on a case with ground truth, in the measures
+that choose the fusion's knobs (issue: "chosen on real scenes"):
+
+- the RMS disparity error of the ToF (as fused), the stereo map and the fused map on the pixels
+  that are non-occluded, have ground truth and are valid in all three;
+- whether each input is *good* there (at least :data:`GOOD_SHARE` of its pixels within
+  :data:`GOOD_WITHIN` px): the fusion must not damage a good input;
+- the coverage of each map and of the inputs' union over the non-occluded ground truth.
+
+:func:`summarize` reduces cases to the numbers the choices are made by: the mean of fused /
+better input, the worst fused / good input, and the worst coverage shortfall of the fused map
+against the union of its inputs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from rgbd_rs.errors import RgbdError
+from rgbd_rs.fusion._inputs import F32, views
+from rgbd_rs.fusion.evaluate import Sample, non_occluded
+from rgbd_rs.fusion.fuse import FusionResult, fuse
+from rgbd_rs.metrics import rms_error
+
+#: An input is good where this share of its compared pixels ...
+GOOD_SHARE = 0.95
+#: ... lies within this many pixels of the ground truth.
+GOOD_WITHIN = 1.0
+#: Map names of a case.
+MAPS = ("tof", "stereo", "fused")
+
+
+@dataclass(frozen=True)
+class CaseScore:
+    """One case: ``rms`` and ``good`` per map of :data:`MAPS` (``good`` for the inputs),
+    ``coverage`` per map and ``"union"`` (shares of the non-occluded ground truth), and the
+    number of compared pixels."""
+
+    name: str
+    rms: dict[str, float]
+    good: dict[str, bool]
+    coverage: dict[str, float]
+    pixels: int
+
+    @property
+    def ratio(self) -> float:
+        """Fused RMS / the better input's."""
+        return self.rms["fused"] / max(min(self.rms["tof"], self.rms["stereo"]), 1e-9)
+
+    @property
+    def good_ratio(self) -> float | None:
+        """The largest fused / input RMS over the good inputs (None: no good input)."""
+        ratios = [self.rms["fused"] / max(self.rms[k], 1e-9) for k in ("tof", "stereo")]
+        ratios = [r for r, k in zip(ratios, ("tof", "stereo"), strict=True) if self.good[k]]
+        return max(ratios) if ratios else None
+
+
+def score_maps(name: str, gt: F32, sign: int, tof: F32, stereo: F32, fused: F32) -> CaseScore:
+    """The scores of three maps against ``gt`` (``sign``: the target view's direction)."""
+    visible = np.isfinite(gt) & non_occluded(gt, sign)
+    if not visible.any():
+        raise RgbdError(f"{name}: no non-occluded ground truth to score")
+    maps = {"tof": tof, "stereo": stereo, "fused": fused}
+    valid = {k: np.isfinite(v) & visible for k, v in maps.items()}
+    common = valid["tof"] & valid["stereo"] & valid["fused"]
+    if not common.any():
+        raise RgbdError(f"{name}: no pixel is valid in the ToF, the stereo and the fused map")
+    rms = {k: rms_error(v, gt, common) for k, v in maps.items()}
+    good = {}
+    for k in ("tof", "stereo"):
+        err = np.abs(maps[k][common] - gt[common])
+        good[k] = bool(np.mean(err <= GOOD_WITHIN) >= GOOD_SHARE)
+    n = float(visible.sum())
+    coverage = {k: float(v.sum()) / n for k, v in valid.items()}
+    coverage["union"] = float((valid["tof"] | valid["stereo"]).sum()) / n
+    return CaseScore(name, rms, good, coverage, int(common.sum()))
+
+
+def score_result(s: Sample, out: FusionResult) -> CaseScore:
+    """The scores of one :func:`fuse` result on its sample."""
+    sign = views(s.left, s.right, out.reference)[2]
+    return score_maps(
+        s.name, s.gt_disparity, sign, out.tof_fused, out.stereo_disparity, out.disparity
+    )
+
+
+def score_case(s: Sample, **fuse_args: Any) -> CaseScore:
+    """Fuse ``s`` (``fuse_args`` go to :func:`fuse`) and score it."""
+    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, **fuse_args)
+    return score_result(s, out)
+
+
+def summarize(scores: Sequence[CaseScore] | Iterable[CaseScore]) -> dict[str, float]:
+    """``mean_ratio`` (fused / better input), ``worst_good`` (fused / good input; 0 if no case
+    has one), ``coverage_gap`` (the largest union - fused coverage), ``mean_fused`` (RMS px)."""
+    sc = list(scores)
+    if not sc:
+        raise RgbdError("scores: got none, expected at least one case")
+    goods = [g for g in (c.good_ratio for c in sc) if g is not None]
+    return {
+        "mean_ratio": float(np.mean([c.ratio for c in sc])),
+        "worst_good": float(max(goods)) if goods else 0.0,
+        "coverage_gap": float(max(c.coverage["union"] - c.coverage["fused"] for c in sc)),
+        "mean_fused": float(np.mean([c.rms["fused"] for c in sc])),
+    }

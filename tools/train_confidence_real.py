@@ -1,0 +1,77 @@
+"""Train the confidence ConvNet on real scenes (issue 29): clue caches of the Middlebury train
+split (``../shared/data/stereo``) under ``--laws`` simulated ToF laws per scene with the
+``--matcher``'s stereo disparities, the val split's fixed laws for the validation loss (for
+monitoring only: the epoch is chosen by ``tools/choose_confidence_real.py`` on what the fusion
+gives), one checkpoint per epoch kept.
+
+    python tools/train_confidence_real.py --out out/conf_real --laws 4 --epochs 6
+
+Resumable: caches are skipped when present and ``train`` resumes from the last checkpoint.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+from pathlib import Path
+
+from rgbd_rs.fusion.real_scenes import real_samples
+from rgbd_rs.nn.confidence_data import prepare
+from rgbd_rs.nn.confidence_train import Recipe, train_on_caches
+from rgbd_rs.nn.train import TrainConfig
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("out/conf_real"))
+    ap.add_argument("--laws", type=int, default=4, help="ToF laws per training scene (4)")
+    ap.add_argument("--val-laws", type=int, default=2, help="ToF laws per val scene (2)")
+    ap.add_argument("--matcher", default="census", choices=("census", "opencv"))
+    ap.add_argument("--epochs", type=int, default=6)
+    ap.add_argument("--per-scene", type=int, default=100, help="crops per case and epoch")
+    ap.add_argument("--width", type=int, default=32)
+    ap.add_argument("--batch-size", type=int, default=16)
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--init", type=Path, default=None, help="start from these weights")
+    ap.add_argument("--quiet", action="store_true")
+    a = ap.parse_args()
+    cache = a.out / f"cache_{a.matcher}"
+    train = prepare(
+        real_samples("train", a.laws), cache / "train", matcher=a.matcher, quiet=a.quiet
+    )
+    val = prepare(real_samples("val", a.val_laws), cache / "val", matcher=a.matcher, quiet=a.quiet)
+    recipe = Recipe(width=a.width, per_scene=a.per_scene)
+    best = None
+    # One epoch per call (the trainer resumes bit for bit), so every epoch's weights are kept
+    # as epN.pt for the choice on what the fusion gives.
+    for epoch in range(1, a.epochs + 1):
+        kept = a.out / f"ep{epoch}.pt"
+        if kept.is_file():
+            continue
+        config = TrainConfig(
+            epochs=epoch,
+            batch_size=a.batch_size,
+            optimizer="adam",
+            lr=a.lr,
+            lr_step=10,
+            lr_gamma=0.9,
+            seed=a.seed,
+        )
+        best = train_on_caches(
+            train,
+            val,
+            a.out,
+            recipe=recipe,
+            config=config,
+            init=a.init,
+            quiet=a.quiet,
+            matcher=a.matcher,
+        )
+        shutil.copyfile(a.out / "last.pt", kept)
+        print(f"epoch {epoch}: {kept}", flush=True)
+    print(f"lowest validation loss: {best}")
+
+
+if __name__ == "__main__":
+    main()
