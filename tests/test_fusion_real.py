@@ -36,7 +36,7 @@ def test_a_law_is_fixed_per_case_and_redrawn_per_epoch(shared_data: Path) -> Non
         np.testing.assert_array_equal(s.gt_disparity, scene.disparity_left)
     names = [s.name for s in real_samples("val", 2)]
     assert len(names) == 12 and names[:2] == ["Baby1_law0", "Baby1_law1"]
-    with pytest.raises(InvalidArgumentError, match="^split"):
+    with pytest.raises(InvalidArgumentError, match=r"^split"):
         next(real_samples("dev"))
 
 
@@ -83,5 +83,5 @@ def test_fuse_runs_the_matcher_the_network_was_trained_on(shared_data: Path) -> 
         est = ConfidenceEstimator(net, np.ones(4), matcher=matcher)
         assert est.with_stereo_power(2.0).matcher == matcher
         assert fuse(*args, confidence=est).stereo_matcher == matcher
-    with pytest.raises(InvalidArgumentError, match="^matcher: got 'sgbm'"):
+    with pytest.raises(InvalidArgumentError, match=r"^matcher: got 'sgbm'"):
         ConfidenceEstimator(net, np.ones(4), matcher="sgbm")
