@@ -55,10 +55,12 @@ def test_scores_say_what_the_fusion_did() -> None:
     assert c.rms["tof"] == pytest.approx(0.2, abs=1e-5)
     assert c.ratio == pytest.approx(0.25 / 0.2, rel=1e-4)
     assert c.good_ratio == pytest.approx(0.25 / 0.2, rel=1e-4)
-    assert c.coverage["union"] == 1.0 and c.coverage["fused"] == pytest.approx(1 - 1 / 240)
+    # Coverage counts every ground-truth pixel (the 80 the right camera does not see too).
+    assert c.coverage["union"] == 1.0 and c.coverage["fused"] == pytest.approx(1 - 1 / 320)
+    assert c.coverage["stereo"] == pytest.approx(1 - 1 / 320)
     m = summarize([c])
     assert m["worst_good"] == pytest.approx(1.25, rel=1e-4)
-    assert m["coverage_gap"] == pytest.approx(1 / 240)
+    assert m["coverage_gap"] == pytest.approx(1 / 320)
     with pytest.raises(Exception, match="no pixel is valid"):
         score_maps("empty", gt, -1, tof, stereo, np.full_like(gt, np.nan))
 
@@ -85,3 +87,44 @@ def test_fuse_runs_the_matcher_the_network_was_trained_on(shared_data: Path) -> 
         assert fuse(*args, confidence=est).stereo_matcher == matcher
     with pytest.raises(InvalidArgumentError, match=r"^matcher: got 'sgbm'"):
         ConfidenceEstimator(net, np.ones(4), matcher="sgbm")
+
+
+def test_what_one_input_measured_is_not_left_blank(shared_data: Path) -> None:
+    s = real_sample(load_stereo_scene("Tsukuba"), 1)
+    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, stereo="census")
+    assert out.source is not None
+    tof_d, st_d, d = out.tof_fused, out.stereo_disparity, out.disparity
+    measured = np.isfinite(tof_d) | np.isfinite(st_d)
+    # Every pixel an input measured has a value (LC also fills small holes from its window).
+    assert np.isfinite(d)[measured].all()
+    assert ((out.source == FUSE.SOURCE_NONE) == ~np.isfinite(d)).all()
+    for code, src, conf in (
+        (FUSE.SOURCE_TOF, tof_d, out.tof_confidence),
+        (FUSE.SOURCE_STEREO, st_d, out.stereo_confidence),
+    ):
+        px = out.source == code
+        np.testing.assert_array_equal(d[px], src[px])
+        np.testing.assert_array_equal(out.plausibility[px], conf[px])
+    assert set(np.unique(out.source)) <= {0, 1, 2, 3}
+
+
+def test_pixels_lc_leaves_empty_take_the_input_that_measured_them() -> None:
+    nan = np.nan
+    lc = np.array([[1.0, nan, nan, nan, nan]], np.float32)
+    plaus = np.array([[0.9, nan, nan, nan, nan]], np.float32)
+    tof = np.array([[1.1, 2.0, nan, 4.0, nan]], np.float32)
+    st = np.array([[1.2, nan, 3.0, 5.0, nan]], np.float32)
+    ct = np.full((1, 5), 0.5, np.float32)
+    cs = np.full((1, 5), 0.25, np.float32)
+    d, p, src = FUSE.fill_single_source(lc, plaus, tof, st, ct, cs)
+    np.testing.assert_array_equal(d, [[1.0, 2.0, 3.0, 4.0, nan]])
+    np.testing.assert_array_equal(p, np.float32([[0.9, 0.5, 0.25, 0.5, nan]]))
+    np.testing.assert_array_equal(src, [[1, 2, 3, 2, 0]])
+    # A zero confidence keeps an input out.
+    cz = cs.copy()
+    cz[0, 2] = 0.0
+    d, _, src = FUSE.fill_single_source(lc, plaus, tof, st, ct, cz)
+    assert np.isnan(d[0, 2]) and src[0, 2] == 0
+    # Uniform weights: plausibility 1 where one input filled the pixel.
+    _, p, _ = FUSE.fill_single_source(lc, plaus, tof, st, None, None)
+    np.testing.assert_array_equal(p, np.float32([[0.9, 1.0, 1.0, 1.0, nan]]))

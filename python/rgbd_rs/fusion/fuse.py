@@ -82,7 +82,8 @@ class FusionResult:
 
     Attributes:
         disparity, depth: the fused map (pixels, metres).
-        plausibility: the LC winner's share of the accumulated plausibility.
+        plausibility: the LC winner's share of the accumulated plausibility (where only one
+            input measured the pixel: that input's confidence; see ``source``).
         tof: the reprojected and upsampled ToF (depth, disparity, amplitude, segmentation).
         stereo_disparity: the SGM map.
         tof_confidence, stereo_confidence: the weights used (None = uniform).
@@ -104,6 +105,10 @@ class FusionResult:
     tof_fused: F32
     #: The stereo matcher that made ``stereo_disparity`` (``"census"`` or ``"opencv"``).
     stereo_matcher: str = "opencv"
+    #: Where each pixel of ``disparity`` comes from: :data:`SOURCE_LC` (the fusion),
+    #: :data:`SOURCE_TOF` / :data:`SOURCE_STEREO` (only that input measured it: its value, and
+    #: its confidence as ``plausibility``), :data:`SOURCE_NONE` (neither).
+    source: npt.NDArray[np.uint8] | None = None
 
 
 def _is_estimator(value: object) -> TypeGuard[ConfidenceEstimator]:
@@ -298,10 +303,46 @@ def fuse(
     else:
         ct = tof_confidence(tof_disp, tof.amplitude)
         cs = stereo_confidence(ref_img, tgt_img, st_map, target_sign=sign, max_disparity=dmax)
-    disp, plaus = lc_fuse(
+    lc_disp, lc_plaus = lc_fuse(
         ref_img, tgt_img, [tof_disp, st_map], [ct, cs], target_sign=sign, params=params
     )
+    disp, plaus, source = fill_single_source(lc_disp, lc_plaus, tof_disp, st_map, ct, cs)
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
-        disp, depth, plaus, tof, st_map, ct, cs, dmax, r.reference, tof_disp, matcher
+        disp, depth, plaus, tof, st_map, ct, cs, dmax, r.reference, tof_disp, matcher, source
     )
+
+
+#: :attr:`FusionResult.source` values: where each fused pixel comes from.
+SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO = 0, 1, 2, 3
+
+
+def fill_single_source(
+    lc_disparity: F32,
+    lc_plausibility: F32,
+    tof: F32,
+    stereo: F32,
+    tof_confidence: F32 | None,
+    stereo_confidence: F32 | None,
+) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
+    """The LC map with the pixels it leaves empty but an input measures (outside the stereo
+    overlap, stereo holes, ToF dropouts) given that input's value, with that input's confidence
+    as plausibility (1 for uniform weights; the ToF's where both measured a pixel LC left
+    empty; never an input whose confidence there is 0 or NaN); returns ``(disparity,
+    plausibility, source)``."""
+    disp = lc_disparity.copy()
+    plaus = lc_plausibility.copy()
+    source = np.where(np.isfinite(disp), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
+    empty = ~np.isfinite(disp)
+    for value, conf, code in (
+        (tof, tof_confidence, SOURCE_TOF),
+        (stereo, stereo_confidence, SOURCE_STEREO),
+    ):
+        take = empty & np.isfinite(value)
+        if conf is not None:
+            take &= conf > 0  # an input its confidence rules out stays out
+        disp[take] = value[take]
+        plaus[take] = 1.0 if conf is None else conf[take]
+        source[take] = code
+        empty &= ~take
+    return disp, plaus, source

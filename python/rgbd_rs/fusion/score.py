@@ -5,7 +5,8 @@ that choose the fusion's knobs (issue: "chosen on real scenes"):
   that are non-occluded, have ground truth and are valid in all three;
 - whether each input is *good* there (at least :data:`GOOD_SHARE` of its pixels within
   :data:`GOOD_WITHIN` px): the fusion must not damage a good input;
-- the coverage of each map and of the inputs' union over the non-occluded ground truth.
+- the coverage of each map and of the inputs' union over all the ground truth (also the
+  pixels the other camera does not see: the ToF measures them).
 
 :func:`summarize` reduces cases to the numbers the choices are made by: the mean of fused /
 better input, the worst fused / good input, and the worst coverage shortfall of the fused map
@@ -22,13 +23,13 @@ import numpy as np
 
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, views
+from rgbd_rs.fusion.calibrate import GOOD_SHARE
 from rgbd_rs.fusion.evaluate import Sample, non_occluded
 from rgbd_rs.fusion.fuse import FusionResult, fuse
 from rgbd_rs.metrics import rms_error
 
-#: An input is good where this share of its compared pixels ...
-GOOD_SHARE = 0.95
-#: ... lies within this many pixels of the ground truth.
+#: An input is good where :data:`~rgbd_rs.fusion.calibrate.GOOD_SHARE` of its compared pixels
+#: lie within this many pixels of the ground truth.
 GOOD_WITHIN = 1.0
 #: Map names of a case.
 MAPS = ("tof", "stereo", "fused")
@@ -37,8 +38,8 @@ MAPS = ("tof", "stereo", "fused")
 @dataclass(frozen=True)
 class CaseScore:
     """One case: ``rms`` and ``good`` per map of :data:`MAPS` (``good`` for the inputs),
-    ``coverage`` per map and ``"union"`` (shares of the non-occluded ground truth), and the
-    number of compared pixels."""
+    ``coverage`` per map and ``"union"`` (shares of the ground-truth pixels), and the number of
+    compared pixels."""
 
     name: str
     rms: dict[str, float]
@@ -74,9 +75,11 @@ def score_maps(name: str, gt: F32, sign: int, tof: F32, stereo: F32, fused: F32)
     for k in ("tof", "stereo"):
         err = np.abs(maps[k][common] - gt[common])
         good[k] = bool(np.mean(err <= GOOD_WITHIN) >= GOOD_SHARE)
-    n = float(visible.sum())
-    coverage = {k: float(v.sum()) / n for k, v in valid.items()}
-    coverage["union"] = float((valid["tof"] | valid["stereo"]).sum()) / n
+    known = np.isfinite(gt)
+    have = {k: np.isfinite(v) & known for k, v in maps.items()}
+    n = float(known.sum())
+    coverage = {k: float(v.sum()) / n for k, v in have.items()}
+    coverage["union"] = float((have["tof"] | have["stereo"]).sum()) / n
     return CaseScore(name, rms, good, coverage, int(common.sum()))
 
 

@@ -1,0 +1,69 @@
+"""Choose the confidence ConvNet's epoch and stereo power on the real validation cases (issue
+29): every ``OUT/epN.pt`` of ``tools/train_confidence_real.py`` (and the shipped network, on
+the census matcher and on the one it was trained on) fuses the val split's scenes under
+``--laws`` fixed ToF laws with ``P_S ** p`` for each power; the choice is the lowest mean fused
+/ better input among the (epoch, power) pairs that keep every good input within 5 %
+(:data:`rgbd_rs.fusion.calibrate.MAX_DAMAGE`), else the least damaging pair. The test split is
+never read. Writes ``OUT/chosen.pt`` (the power stored in it) and ``OUT/choice.md``.
+
+    python tools/choose_confidence_real.py --out out/conf_real --laws 3
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rgbd_rs.fusion.calibrate import MAX_DAMAGE, calibrate_stereo_power, write_calibrated
+from rgbd_rs.fusion.real_scenes import real_samples
+from rgbd_rs.nn.confidence import WEIGHTS, ConfidenceEstimator
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("out/conf_real"))
+    ap.add_argument("--laws", type=int, default=3, help="fixed ToF laws per val scene (3)")
+    ap.add_argument("--powers", type=float, nargs="+", default=[1.0, 1.5, 2.0, 3.0])
+    a = ap.parse_args()
+    samples = list(real_samples("val", a.laws))
+    shipped = ConfidenceEstimator.load()
+    candidates: dict[str, tuple[Path | None, ConfidenceEstimator]] = {
+        "shipped (opencv)": (None, shipped),
+        "shipped on census": (
+            None,
+            ConfidenceEstimator(shipped.net, shipped.sigmas, str(WEIGHTS), matcher="census"),
+        ),
+    }
+    for p in sorted(a.out.glob("ep*.pt"), key=lambda q: int(q.stem[2:])):
+        candidates[p.stem] = (p, ConfidenceEstimator.load(p))
+    rows = ["| network | power | mean fused RMS px | mean fused / better | worst fused / good |"]
+    rows.append("|---|---:|---:|---:|---:|")
+    scored = []
+    for name, (path, est) in candidates.items():
+        cal = calibrate_stereo_power(est, samples, powers=a.powers, quiet=True)
+        for s in cal.scores:
+            rows.append(
+                f"| {name} | {s.power:g} | {s.mean_rms:.3f} | {s.mean_ratio:.3f} | "
+                f"{s.worst_damage:.3f} |"
+            )
+            print(rows[-1], flush=True)
+            if path is not None:
+                scored.append((s, path))
+    if not scored:
+        raise SystemExit(f"{a.out}: no epN.pt to choose from")
+    safe = [(s, p) for s, p in scored if s.worst_damage <= MAX_DAMAGE]
+    pool = safe or scored
+    key = (lambda t: (t[0].mean_ratio, t[0].power)) if safe else (lambda t: t[0].worst_damage)
+    best, path = min(pool, key=key)
+    chosen = write_calibrated(path, best.power, a.out / "chosen.pt")
+    text = (
+        f"Real validation cases: {len(samples)} ({a.laws} ToF laws per val scene)\n\n"
+        + "\n".join(rows)
+        + f"\n\nChosen: {path.stem}, power {best.power:g} -> {chosen}\n"
+    )
+    (a.out / "choice.md").write_text(text)
+    print(text.splitlines()[-1])
+
+
+if __name__ == "__main__":
+    main()
