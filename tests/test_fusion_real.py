@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from rgbd_rs import InvalidArgumentError
+from rgbd_rs.cli import main
 from rgbd_rs.data import load_stereo_scene
 from rgbd_rs.fusion import fuse, sgm
 from rgbd_rs.fusion.real_scenes import TOF_SCALE, real_sample, real_samples
@@ -128,3 +129,15 @@ def test_pixels_lc_leaves_empty_take_the_input_that_measured_them() -> None:
     # Uniform weights: plausibility 1 where one input filled the pixel.
     _, p, _ = FUSE.fill_single_source(lc, plaus, tof, st, None, None)
     np.testing.assert_array_equal(p, np.float32([[0.9, 1.0, 1.0, 1.0, nan]]))
+
+
+def test_cli_eval_fusion_on_real_cases(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["eval", "fusion", "--real", "val", "--laws", "1", "--limit", "2"]
+    assert main([*args, "--out", str(tmp_path), "--quiet"]) == 0
+    text = (tmp_path / "real_val" / "table.md").read_text()
+    assert "Baby1_law0" in text and "Books_law0" in text and "Midd1" not in text
+    assert "mean fused / better input" in text and "coverage" in text
+    assert (tmp_path / "real_val" / "figure.png").stat().st_size > 10_000
+    assert "worst fused / good input" in capsys.readouterr().out

@@ -158,7 +158,16 @@ def register(commands: Commands) -> None:
     ef.add_argument(
         "--middlebury", action="store_true", help="also the Middlebury pairs of the shared data"
     )
-    ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes only")
+    ef.add_argument(
+        "--real",
+        choices=("train", "val", "test"),
+        help="the real Middlebury split of ../shared/data/stereo with simulated ToF laws: the "
+        "default fusion scored per case (fused / better input, fused / good input, coverage)",
+    )
+    ef.add_argument(
+        "--laws", type=integer(1, 64), default=2, help="fixed ToF laws per real scene (2)"
+    )
+    ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes / real cases only")
     ef.add_argument(
         "--stride",
         type=integer(1),
@@ -365,8 +374,10 @@ def run_eval(args: argparse.Namespace) -> int:
     from rgbd_rs.fusion import LcParams
     from rgbd_rs.fusion.evaluate import evaluate, markdown_table, middlebury_samples, synth_samples
 
-    if args.synth is None and not args.middlebury:
-        raise InvalidArgumentError("--synth/--middlebury: got neither, expected at least one")
+    if args.synth is None and not args.middlebury and args.real is None:
+        raise InvalidArgumentError(
+            "--synth/--middlebury/--real: got none of them, expected at least one"
+        )
     params = LcParams(stride=args.stride, cross_check=args.cross_check)
     estimator = None
     if not args.no_convnet:
@@ -386,6 +397,20 @@ def run_eval(args: argparse.Namespace) -> int:
             quiet=args.quiet,
         )
         print(markdown_table(res, f"synthetic {args.split} set ({len(res)} scenes)"))
+    if args.real is not None:
+        from rgbd_rs.fusion.evaluate_real import evaluate_real, markdown
+        from rgbd_rs.fusion.real_scenes import real_samples
+
+        title = f"real {args.real} split ({args.laws} ToF laws per scene)"
+        cases = evaluate_real(
+            islice(real_samples(args.real, args.laws), args.limit),
+            args.out / f"real_{args.real}",
+            title=title,
+            estimator=estimator,
+            params=params,
+            quiet=args.quiet,
+        )
+        print(markdown(cases, title))
     if args.middlebury:
         mb = middlebury_samples()
         res = evaluate(
