@@ -439,11 +439,16 @@ def test_fuse_prints_the_search_range_and_each_inputs_coverage(
     # The wall at 22 px: the range is the smallest SGM step that covers it with a margin.
     assert "SGM search range: 0-26 px (from the ToF disparities)" in out
     cover = re.search(
-        r"valid pixels on the right camera: ToF (\S+)%, SGM (\S+)%, fused (\S+)%", out
+        r"valid pixels on the right camera: ToF (\S+)%, SGM (\S+)% \(\w+\), either (\S+)%, "
+        r"fused (\S+)%",
+        out,
     )
     assert cover is not None, out
-    tof, sgm, fused = (float(v) for v in cover.groups())
+    tof, sgm, either, fused = (float(v) for v in cover.groups())
     assert tof > 90 and 50 < sgm < 90 and fused > 90
+    # Nothing an input measured is left blank.
+    assert fused >= either - 0.05
+    assert "fused pixels only one input measured: ToF" in out
     argv = [*_fuse_argv(fuse_inputs, out=tmp_path / "b"), "--reference", "left"]
     assert main([*argv, "--max-disparity", "40"]) == 0
     out = capsys.readouterr().out

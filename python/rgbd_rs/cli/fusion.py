@@ -320,13 +320,15 @@ def run_fuse(args: argparse.Namespace) -> int:
         ),
     )
     elapsed = time.perf_counter() - t0
-    maps = {
+    maps: dict[str, np.ndarray] = {
         "disparity": out.disparity,
         "depth": out.depth,
         "plausibility": out.plausibility,
         "tof_disparity": out.tof.disparity,
         "stereo_disparity": out.stereo_disparity,
     }
+    if out.source is not None:
+        maps["source"] = out.source
     if out.tof_confidence is not None and out.stereo_confidence is not None:
         maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
     output_folder(args.out, ("fused.npz", "disparity.png", "depth_mm.png", "preview.png"))
@@ -359,10 +361,20 @@ def run_fuse(args: argparse.Namespace) -> int:
     def valid(m: npt.NDArray[np.float32]) -> str:
         return f"{np.isfinite(m).mean():.1%}"
 
+    union = np.isfinite(out.tof_fused) | np.isfinite(out.stereo_disparity)
     print(
         f"valid pixels on the {out.reference} camera: ToF {valid(out.tof.disparity)}, "
-        f"SGM {valid(out.stereo_disparity)}, fused {valid(out.disparity)}"
+        f"SGM {valid(out.stereo_disparity)} ({out.stereo_matcher}), either {union.mean():.1%}, "
+        f"fused {valid(out.disparity)}"
     )
+    if out.source is not None:
+        from rgbd_rs.fusion.fuse import SOURCE_STEREO, SOURCE_TOF
+
+        print(
+            f"fused pixels only one input measured: ToF {(out.source == SOURCE_TOF).mean():.1%}, "
+            f"SGM {(out.source == SOURCE_STEREO).mean():.1%} (their values, and their "
+            "confidences as plausibility: fused.npz 'source')"
+        )
     print(
         f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s; wrote "
         f"{args.out}/fused.npz, disparity.png, depth_mm.png, preview.png"
