@@ -17,8 +17,7 @@ from pathlib import Path
 
 from rgbd_rs.fusion.real_scenes import real_samples
 from rgbd_rs.nn.confidence_data import prepare
-from rgbd_rs.nn.confidence_train import Recipe, train_on_caches
-from rgbd_rs.nn.train import TrainConfig
+from rgbd_rs.nn.confidence_train import Recipe, recipe_config, train_on_caches
 
 
 def main() -> None:
@@ -49,15 +48,7 @@ def main() -> None:
         kept = a.out / f"ep{epoch}.pt"
         if kept.is_file():
             continue
-        config = TrainConfig(
-            epochs=epoch,
-            batch_size=a.batch_size,
-            optimizer="adam",
-            lr=a.lr,
-            lr_step=10,
-            lr_gamma=0.9,
-            seed=a.seed,
-        )
+        config = recipe_config(epoch, a.batch_size, a.lr, a.seed)
         best = train_on_caches(
             train,
             val,

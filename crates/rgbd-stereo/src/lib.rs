@@ -184,28 +184,16 @@ fn solve(
     };
     let layout = layout::Layout::new(w, params.min_disparity, nd);
     // Strings of up to 32 bits are kept as u32: half the memory beside the volume.
+    let run = |strings: aggregate::Strings<'_>| {
+        let p = problem(strings, &r_img, w, h, params, layout.clone());
+        aggregate::aggregate(&p, params, kernel)
+    };
     let sum = if params.max_cost() <= 32 {
         let (cref, trev) = census_pair::<u32>(&r_img, &t_img, w, h, params, kernel);
-        let problem = problem(
-            aggregate::Strings::Narrow(&cref, &trev),
-            &r_img,
-            w,
-            h,
-            params,
-            layout.clone(),
-        );
-        aggregate::aggregate(&problem, params, kernel)?
+        run(aggregate::Strings::Narrow(&cref, &trev))?
     } else {
         let (cref, trev) = census_pair::<u64>(&r_img, &t_img, w, h, params, kernel);
-        let problem = problem(
-            aggregate::Strings::Wide(&cref, &trev),
-            &r_img,
-            w,
-            h,
-            params,
-            layout.clone(),
-        );
-        aggregate::aggregate(&problem, params, kernel)?
+        run(aggregate::Strings::Wide(&cref, &trev))?
     };
     Ok((sum, layout))
 }

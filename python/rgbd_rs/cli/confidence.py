@@ -109,8 +109,14 @@ def register_calibration(commands: Commands) -> None:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from rgbd_rs.nn.confidence_train import Recipe, prepare_caches, ship, train_confidence
-    from rgbd_rs.nn.train import TrainConfig, is_main_process
+    from rgbd_rs.nn.confidence_train import (
+        Recipe,
+        prepare_caches,
+        recipe_config,
+        ship,
+        train_confidence,
+    )
+    from rgbd_rs.nn.train import is_main_process
 
     if args.shard is not None:
         train, val = prepare_caches(
@@ -118,16 +124,7 @@ def run_train(args: argparse.Namespace) -> int:
         )
         print(f"cached {len(train)} training and {len(val)} validation scenes (shard {args.shard})")
         return 0
-    config = TrainConfig(
-        epochs=args.epochs,
-        batch_size=args.batch_size,
-        optimizer="adam",
-        lr=args.lr,
-        lr_step=10,
-        lr_gamma=0.9,
-        seed=args.seed,
-        checkpoint_steps=args.checkpoint_steps,
-    )
+    config = recipe_config(args.epochs, args.batch_size, args.lr, args.seed, args.checkpoint_steps)
     recipe = Recipe(
         width=args.width,
         patch=args.patch,

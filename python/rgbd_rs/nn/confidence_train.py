@@ -36,6 +36,25 @@ class Recipe:
     disagreement_weight: float = 0.0
 
 
+def recipe_config(
+    epochs: int, batch_size: int, lr: float, seed: int, checkpoint_steps: int = 0
+) -> object:
+    """The recipe's :class:`~rgbd_rs.nn.train.TrainConfig`: Adam, the learning rate x0.9 every
+    10 epochs."""
+    from rgbd_rs.nn.train import TrainConfig
+
+    return TrainConfig(
+        epochs=epochs,
+        batch_size=batch_size,
+        optimizer="adam",
+        lr=lr,
+        lr_step=10,
+        lr_gamma=0.9,
+        seed=seed,
+        checkpoint_steps=checkpoint_steps,
+    )
+
+
 def prepare_caches(
     data: Path, cache: Path, *, shard: tuple[int, int] = (0, 1), quiet: bool = False
 ) -> tuple[list[Path], list[Path]]:
