@@ -75,11 +75,13 @@ def test_fusion_accuracy_on_a_rendered_scene(scene: SynthSample) -> None:
     )
     tof, st = r.rms["Interpolated ToF"], r.rms["SGM"]
     assert r.pixels > 50_000
-    # Confidences matter: the GT-derived ones beat both inputs, the heuristic ones beat stereo
-    # and stay near the (here excellent) ToF, equal weights are worse than the heuristic.
+    # Confidences matter: the GT-derived ones beat both inputs and every estimate, the
+    # heuristic ones beat stereo and stay near the (here excellent) ToF. (With OpenCV's SGBM,
+    # 12.9 px RMS here against the census matcher's 5.7, equal weights were also far worse than
+    # the heuristic: 6.0 vs 2.0 px; with census both beat the ToF, 1.0 and 1.4 px.)
     assert r.rms["LC oracle confidence"] < 0.8 * min(tof, st)
     assert r.rms["LC heuristic"] < min(1.2 * tof, st)
-    assert r.rms["LC uniform"] > r.rms["LC heuristic"]
+    assert r.rms["LC oracle confidence"] < min(r.rms["LC uniform"], r.rms["LC heuristic"])
     assert "| **mean** |" in markdown_table([r], "t")
 
 

@@ -23,6 +23,7 @@ from rgbd_rs.fusion.stereo import (
     predict_search_range,
     same_search,
     search_range,
+    whole_steps,
 )
 from rgbd_rs.fusion.upsample import reproject_tof
 
@@ -162,7 +163,15 @@ def test_fuse_reruns_sgm_when_the_predicted_range_misses(
     assert out.max_disparity == fused.max_disparity
     np.testing.assert_array_equal(out.stereo_disparity, fused.stereo_disparity)
     np.testing.assert_array_equal(out.disparity, fused.disparity)
-    expect = sgm(scene.left, scene.right, max_disparity=fused.max_disparity)
+    # The census matcher searched the range in OpenCV's whole steps, as SGBM does.
+    top = whole_steps(fused.max_disparity)
+    expect = sgm(
+        scene.left,
+        scene.right,
+        max_disparity=top,
+        method="census",
+        params=fuse_module.FUSION_CENSUS,
+    )
     np.testing.assert_array_equal(out.stereo_disparity, expect)
 
 

@@ -185,8 +185,16 @@ def evaluate_sample(
 ) -> SceneResult:
     """Every method on one sample, measured on the common valid non-occluded pixels; with an
     ``estimator``, also LC with the ConvNet's confidences (:data:`CONVNET`)."""
+    # Every row on the matcher the network was trained on (its clues come from it).
     out = fuse(
-        s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, confidence="heuristic", params=params
+        s.left,
+        s.right,
+        s.tof_depth,
+        s.tof_amplitude,
+        s.rig,
+        confidence="heuristic",
+        params=params,
+        stereo=None if estimator is None else estimator.matcher,
     )
     ref, tgt, sign = views(s.left, s.right, s.rig.reference)
     tof_d, st_d = out.tof_fused, out.stereo_disparity

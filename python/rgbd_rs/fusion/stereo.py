@@ -113,6 +113,13 @@ def same_search(a: int, b: int, min_disparity: int = 0) -> bool:
     return _num_disparities(min_disparity, a) == _num_disparities(min_disparity, b)
 
 
+def whole_steps(max_disparity: int, min_disparity: int = 0) -> int:
+    """The largest disparity OpenCV SGBM searches for ``max_disparity`` (the range rounded up to
+    whole steps of :data:`DISPARITY_STEP`): giving the census matcher this range makes its map,
+    like SGBM's, the same for every ``max_disparity`` :func:`same_search` calls the same."""
+    return min_disparity + _num_disparities(min_disparity, max_disparity) - 1
+
+
 #: The matchers :func:`sgm` runs.
 METHODS = ("census", "opencv")
 
