@@ -246,8 +246,8 @@ def main() -> None:
     # beside the OpenCV / numpy path it replaced (same run; the best of REPEATS after a warm-up).
     import rgbd_rs.fusion.confidence as conf_mod
     import rgbd_rs.fusion.upsample as up_mod
-    from rgbd_rs.fusion.fuse import shipped_estimator
-    from rgbd_rs.fusion.stereo import _cost_curve_stats_numpy
+    from rgbd_rs.fusion.fuse import FUSION_CENSUS, shipped_estimator
+    from rgbd_rs.fusion.stereo import _cost_curve_stats_numpy, whole_steps
 
     def old_segmentation(image, **_: object):  # type: ignore[no-untyped-def]
         filtered = cv2.pyrMeanShiftFiltering(image, 8, 16)
@@ -285,7 +285,18 @@ def main() -> None:
     fuse_args = (s.left, s.right, s.tof_depth, s.tof_amplitude, rig)
     # The stages at the search range fuse() derives on this scene (SGBM's time is linear in it).
     dmax = fuse(*fuse_args).max_disparity
-    st_f = sgm(s.left, s.right, max_disparity=dmax)
+
+    def census_sgm() -> np.ndarray:
+        """The stereo map fuse() computes: the census matcher as fuse runs it."""
+        return sgm(
+            s.left,
+            s.right,
+            max_disparity=min(whole_steps(dmax), s.left.shape[1] - 1),
+            method="census",
+            params=FUSION_CENSUS,
+        )
+
+    st_f = census_sgm()
     stages = [
         (
             "mean-shift filter (pyrMeanShiftFiltering, sp 8, sr 16)",
@@ -315,15 +326,20 @@ def main() -> None:
             old_path(lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right)),
         ),
         (
-            f"SGBM (8 paths, 7x7, LR check; the scene's range {dmax} px)",
+            f"census SGM (fuse()'s matcher: 4 paths, LR check; the scene's range {dmax} px)",
+            census_sgm,
+            lambda: sgm(s.left, s.right, max_disparity=dmax),
+        ),
+        (
+            "OpenCV SGBM-HH 7x7 alone (the peer; fuse() must not take longer, issue 28)",
             lambda: sgm(s.left, s.right, max_disparity=dmax),
             None,
         ),
         (
-            "tof_to_reference beside SGBM (fuse()'s first phase, two threads)",
+            "tof_to_reference beside census SGM (fuse()'s first phase, two threads)",
             lambda: overlapped(
                 lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right),
-                lambda: sgm(s.left, s.right, max_disparity=dmax),
+                census_sgm,
             ),
             None,
         ),
@@ -342,7 +358,7 @@ def main() -> None:
         (
             "fuse() total (default: ConvNet)",
             lambda: fuse(*fuse_args),
-            old_path(lambda: fuse(*fuse_args)),
+            old_path(lambda: fuse(*fuse_args, stereo="opencv")),
         ),
         (
             "stereo cost curve (heuristic confidence only)",
@@ -363,7 +379,7 @@ def main() -> None:
         (
             "fuse() total (confidence='heuristic')",
             lambda: fuse(*fuse_args, confidence="heuristic"),
-            old_path(lambda: fuse(*fuse_args, confidence="heuristic")),
+            old_path(lambda: fuse(*fuse_args, confidence="heuristic", stereo="opencv")),
         ),
     ]
     stage_rows = [

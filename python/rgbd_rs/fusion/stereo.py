@@ -143,8 +143,8 @@ def sgm(
     knobs, the search range is ``min_disparity..max_disparity`` inclusive).
 
     ``method="opencv"`` runs OpenCV's SGBM (MODE_HH, Birchfield-Tomasi costs over
-    ``block_size`` blocks: the thesis' matcher, and the one the shipped confidence ConvNet was
-    trained on, so :func:`~rgbd_rs.fusion.fuse` still uses it);
+    ``block_size`` blocks: the thesis' matcher, the peer of ours, and the one the earlier
+    confidence checkpoints were trained on: :func:`~rgbd_rs.fusion.fuse` runs it for them);
     there, invalid means what SGBM marks invalid (left-right check, uniqueness, the image
     border) and its outputs at the lower end of the search, ``d = min_disparity``: SGBM parks
     pixels there that it could not match and cannot refine them to sub-pixel.
