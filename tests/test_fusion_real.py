@@ -12,7 +12,7 @@ import pytest
 from rgbd_rs import InvalidArgumentError
 from rgbd_rs.cli import main
 from rgbd_rs.data import load_stereo_scene
-from rgbd_rs.fusion import fuse, sgm
+from rgbd_rs.fusion import LcParams, fuse, sgm
 from rgbd_rs.fusion.real_scenes import TOF_SCALE, real_sample, real_samples
 from rgbd_rs.fusion.score import score_maps, summarize
 from rgbd_rs.fusion.stereo import whole_steps
@@ -108,6 +108,19 @@ def test_what_one_input_measured_is_not_left_blank(shared_data: Path) -> None:
         np.testing.assert_array_equal(d[px], src[px])
         np.testing.assert_array_equal(out.plausibility[px], conf[px])
     assert set(np.unique(out.source)) <= {0, 1, 2, 3}
+    # The two-view cross-check's rejections stand: nothing is filled back.
+    checked = fuse(
+        s.left,
+        s.right,
+        s.tof_depth,
+        s.tof_amplitude,
+        s.rig,
+        stereo="census",
+        params=LcParams(cross_check=True),
+    )
+    assert checked.source is not None
+    assert set(np.unique(checked.source)) <= {FUSE.SOURCE_NONE, FUSE.SOURCE_LC}
+    assert np.isfinite(checked.disparity).mean() < np.isfinite(d).mean()
 
 
 def test_pixels_lc_leaves_empty_take_the_input_that_measured_them() -> None:

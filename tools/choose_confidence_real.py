@@ -28,12 +28,13 @@ def main() -> None:
     samples = list(real_samples("val", a.laws))
     shipped = ConfidenceEstimator.load()
     candidates: dict[str, tuple[Path | None, ConfidenceEstimator]] = {
-        "shipped (opencv)": (None, shipped),
-        "shipped on census": (
+        f"shipped (trained on {shipped.matcher})": (None, shipped),
+    }
+    if shipped.matcher != "census":
+        candidates["shipped on census"] = (
             None,
             ConfidenceEstimator(shipped.net, shipped.sigmas, str(WEIGHTS), matcher="census"),
-        ),
-    }
+        )
     for p in sorted(a.out.glob("ep*.pt"), key=lambda q: int(q.stem[2:])):
         candidates[p.stem] = (p, ConfidenceEstimator.load(p))
     rows = ["| network | power | mean fused RMS px | mean fused / better | worst fused / good |"]

@@ -1,5 +1,6 @@
 """Train the confidence ConvNet on real scenes (issue 29): clue caches of the Middlebury train
-split (``../shared/data/stereo``) under ``--laws`` simulated ToF laws per scene with the
+split (``../shared/data/stereo``) under ``--laws`` simulated ToF laws per scene (a fixed pool,
+the same every epoch) with the
 ``--matcher``'s stereo disparities, the val split's fixed laws for the validation loss (for
 monitoring only: the epoch is chosen by ``tools/choose_confidence_real.py`` on what the fusion
 gives), one checkpoint per epoch kept.
@@ -61,7 +62,8 @@ def main() -> None:
         )
         shutil.copyfile(a.out / "last.pt", kept)
         print(f"epoch {epoch}: {kept}", flush=True)
-    print(f"lowest validation loss: {best}")
+    if best is not None:
+        print(f"lowest validation loss: {best}")
 
 
 if __name__ == "__main__":

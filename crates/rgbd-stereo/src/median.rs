@@ -113,7 +113,7 @@ fn window_network(side: usize) -> &'static Network {
     NETS[side / 2].get_or_init(|| network(side * side))
 }
 
-/// The median filter (see the module docs).
+/// The median filter (see the module docs). An even `side` takes the window of `side + 1`.
 pub fn median(disp: &[f32], w: usize, h: usize, side: usize) -> Vec<f32> {
     median_with(Kernel::best(), disp, w, h, side)
 }
@@ -129,6 +129,17 @@ pub(crate) fn median_with(
     let mut out = vec![f32::NAN; w * h];
     if side <= 1 {
         out.copy_from_slice(disp);
+        return out;
+    }
+    if side.is_multiple_of(2) || side > MAX_MEDIAN {
+        // No network for these sides (the matcher never asks for them): the exact selection.
+        out.par_chunks_mut(w)
+            .enumerate()
+            .for_each_init(Vec::new, |win, (y, row)| {
+                for (x, o) in row.iter_mut().enumerate() {
+                    *o = exact(disp, w, h, side, x, y, win);
+                }
+            });
         return out;
     }
     let net = window_network(side);
@@ -309,7 +320,7 @@ mod tests {
                 }
             })
             .collect();
-        for side in [3, 5, 7] {
+        for side in [3, 5, 7, 4, 9] {
             let mut win = Vec::new();
             let want: Vec<f32> = (0..w * h)
                 .map(|i| exact(&d, w, h, side, i % w, i / w, &mut win))

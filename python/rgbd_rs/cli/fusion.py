@@ -370,10 +370,10 @@ def run_fuse(args: argparse.Namespace) -> int:
     if out.source is not None:
         from rgbd_rs.fusion.fuse import SOURCE_STEREO, SOURCE_TOF
 
+        tof_px, st_px = (out.source == SOURCE_TOF).mean(), (out.source == SOURCE_STEREO).mean()
         print(
-            f"fused pixels only one input measured: ToF {(out.source == SOURCE_TOF).mean():.1%}, "
-            f"SGM {(out.source == SOURCE_STEREO).mean():.1%} (their values, and their "
-            "confidences as plausibility: fused.npz 'source')"
+            f"fused pixels LC left empty, from one input: ToF {tof_px:.1%}, SGM {st_px:.1%} (its "
+            "value, its confidence as plausibility: fused.npz 'source')"
         )
     print(
         f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s; wrote "
@@ -419,6 +419,7 @@ def run_eval(args: argparse.Namespace) -> int:
             args.out / f"real_{args.real}",
             title=title,
             estimator=estimator,
+            confidence="heuristic" if args.no_convnet else "convnet",
             params=params,
             quiet=args.quiet,
         )

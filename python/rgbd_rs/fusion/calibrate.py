@@ -26,7 +26,7 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import views
 from rgbd_rs.fusion.evaluate import Sample, non_occluded
-from rgbd_rs.fusion.fuse import fuse
+from rgbd_rs.fusion.fuse import finish_lc, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.metrics import bad_pixel_rate, rms_error
 
@@ -161,13 +161,15 @@ def calibrate_stereo_power(
         scenes += 1
         scene = SceneInputs.of((tof_d, st_d), gt, mask)
         for p in ps:
-            fused = (
-                out.disparity
-                if p == 1.0
-                else lc_fuse(
-                    ref, tgt, [tof_d, st_d], [p_t, p_s**p], target_sign=sign, params=params
-                )[0]
-            )
+            if p == 1.0:
+                fused = out.disparity
+            else:
+                # Scored as fuse() would return it: LC, then the pixels it left empty filled.
+                conf_s = (p_s**p).astype(np.float32)
+                lc_d, lc_p = lc_fuse(
+                    ref, tgt, [tof_d, st_d], [p_t, conf_s], target_sign=sign, params=params
+                )
+                fused = finish_lc(lc_d, lc_p, tof_d, st_d, p_t, conf_s, params)[0]
             e, r, dmg = scene.score(fused)
             rms[p].append(e)
             ratio[p].append(r)

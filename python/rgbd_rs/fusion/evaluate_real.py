@@ -57,6 +57,11 @@ def markdown(scores: list[CaseScore], title: str) -> str:
     return "\n".join(rows) + "\n"
 
 
+def title_of(out: FusionResult) -> str:
+    """The confidences a fused map was made with, for a panel title."""
+    return "uniform weights" if out.tof_confidence is None else "confidence-weighted"
+
+
 def case_panels(s: Sample, out: FusionResult) -> tuple[list[U8], list[str]]:
     """One case's panels: colour, ground truth, ToF, SGM, fused (one disparity scale), the fused
     error, and the two confidences."""
@@ -69,7 +74,7 @@ def case_panels(s: Sample, out: FusionResult) -> tuple[list[U8], list[str]]:
         ("ground truth", gt),
         ("ToF (upsampled)", out.tof_fused),
         (f"SGM ({out.stereo_matcher})", out.stereo_disparity),
-        ("fused (LC ConvNet)", out.disparity),
+        (f"fused (LC, {title_of(out)})", out.disparity),
     ):
         cells.append(colorize_with_bar(d, lo, hi, "px"))
         labels.append(title)
@@ -89,12 +94,14 @@ def evaluate_real(
     *,
     title: str,
     estimator: ConfidenceEstimator | None = None,
+    confidence: str = "convnet",
     params: LcParams | None = None,
     figure_cases: int = 4,
     quiet: bool = False,
 ) -> list[CaseScore]:
-    """Fuse every sample as ``fuse`` does by default (or with ``estimator``) and score it; with
-    ``out``, write ``OUT/table.md`` and ``OUT/figure.png``."""
+    """Fuse every sample as ``fuse`` does with ``confidence`` (default: the shipped ConvNet) or
+    with ``estimator`` and score it; with ``out``, write ``OUT/table.md`` and
+    ``OUT/figure.png``."""
     scores: list[CaseScore] = []
     cells: list[U8] = []
     labels: list[str] = []
@@ -105,7 +112,7 @@ def evaluate_real(
             s.tof_depth,
             s.tof_amplitude,
             s.rig,
-            confidence="convnet" if estimator is None else estimator,
+            confidence=confidence if estimator is None else estimator,  # type: ignore[arg-type]
             params=params,
         )
         scores.append(score_result(s, res))

@@ -95,7 +95,9 @@ class FusionResult:
         tof: the reprojected and upsampled ToF (depth, disparity, amplitude, segmentation).
         stereo_disparity: the SGM map.
         tof_confidence, stereo_confidence: the weights used (None = uniform).
-        max_disparity: the SGM search range used (given, or from :func:`search_range`).
+        max_disparity: the SGM search range asked for (given, or from :func:`search_range`);
+            SGBM and, inside ``fuse``, the census matcher search it in whole 16-px steps
+            (:func:`~rgbd_rs.fusion.stereo.whole_steps`).
         reference: the camera the maps lie on (``"left"`` or ``"right"``).
     """
 
@@ -114,8 +116,9 @@ class FusionResult:
     #: The stereo matcher that made ``stereo_disparity`` (``"census"`` or ``"opencv"``).
     stereo_matcher: str = "opencv"
     #: Where each pixel of ``disparity`` comes from: :data:`SOURCE_LC` (the fusion),
-    #: :data:`SOURCE_TOF` / :data:`SOURCE_STEREO` (only that input measured it: its value, and
-    #: its confidence as ``plausibility``), :data:`SOURCE_NONE` (neither).
+    #: :data:`SOURCE_TOF` / :data:`SOURCE_STEREO` (LC left it empty and that input measured it:
+    #: its value, and its confidence as ``plausibility``; the ToF where both did),
+    #: :data:`SOURCE_NONE` (nothing). With ``LcParams(cross_check=True)`` nothing is filled.
     source: npt.NDArray[np.uint8] | None = None
 
 
@@ -328,8 +331,8 @@ def fuse(
     lc_disp, lc_plaus = lc_fuse(
         ref_img, tgt_img, [tof_disp, st_map], [ct, cs], target_sign=sign, params=params
     )
-    disp, plaus, source = fill_single_source(
-        lc_disp, lc_plaus, tof_disp, st_map, ct, cs, keep_out_zero=given is not None
+    disp, plaus, source = finish_lc(
+        lc_disp, lc_plaus, tof_disp, st_map, ct, cs, params, keep_out_zero=given is not None
     )
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
@@ -339,6 +342,33 @@ def fuse(
 
 #: :attr:`FusionResult.source` values: where each fused pixel comes from.
 SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO = 0, 1, 2, 3
+
+
+def finish_lc(
+    lc_disparity: F32,
+    lc_plausibility: F32,
+    tof: F32,
+    stereo: F32,
+    tof_confidence: F32 | None,
+    stereo_confidence: F32 | None,
+    params: LcParams | None,
+    *,
+    keep_out_zero: bool = False,
+) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
+    """What ``fuse`` makes of LC's output: :func:`fill_single_source`, except with
+    ``params.cross_check``, whose rejections stand (nothing is filled back)."""
+    if params is not None and params.cross_check:
+        source = np.where(np.isfinite(lc_disparity), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
+        return lc_disparity, lc_plausibility, source
+    return fill_single_source(
+        lc_disparity,
+        lc_plausibility,
+        tof,
+        stereo,
+        tof_confidence,
+        stereo_confidence,
+        keep_out_zero=keep_out_zero,
+    )
 
 
 def fill_single_source(

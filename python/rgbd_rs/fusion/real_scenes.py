@@ -13,8 +13,8 @@ IR albedo would otherwise never drop a pixel).
 The rig is virtual (the 2005 sets' focal scaled with the width, 160 mm baseline, the ToF 4 cm
 below the left camera, reference = left view, where the ground truth lives), as in
 :func:`~rgbd_rs.fusion.evaluate.middlebury_sample`. Validation and test cases use fixed seeds
-(law ``k`` of a scene always draws the same sensor); training redraws them per epoch
-(``epoch`` enters the seed).
+(law ``k`` of a scene always draws the same sensor); ``epoch=`` draws another sensor per
+epoch for training (``tools/train_confidence_real.py`` trains on a fixed pool of laws instead).
 """
 
 from __future__ import annotations

@@ -114,9 +114,11 @@ def same_search(a: int, b: int, min_disparity: int = 0) -> bool:
 
 
 def whole_steps(max_disparity: int, min_disparity: int = 0) -> int:
-    """The largest disparity OpenCV SGBM searches for ``max_disparity`` (the range rounded up to
-    whole steps of :data:`DISPARITY_STEP`): giving the census matcher this range makes its map,
-    like SGBM's, the same for every ``max_disparity`` :func:`same_search` calls the same."""
+    """The largest disparity OpenCV SGBM searches for ``max_disparity``: ``min_disparity +
+    numDisparities - 1``, with ``numDisparities`` the span rounded up to whole steps of
+    :data:`DISPARITY_STEP` (so 15 for 16, 31 for 17..32). Giving the census matcher this range
+    makes its map, like SGBM's, the same for every ``max_disparity`` :func:`same_search` calls
+    the same."""
     return min_disparity + _num_disparities(min_disparity, max_disparity) - 1
 
 
