@@ -81,9 +81,14 @@ def case_panels(s: Sample, out: FusionResult) -> tuple[list[U8], list[str]]:
     err = np.abs(out.disparity - gt)
     cells.append(colorize_with_bar(err, 0, ERROR_MAX, "px"))
     labels.append("|fused - ground truth|")
-    for title, p in (("P_T (ToF confidence)", out.tof_confidence), ("P_S", out.stereo_confidence)):
+    for title, p, src in (
+        ("P_T (ToF confidence)", out.tof_confidence, out.tof_fused),
+        ("P_S (stereo confidence)", out.stereo_confidence, out.stereo_disparity),
+    ):
         if p is not None:
-            cells.append(colorize_with_bar(p, 0, 1, ""))
+            # Where the source has no disparity its confidence is "no data", not 0.
+            shown = np.where(np.isfinite(src), p, np.nan).astype(np.float32)
+            cells.append(colorize_with_bar(shown, 0, 1, ""))
             labels.append(title)
     return cells, labels
 
