@@ -26,7 +26,7 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import views
 from rgbd_rs.fusion.evaluate import Sample, non_occluded
-from rgbd_rs.fusion.fuse import finish_lc, fuse
+from rgbd_rs.fusion.fuse import fill_single_source, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.metrics import bad_pixel_rate, rms_error
 
@@ -37,8 +37,16 @@ if TYPE_CHECKING:
 POWERS = (1.0, 1.5, 2.0, 3.0, 4.0)
 #: An input is "good" on a scene when at least this share of its pixels is within 1 px (issue 12).
 GOOD_SHARE = 0.95
+#: ... and this is "within" (px).
+GOOD_WITHIN = 1.0
 #: The fused RMS may exceed a good input's by at most this factor (issue 12: 5 %).
 MAX_DAMAGE = 1.05
+
+
+def is_good(d: npt.NDArray[np.float32], gt: npt.NDArray[np.float32], mask: npt.ArrayLike) -> bool:
+    """Whether the map ``d`` is a good input on ``mask``: at least :data:`GOOD_SHARE` of its
+    pixels there within :data:`GOOD_WITHIN` px of ``gt``."""
+    return 1.0 - bad_pixel_rate(d, gt, GOOD_WITHIN, mask) >= GOOD_SHARE
 
 
 @dataclass(frozen=True)
@@ -113,11 +121,7 @@ class SceneInputs:
     ) -> SceneInputs:
         """The inputs' RMS on ``mask`` (bool ``H x W``), and which of them are good."""
         rms = tuple(rms_error(d, gt, mask) for d in inputs)
-        good = tuple(
-            e
-            for d, e in zip(inputs, rms, strict=True)
-            if 1.0 - bad_pixel_rate(d, gt, 1.0, mask) >= GOOD_SHARE
-        )
+        good = tuple(e for d, e in zip(inputs, rms, strict=True) if is_good(d, gt, mask))
         return cls(gt, mask, rms, good)
 
     def score(self, fused: npt.NDArray[np.float32]) -> tuple[float, float, float]:
@@ -169,7 +173,15 @@ def calibrate_stereo_power(
                 lc_d, lc_p = lc_fuse(
                     ref, tgt, [tof_d, st_d], [p_t, conf_s], target_sign=sign, params=params
                 )
-                fused = finish_lc(lc_d, lc_p, tof_d, st_d, p_t, conf_s, params)[0]
+                fused = fill_single_source(
+                    lc_d,
+                    lc_p,
+                    tof_d,
+                    st_d,
+                    p_t,
+                    conf_s,
+                    cross_check=params is not None and params.cross_check,
+                )[0]
             e, r, dmg = scene.score(fused)
             rms[p].append(e)
             ratio[p].append(r)

@@ -52,6 +52,10 @@ ORACLE_T = 3.0
 #: image width) and 160 mm baseline; the ToF 512x424 sits 4 cm below, as in the synthetic rig.
 MIDDLEBURY_FOCAL_PER_WIDTH = 3740.0 / 1390.0
 MIDDLEBURY_BASELINE = 0.16
+#: The ToF sees slightly more than the colour camera (its focal is this much shorter).
+TOF_FOV_MARGIN = 1.1
+#: The virtual ToF camera sits this far below the left camera (metres).
+TOF_OFFSET_Y = 0.04
 #: Mesh triangles spanning a depth ratio above this are depth edges and are dropped.
 EDGE_RATIO = 1.03
 
@@ -127,20 +131,30 @@ def middlebury_sample(folder: str | Path, seed: int = 0, model: ToFModel | None 
     dropout) from a 512x424 ToF camera 4 cm below the left camera whose field of view covers it.
     """
     pair = load_middlebury(folder)
-    h, w = pair.left.shape[:2]
+    depth, amplitude, rig = simulate_tof(pair.disparity_left, (512, 424), model or ToFModel(), seed)
+    return Sample(pair.name, pair.left, pair.right, depth, amplitude, rig, pair.disparity_left)
+
+
+def simulate_tof(
+    gt_left: F32, tof_size: tuple[int, int], model: ToFModel, seed: int
+) -> tuple[F32, F32, ToFStereoRig]:
+    """``(depth, amplitude, rig)``: the ToF frame a ``tof_size`` ToF camera 4 cm below the left
+    camera of the Middlebury virtual rig (f = 3740 px x width / 1390, b = 160 mm; the ToF sees a
+    little more than the colour camera) measures of the mesh of the left ground truth
+    ``gt_left`` (pixels; depth edges cut), simulated with ``model``."""
+    h, w = gt_left.shape
     f = MIDDLEBURY_FOCAL_PER_WIDTH * w
     cam = PinholeCamera(f, f, (w - 1) / 2, (h - 1) / 2, w, h)
-    z = np.where(pair.disparity_left > 0, MIDDLEBURY_BASELINE * f / pair.disparity_left, np.nan)
-    tof_f = f * 512 / w * 1.1  # ToF sees slightly more than the colour camera
-    tof_cam = PinholeCamera(tof_f, tof_f, 255.5, 211.5, 512, 424)
-    to_ref = Pose(np.eye(3), np.array([0.0, 0.04, 0.0]))
-    scene = Scene().add(depth_mesh(z.astype(np.float32), cam), Material(albedo_ir=0.5)).build()
-    model = model or ToFModel()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(gt_left > 0, MIDDLEBURY_BASELINE * f / gt_left, np.nan).astype(np.float32)
+    tw, th = tof_size
+    tof_f = f * tw / w * TOF_FOV_MARGIN
+    tof_cam = PinholeCamera(tof_f, tof_f, (tw - 1) / 2, (th - 1) / 2, tw, th)
+    to_ref = Pose(np.eye(3), np.array([0.0, TOF_OFFSET_Y, 0.0]))
+    scene = Scene().add(depth_mesh(z, cam), Material(albedo_ir=0.5)).build()
     frame = scene.tof(tof_cam, to_ref.inverse(), model, seed=seed)
     rig = ToFStereoRig(tof_cam, StereoRig(cam, cam, MIDDLEBURY_BASELINE), to_ref, "left")
-    return Sample(
-        pair.name, pair.left, pair.right, frame.depth, frame.amplitude, rig, pair.disparity_left
-    )
+    return frame.depth, frame.amplitude, rig
 
 
 def middlebury_samples(seed: int = 0) -> list[Sample]:

@@ -331,8 +331,15 @@ def fuse(
     lc_disp, lc_plaus = lc_fuse(
         ref_img, tgt_img, [tof_disp, st_map], [ct, cs], target_sign=sign, params=params
     )
-    disp, plaus, source = finish_lc(
-        lc_disp, lc_plaus, tof_disp, st_map, ct, cs, params, keep_out_zero=given is not None
+    disp, plaus, source = fill_single_source(
+        lc_disp,
+        lc_plaus,
+        tof_disp,
+        st_map,
+        ct,
+        cs,
+        keep_out_zero=given is not None,
+        cross_check=params is not None and params.cross_check,
     )
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
@@ -344,33 +351,6 @@ def fuse(
 SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO = 0, 1, 2, 3
 
 
-def finish_lc(
-    lc_disparity: F32,
-    lc_plausibility: F32,
-    tof: F32,
-    stereo: F32,
-    tof_confidence: F32 | None,
-    stereo_confidence: F32 | None,
-    params: LcParams | None,
-    *,
-    keep_out_zero: bool = False,
-) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
-    """What ``fuse`` makes of LC's output: :func:`fill_single_source`, except with
-    ``params.cross_check``, whose rejections stand (nothing is filled back)."""
-    if params is not None and params.cross_check:
-        source = np.where(np.isfinite(lc_disparity), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
-        return lc_disparity, lc_plausibility, source
-    return fill_single_source(
-        lc_disparity,
-        lc_plausibility,
-        tof,
-        stereo,
-        tof_confidence,
-        stereo_confidence,
-        keep_out_zero=keep_out_zero,
-    )
-
-
 def fill_single_source(
     lc_disparity: F32,
     lc_plausibility: F32,
@@ -380,6 +360,7 @@ def fill_single_source(
     stereo_confidence: F32 | None,
     *,
     keep_out_zero: bool = False,
+    cross_check: bool = False,
 ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
     """The LC map with the pixels it leaves empty but an input measures (outside the stereo
     overlap, stereo holes, ToF dropouts) given that input's value, with that input's confidence
@@ -387,10 +368,12 @@ def fill_single_source(
     empty); returns ``(disparity, plausibility, source)``. With ``keep_out_zero`` (confidences
     the caller gave) an input whose confidence there is 0 or NaN stays out; estimated
     confidences never hide the only measurement of a pixel, their value tells how far to trust
-    it."""
+    it. After LC's two-view ``cross_check`` nothing is filled: its rejections stand."""
     disp = lc_disparity.copy()
     plaus = lc_plausibility.copy()
     source = np.where(np.isfinite(disp), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
+    if cross_check:
+        return disp, plaus, source
     empty = ~np.isfinite(disp)
     for value, conf, code in (
         (tof, tof_confidence, SOURCE_TOF),

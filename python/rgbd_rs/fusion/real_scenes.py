@@ -27,26 +27,15 @@ import cv2
 import numpy as np
 
 from rgbd_rs import _validate
-from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data import tof_variation
 from rgbd_rs.data.stereo_scenes import SPLITS, StereoScene, load_stereo_scene, scene_names
-from rgbd_rs.fusion.evaluate import (
-    MIDDLEBURY_BASELINE,
-    MIDDLEBURY_FOCAL_PER_WIDTH,
-    Sample,
-    depth_mesh,
-)
-from rgbd_rs.render import Material, Scene
+from rgbd_rs.fusion.evaluate import Sample, simulate_tof
 
 #: The ToF camera's width as a fraction of the colour camera's (uniform).
 TOF_SCALE = (0.25, 0.5)
-#: The ToF sees slightly more than the colour camera (its focal is this much shorter).
-TOF_FOV_MARGIN = 1.1
 #: Fraction of ToF pixels lost to dark dropouts (uniform) and the blobs' size (ToF pixels).
 DROPOUT_FRACTION = (0.0, 0.03)
 DROPOUT_BLOB = 6.0
-#: The ToF camera sits this far below the left camera (metres).
-TOF_OFFSET_Y = 0.04
 
 
 @dataclass(frozen=True)
@@ -95,22 +84,12 @@ def real_sample(scene: StereoScene, law: int = 0, *, epoch: int | None = None) -
     rng = np.random.default_rng(_seed(scene.name, law, epoch))
     h, w = scene.left.shape[:2]
     drawn = draw_law(rng, w, h)
-    f = MIDDLEBURY_FOCAL_PER_WIDTH * w
-    cam = PinholeCamera(f, f, (w - 1) / 2, (h - 1) / 2, w, h)
     gt = scene.disparity_left
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(gt > 0, MIDDLEBURY_BASELINE * f / gt, np.nan).astype(np.float32)
-    tw, th = drawn.tof_size
-    tof_f = f * tw / w * TOF_FOV_MARGIN
-    tof_cam = PinholeCamera(tof_f, tof_f, (tw - 1) / 2, (th - 1) / 2, tw, th)
-    to_ref = Pose(np.eye(3), np.array([0.0, TOF_OFFSET_Y, 0.0]))
-    mesh = Scene().add(depth_mesh(z, cam), Material(albedo_ir=0.5)).build()
-    frame = mesh.tof(
-        tof_cam, to_ref.inverse(), drawn.variation.model, seed=int(rng.integers(2**31))
+    depth, amplitude, rig = simulate_tof(
+        gt, drawn.tof_size, drawn.variation.model, int(rng.integers(2**31))
     )
-    depth, amplitude = tof_variation.apply(frame.depth, frame.amplitude, drawn.variation, rng)
+    depth, amplitude = tof_variation.apply(depth, amplitude, drawn.variation, rng)
     depth = _dropouts(depth, drawn.dropout, rng)
-    rig = ToFStereoRig(tof_cam, StereoRig(cam, cam, MIDDLEBURY_BASELINE), to_ref, "left")
     return Sample(f"{scene.name}_law{law}", scene.left, scene.right, depth, amplitude, rig, gt)
 
 

@@ -3,8 +3,8 @@ that choose the fusion's knobs (issue: "chosen on real scenes"):
 
 - the RMS disparity error of the ToF (as fused), the stereo map and the fused map on the pixels
   that are non-occluded, have ground truth and are valid in all three;
-- whether each input is *good* there (at least :data:`GOOD_SHARE` of its pixels within
-  :data:`GOOD_WITHIN` px): the fusion must not damage a good input;
+- whether each input is *good* there (:func:`~rgbd_rs.fusion.calibrate.is_good`: 95 % of its
+  pixels within 1 px): the fusion must not damage a good input;
 - the coverage of each map and of the inputs' union over all the ground truth (also the
   pixels the other camera does not see: the ToF measures them).
 
@@ -17,20 +17,16 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, views
-from rgbd_rs.fusion.calibrate import GOOD_SHARE
+from rgbd_rs.fusion.calibrate import is_good
 from rgbd_rs.fusion.evaluate import Sample, non_occluded
-from rgbd_rs.fusion.fuse import FusionResult, fuse
+from rgbd_rs.fusion.fuse import FusionResult
 from rgbd_rs.metrics import rms_error
 
-#: An input is good where :data:`~rgbd_rs.fusion.calibrate.GOOD_SHARE` of its compared pixels
-#: lie within this many pixels of the ground truth.
-GOOD_WITHIN = 1.0
 #: Map names of a case.
 MAPS = ("tof", "stereo", "fused")
 
@@ -71,10 +67,7 @@ def score_maps(name: str, gt: F32, sign: int, tof: F32, stereo: F32, fused: F32)
     if not common.any():
         raise RgbdError(f"{name}: no pixel is valid in the ToF, the stereo and the fused map")
     rms = {k: rms_error(v, gt, common) for k, v in maps.items()}
-    good = {}
-    for k in ("tof", "stereo"):
-        err = np.abs(maps[k][common] - gt[common])
-        good[k] = bool(np.mean(err <= GOOD_WITHIN) >= GOOD_SHARE)
+    good = {k: is_good(maps[k], gt, common) for k in ("tof", "stereo")}
     known = np.isfinite(gt)
     have = {k: np.isfinite(v) & known for k, v in maps.items()}
     n = float(known.sum())
@@ -89,12 +82,6 @@ def score_result(s: Sample, out: FusionResult) -> CaseScore:
     return score_maps(
         s.name, s.gt_disparity, sign, out.tof_fused, out.stereo_disparity, out.disparity
     )
-
-
-def score_case(s: Sample, **fuse_args: Any) -> CaseScore:
-    """Fuse ``s`` (``fuse_args`` go to :func:`fuse`) and score it."""
-    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, **fuse_args)
-    return score_result(s, out)
 
 
 def summarize(scores: Sequence[CaseScore] | Iterable[CaseScore]) -> dict[str, float]:
