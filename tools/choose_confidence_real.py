@@ -3,7 +3,7 @@
 the census matcher and on the one it was trained on) fuses the val split's scenes under
 ``--laws`` fixed ToF laws with ``P_S ** p`` for each power; the choice is the lowest mean fused
 / better input among the (epoch, power) pairs that keep every good input within 5 %
-(:data:`rgbd_rs.fusion.calibrate.MAX_DAMAGE`), else the least damaging pair. The test split is
+(``rgbd_rs.fusion.calibrate.best_score``), else the least damaging pair. The test split is
 never read. Writes ``OUT/chosen.pt`` (the power stored in it) and ``OUT/choice.md``.
 
     python tools/choose_confidence_real.py --out out/conf_real --laws 3
@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.fusion.calibrate import MAX_DAMAGE, calibrate_stereo_power, write_calibrated
+from rgbd_rs.fusion.calibrate import best_score, calibrate_stereo_power, write_calibrated
 from rgbd_rs.fusion.real_scenes import real_samples
 from rgbd_rs.nn.confidence import WEIGHTS, ConfidenceEstimator
 
@@ -52,10 +52,8 @@ def main() -> None:
                 scored.append((s, path))
     if not scored:
         raise SystemExit(f"{a.out}: no epN.pt to choose from")
-    safe = [(s, p) for s, p in scored if s.worst_damage <= MAX_DAMAGE]
-    pool = safe or scored
-    key = (lambda t: (t[0].mean_ratio, t[0].power)) if safe else (lambda t: t[0].worst_damage)
-    best, path = min(pool, key=key)
+    best = best_score([s for s, _ in scored])
+    path = next(p for s, p in scored if s is best)
     chosen = write_calibrated(path, best.power, a.out / "chosen.pt")
     text = (
         f"Real validation cases: {len(samples)} ({a.laws} ToF laws per val scene)\n\n"

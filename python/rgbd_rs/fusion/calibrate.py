@@ -93,12 +93,17 @@ class Calibration:
 
 def choose(scores: Sequence[PowerScore]) -> float:
     """The lowest mean ratio among the powers within :data:`MAX_DAMAGE`, else the least damage."""
+    return best_score(scores).power
+
+
+def best_score(scores: Sequence[PowerScore]) -> PowerScore:
+    """The score :func:`choose` picks (also across networks: tools/choose_confidence_real.py)."""
     if not scores:
         raise InvalidArgumentError("scores: got none, expected at least one power's score")
     safe = [s for s in scores if s.worst_damage <= MAX_DAMAGE]
     if safe:
-        return min(safe, key=lambda s: (s.mean_ratio, s.power)).power
-    return min(scores, key=lambda s: (s.worst_damage, s.power)).power
+        return min(safe, key=lambda s: (s.mean_ratio, s.power))
+    return min(scores, key=lambda s: (s.worst_damage, s.power))
 
 
 @dataclass(frozen=True)
