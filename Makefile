@@ -13,7 +13,7 @@ export PYO3_PYTHON := $(PY)
 DEPS_STAMP := $(VENV)/.deps-$(shell sha256sum pyproject.toml tools/deps.py | sha256sum | cut -c1-16)
 PYDIRS := python tests benches tools
 
-.PHONY: help env build demo test lint fmt rust-test py-test wheel bench clean
+.PHONY: help env build demo test lint fmt rust-test py-test docs docs-serve wheel bench clean
 
 help: ## list the targets
 	@grep -hE '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -52,7 +52,13 @@ rust-test: ## cargo test --workspace (and build the benches)
 py-test: build ## pytest
 	$(PY) -m pytest -q
 
-test: lint rust-test py-test ## everything CI runs: lint, cargo tests, pytest
+docs: build ## build the docs site into site/ (strict: a broken link or reference fails)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict -q
+
+docs-serve: build ## serve the docs site with live reload on http://127.0.0.1:8000
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs serve
+
+test: lint rust-test py-test docs ## everything CI runs: lint, cargo tests, pytest, the docs build
 
 wheel: env ## build the wheel, install it into a fresh venv, smoke-test it there
 	rm -rf $(CACHE)/dist $(CACHE)/wheel-venv
@@ -87,4 +93,4 @@ bench: build ## run the benchmarks (criterion + Python vs OpenCV, scipy, trimesh
 
 clean: ## remove build outputs (keeps the cached venv)
 	cargo clean
-	rm -rf out python/rgbd_rs/*.so
+	rm -rf out site python/rgbd_rs/*.so

@@ -215,12 +215,17 @@ def depth_png_scale(flag: str, path: Path, scale: float | None) -> float:
 
 
 def load_map(
-    flag: str, path: Path, *, png_scale: float = 1.0, depth: bool = False
+    flag: str,
+    path: Path,
+    *,
+    png_scale: float = 1.0,
+    depth: bool = False,
+    names: tuple[str, ...] = (),
 ) -> npt.NDArray[np.float32]:
-    """The ``H x W`` map of ``flag``'s file: .npy, a .npz with one array (or, for a ``depth``
-    map, one named ``depth``, as `rgbd reproject` writes), or a PNG (values x ``png_scale``,
-    0 = invalid; a ``depth`` PNG must have 16 bits). Bad files raise an RgbdError naming
-    ``flag`` and the file."""
+    """The ``H x W`` map of ``flag``'s file: .npy, a .npz with one array (or, of several, the
+    first one named in ``names``; for a ``depth`` map also one named ``depth``, as
+    `rgbd reproject` writes), or a PNG (values x ``png_scale``, 0 = invalid; a ``depth`` PNG
+    must have 16 bits). Bad files raise an RgbdError naming ``flag`` and the file."""
     from rgbd_rs.io import read_npy, read_npz, read_png
 
     suffix = path.suffix.lower()
@@ -240,10 +245,14 @@ def load_map(
         arr = named(flag, lambda: read_npy(path))
     elif suffix == ".npz":
         arrays = named(flag, lambda: read_npz(path))
-        if depth and len(arrays) > 1 and "depth" in arrays:
-            arrays = {"depth": arrays["depth"]}
+        wanted = (*names, "depth") if depth else names
+        picked = next((n for n in wanted if n in arrays), None)
+        if len(arrays) > 1 and picked is not None:
+            arrays = {picked: arrays[picked]}
         if len(arrays) != 1:
-            expected = "one array, or one named 'depth'" if depth else "exactly one array"
+            expected = ("exactly one array" if not wanted else "one array") + "".join(
+                f", or one named {n!r}" for n in wanted
+            )
             raise InvalidArgumentError(
                 f"{flag}: {path}: got arrays {sorted(arrays)}, expected {expected}"
             )
@@ -280,8 +289,11 @@ def run_fuse(args: argparse.Namespace) -> int:
     left = named("--left", lambda: read_png(args.left))
     right = named("--right", lambda: read_png(args.right))
     scale = depth_png_scale("--tof-depth", args.tof_depth, args.depth_scale)
-    depth = load_map("--tof-depth", args.tof_depth, png_scale=scale, depth=True)
-    amp = load_map("--tof-amplitude", args.tof_amplitude)
+    # `rgbd synth`'s data.npz holds both maps: --tof-depth/--tof-amplitude may both name it.
+    depth = load_map(
+        "--tof-depth", args.tof_depth, png_scale=scale, depth=True, names=("tof_depth",)
+    )
+    amp = load_map("--tof-amplitude", args.tof_amplitude, names=("tof_amplitude", "amplitude"))
     conf: object = args.confidence
     if args.tof_confidence is not None and args.confidence != "convnet":
         raise InvalidArgumentError(
