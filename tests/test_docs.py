@@ -57,3 +57,23 @@ def test_docstring_roles_become_code() -> None:
     assert docstring_roles.on_page_content(html) == (
         "see <code>LcParams</code> and <code>fuse</code>."
     )
+
+
+def test_api_coverage_reports_a_public_name_without_an_entry(tmp_path: Path) -> None:
+    import importlib
+
+    sys.path.insert(0, str(ROOT / "tools" / "mkdocs_hooks"))
+    try:
+        import api_coverage
+    finally:
+        sys.path.pop(0)
+    for page, packages in api_coverage.PAGES.items():
+        ids = [
+            f'<h2 id="{pkg}.{name}.{name}">' if name == "fuse" else f'<h2 id="{pkg}.{name}">'
+            for pkg in packages
+            for name in importlib.import_module(pkg).__all__
+            if name != "lc_fuse"
+        ]
+        (tmp_path / page).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / page).write_text("\n".join(ids))
+    assert api_coverage.missing(tmp_path) == ["api/fusion/index.html: rgbd_rs.fusion.lc_fuse"]
