@@ -34,6 +34,14 @@ pub enum RgbdError {
     /// The caller asked the running kernel to stop (Ctrl-C); nothing was returned.
     #[error("interrupted")]
     Interrupted,
+    /// Memory a kernel needs could not be reserved (checked fallibly before the work starts,
+    /// so the process does not abort); `bytes` is what was asked for in all.
+    #[error("{what}: out of memory: could not reserve {} MiB for {detail}", bytes.div_ceil(1 << 20))]
+    OutOfMemory {
+        what: &'static str,
+        bytes: u64,
+        detail: String,
+    },
 }
 
 /// Result alias used throughout the core crates.

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use numpy::{Element, PyArrayMethods, PyReadonlyArray, PyUntypedArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use rgbd_error::RgbdError as CoreError;
 
@@ -38,6 +38,7 @@ pub fn to_py(err: CoreError) -> PyErr {
         CoreError::InvalidArgument { .. } => InvalidArgumentError::new_err(msg),
         CoreError::ShapeMismatch { .. } => ShapeMismatchError::new_err(msg),
         CoreError::Interrupted => PyKeyboardInterrupt::new_err("interrupted in the native core"),
+        CoreError::OutOfMemory { .. } => PyMemoryError::new_err(msg),
     }
 }
 

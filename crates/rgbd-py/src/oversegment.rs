@@ -53,6 +53,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("OVERSEG_DEFAULT_SIGMA", nystrom::DEFAULT_SIGMA)?;
     m.add("OVERSEG_DEFAULT_SAMPLES", nystrom::DEFAULT_SAMPLES)?;
     m.add("OVERSEG_DEFAULT_VECTORS", nystrom::DEFAULT_VECTORS)?;
+    m.add("OVERSEG_MAX_SAMPLES", nystrom::MAX_SAMPLES)?;
     m.add("OVERSEG_DEFAULT_SEGMENTS", nystrom::DEFAULT_SEGMENTS)?;
     m.add(
         "OVERSEG_DEFAULT_SPATIAL_WEIGHT",

@@ -171,6 +171,7 @@ pub fn assign(data: &[f32], d: usize, centers: &[f32]) -> Result<Vec<u32>> {
     let k = centers.len() / d;
     let n = data.len() / d;
     check_len("data", data, n * d, "n x d")?;
+    crate::workspace::reserve("kmeans")?;
     let cm = MatRef::from_row_major_slice(centers, k, d);
     let cn: Vec<f32> = centers
         .chunks_exact(d)

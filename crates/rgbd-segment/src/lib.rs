@@ -16,5 +16,6 @@ pub mod kmeans;
 pub mod labels;
 pub mod merge;
 pub mod nystrom;
+pub mod workspace;
 
 pub use labels::label_regions;

@@ -67,6 +67,9 @@ pub const DEFAULT_FEATURE_WEIGHT: f32 = 3.0;
 pub const EIG_FLOOR: f64 = 1e-6;
 /// Degrees below this fraction of the mean degree are raised to it.
 pub const DEGREE_FLOOR: f64 = 1e-6;
+/// Most Nyström samples `m`: the eigensolver of the `m x m` sample affinity is O(m³), so a
+/// larger `m` would run for hours instead of failing.
+pub const MAX_SAMPLES: usize = 4096;
 /// Rows of `K` computed at once (fixed: the reduction order never depends on the thread count).
 pub const BLOCK_ROWS: usize = 2048;
 
@@ -100,8 +103,12 @@ impl NystromParams {
         if !(self.sigma > 0.0) || !self.sigma.is_finite() {
             return Err(invalid("sigma", self.sigma, "a finite number > 0"));
         }
-        if self.n_samples < 2 {
-            return Err(invalid("n_samples", self.n_samples, ">= 2"));
+        if !(2..=MAX_SAMPLES).contains(&self.n_samples) {
+            return Err(invalid(
+                "n_samples",
+                self.n_samples,
+                format!("2..={MAX_SAMPLES} (the eigensolver is cubic in the samples)"),
+            ));
         }
         if n < 2 {
             return Err(invalid(
@@ -281,6 +288,7 @@ pub fn nystrom_embedding(
     let n = features.len() / dim;
     check_len("features", features, n * dim, "n x dim")?;
     params.validate(n)?;
+    crate::workspace::reserve("oversegment")?;
     let mut rng = SplitMix64::new(params.seed);
     let samples = rng.sample_indices(n, params.n_samples);
     let m = samples.len();

@@ -47,6 +47,7 @@ __all__ = [
     "DEFAULT_SIGMA",
     "DEFAULT_SPATIAL_WEIGHT",
     "GROUP_WEIGHTS",
+    "MAX_N_SAMPLES",
     "MIN_SIZE_FRACTION",
     "default_channel_weights",
     "oversegment",
@@ -58,6 +59,8 @@ DEFAULT_SIGMA: float = _rgbd_rs.OVERSEG_DEFAULT_SIGMA
 DEFAULT_N_SEGMENTS: int = _rgbd_rs.OVERSEG_DEFAULT_SEGMENTS
 #: Nyström samples m (the thesis does not give it; METHOD_NOTES §6).
 DEFAULT_N_SAMPLES: int = _rgbd_rs.OVERSEG_DEFAULT_SAMPLES
+#: Most Nyström samples: the eigensolver is cubic in m, so more would run for hours.
+MAX_N_SAMPLES: int = _rgbd_rs.OVERSEG_MAX_SAMPLES
 #: Embedding dimensions (non-trivial eigenvectors).
 DEFAULT_N_VECTORS: int = _rgbd_rs.OVERSEG_DEFAULT_VECTORS
 #: Weight of the pixel position against the unit-variance embedding, per grid step.
@@ -112,7 +115,8 @@ def oversegment(
             this many segments: splitting disconnected clusters adds some, absorbing fragments
             removes some.
         sigma: affinity width (> 0).
-        n_samples: Nyström samples m (>= 2; capped at the number of valid pixels).
+        n_samples: Nyström samples m (2..=:data:`MAX_N_SAMPLES`; capped at the number of valid
+            pixels).
         n_vectors: embedding dimensions (>= 1, fewer than the effective m).
         seed: seeds the sample draw and k-means (>= 0).
         min_size: components smaller than this (pixels) are absorbed by their longest-boundary
@@ -161,7 +165,7 @@ def oversegment(
         f = np.ascontiguousarray(f * weights.astype(np.float32))
     k = _validate.integer("n_segments", n_segments, minimum=1)
     s = _validate.real("sigma", sigma, positive=True)
-    m = _validate.integer("n_samples", n_samples, minimum=2)
+    m = _validate.integer("n_samples", n_samples, minimum=2, maximum=MAX_N_SAMPLES)
     nv = _validate.integer("n_vectors", n_vectors, minimum=1)
     sd = _validate.integer("seed", seed, minimum=0, maximum=2**64 - 1)
     sw = _validate.real("spatial_weight", spatial_weight, nonnegative=True)
