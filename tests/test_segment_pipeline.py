@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -172,8 +173,17 @@ def test_cli_with_a_checkpoint_writes_classes(
     argv = ["segment", "--rgb", str(f / "0001_rgb.png"), "--depth", str(f / "0001_depth.png")]
     argv += ["--calib", str(calib), "--out", str(out), "--segments", "60", "--labeler", str(ckpt)]
     assert main([*argv, "--quiet"]) == 0
-    for name in ("semantic.npy", "semantic.png", "network.png", "overlay.png"):
+    for name in ("semantic.npy", "semantic.png", "network.png", "overlay.png", "classes.json"):
         assert (out / name).exists(), name
+    # Issue 30: the class pictures carry a legend; classes.json maps id -> name -> colour.
+    classes = json.loads((out / "classes.json").read_text())
+    assert [c["id"] for c in classes] == list(range(len(classes)))
+    assert classes[1]["name"] == "bed" and len(classes[1]["rgb"]) == 3
+    from rgbd_rs.io import read_png
+
+    for name in ("semantic.png", "network.png"):
+        pic = read_png(out / name)
+        assert pic.shape[1] == 640 and pic.shape[0] > 480 + 40, (name, pic.shape)  # + legend
     assert main([*argv[:-2], "--labeler", str(tmp_path / "nope.pt"), "--quiet"]) == 2
     # A file that is no checkpoint fails before the features are computed, naming the flag.
     (tmp_path / "text.pt").write_text("not a checkpoint")

@@ -25,9 +25,9 @@ from rgbd_rs.data import (
     load_azure_kinect_frame,
     reproject_to_color,
 )
-from rgbd_rs.geometry import reproject_depth
+from rgbd_rs.geometry import Reprojection, reproject_depth
 from rgbd_rs.metrics import edge_alignment
-from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+from rgbd_rs.viz import as_bgr, class_picture, colorize, grid, image_panel, map_panel, save_png
 
 F64 = npt.NDArray[np.float64]
 
@@ -97,23 +97,61 @@ def run_synthetic(out: Path | None, seed: int = 0) -> SyntheticResult:
     if out is not None:
         save_png(
             out / "synthetic_reprojection.png",
-            tile(
-                [
-                    colorize(depth_a, 1.5, 3.5),
-                    colorize(rep.depth, 1.5, 3.5),
-                    colorize(depth_b, 1.5, 3.5),
-                    colorize(np.where(both, err, np.nan), 0.0, 0.05),
-                ],
-                [
-                    "depth, camera A (distorted)",
-                    "A reprojected into B",
-                    "analytic depth, camera B",
-                    "|error| 0..5 cm",
-                ],
-                columns=2,
-            ),
+            reprojection_figure(depth_a, rep.depth, depth_b, _coverage(cam_a, cam_b, a_to_b, rep)),
         )
     return SyntheticResult(round_trip, med, rep.coverage, int(both.sum()))
+
+
+#: Classes of the reprojection's coverage panel (RGB colours).
+COVERAGE = (
+    ("reprojected", (60, 170, 60)),
+    ("hidden from camera A (occlusion)", (230, 150, 30)),
+    ("outside camera A's view", (255, 255, 255)),
+)
+
+
+def _coverage(
+    cam_a: PinholeCamera, cam_b: PinholeCamera, a_to_b: Pose, rep: Reprojection
+) -> npt.NDArray[np.int64]:
+    """Per pixel of B: 0 reprojected, 1 a hole although camera A sees the direction (occlusion,
+    or a splat gap), 2 outside camera A's image, -1 no scene at all."""
+    truth = analytic_depth(cam_b, a_to_b)
+    pts = cam_b.depth_to_points(truth).reshape(-1, 3)
+    in_a = a_to_b.inverse().apply(pts)
+    px = cam_a.project(in_a)
+    inside = (
+        (px[:, 0] >= -0.5)
+        & (px[:, 0] <= cam_a.width - 0.5)
+        & (px[:, 1] >= -0.5)
+        & (px[:, 1] <= cam_a.height - 0.5)
+    ).reshape(truth.shape)
+    cls = np.where(np.isfinite(rep.depth), 0, np.where(inside, 1, 2))
+    return np.where(np.isfinite(truth), cls, -1)
+
+
+def reprojection_figure(
+    depth_a: npt.NDArray[np.float32],
+    reprojected: npt.NDArray[np.float32],
+    depth_b: npt.NDArray[np.float32],
+    coverage: npt.NDArray[np.int64],
+) -> npt.NDArray[np.uint8]:
+    """The synthetic reprojection's panels: both depths and the reprojection on one depth
+    scale (m), the |error| scaled to its 99th percentile (mm), and where B got no value."""
+    lo, hi = float(np.nanmin(depth_b)), float(np.nanmax(depth_b))
+    err_mm = np.abs(reprojected - depth_b) * 1e3
+    top = float(np.nanpercentile(err_mm, 99)) if np.isfinite(err_mm).any() else 1.0
+    names = [name for name, _ in COVERAGE]
+    colors = [color for _, color in COVERAGE]
+    return grid(
+        [
+            map_panel(depth_a, "depth, camera A (distorted, 640x480)", unit="m", vmin=lo, vmax=hi),
+            map_panel(reprojected, "A reprojected into camera B", unit="m", vmin=lo, vmax=hi),
+            map_panel(depth_b, "analytic depth, camera B (960x540)", unit="m", vmin=lo, vmax=hi),
+            map_panel(err_mm, "|reprojected - analytic|", unit="mm", vmin=0.0, vmax=top),
+            class_picture(coverage, names, colors, "camera B: where a value came from"),
+        ],
+        columns=3,
+    )
 
 
 def _rot_y(a: float) -> F64:
@@ -142,31 +180,47 @@ def run_kinect(out: Path | None) -> dict[str, float] | None:
         color = as_bgr(frame.color)
         over = (0.5 * color + 0.5 * colorize(rep.depth)).astype(np.uint8)
         assert rep.channels is not None
+        lo, hi = (float(v) for v in np.nanpercentile(frame.depth, [1, 99]))
+        amp = np.log10(np.where(frame.amplitude > 0, frame.amplitude, np.nan))
+        alo, ahi = (float(v) for v in np.nanpercentile(amp, [1, 99]))
+        rep_amp = np.log10(np.where(rep.channels > 0, rep.channels, np.nan))
+        ch, cw = frame.color.shape[:2]
+        dh, dw = frame.depth.shape
         save_png(
             out / "kinect_depth_to_color.png",
-            tile(
+            grid(
                 [
-                    color,
-                    colorize(frame.depth),
-                    colorize(rep.depth),
-                    colorize(np.log1p(rep.channels)),
-                    over,
-                ],
-                [
-                    "colour 1280x720",
-                    "ToF depth 640x576",
-                    "ToF depth on colour",
-                    "ToF amplitude on colour",
-                    "overlay",
+                    image_panel(color, f"colour camera {cw}x{ch}"),
+                    map_panel(frame.depth, f"ToF depth, ToF camera {dw}x{dh}", unit="m",
+                              vmin=lo, vmax=hi),
+                    map_panel(rep.depth, "ToF depth on the colour camera", unit="m",
+                              vmin=lo, vmax=hi),
+                    map_panel(amp, "ToF amplitude, ToF camera (log10)", unit="",
+                              vmin=alo, vmax=ahi),
+                    map_panel(rep_amp, "ToF amplitude on the colour camera (log10)", unit="",
+                              vmin=alo, vmax=ahi),
+                    image_panel(over, "colour + depth on the colour camera"),
                 ],
                 columns=3,
             ),
-        )
+        )  # fmt: skip
     return stats
 
 
 def main(out: Path | None, seed: int = 0) -> int:
-    """Run both parts and print their results."""
+    """Run every part and print its results; with ``out``, the figures and ``out/index.html``
+    (every figure and the printed measurements on one page)."""
+    from rgbd_rs.demo_page import capture, write_index
+
+    with capture() as printed:
+        _run(out, seed)
+    if out is not None:
+        page = write_index(out, printed.getvalue())
+        print(f"Pictures in {out}/ (all on one page: {page})")
+    return 0
+
+
+def _run(out: Path | None, seed: int) -> None:
     syn = run_synthetic(out, seed)
     print("Synthetic scene (tilted wall + sphere), two distorted cameras")
     print(
@@ -198,6 +252,3 @@ def main(out: Path | None, seed: int = 0) -> int:
     from rgbd_rs import demo_scene
 
     demo_scene.report(demo_scene.run_segmentation(out), demo_scene.run_shapes())
-    if out is not None:
-        print(f"Pictures in {out}/")
-    return 0

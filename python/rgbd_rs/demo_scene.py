@@ -12,6 +12,8 @@ import numpy as np
 from rgbd_rs import metrics
 from rgbd_rs.data.nyuv2 import NYUV2_CAMERA, load_nyuv2_frame, region_ground_truth
 from rgbd_rs.data.paths import data_root
+from rgbd_rs.segmentation.pipeline import Segmentation
+from rgbd_rs.viz import save_png
 
 #: The NYUv2 frame of the demo (the first of the test split).
 DEMO_FRAME = 46
@@ -46,20 +48,28 @@ def run_segmentation(out: Path | None) -> dict[str, float] | None:
         res["net_acc"] = metrics.pixel_accuracy(r.network_labels, f.label13)
         res["refined_acc"] = metrics.pixel_accuracy(r.refined_labels, f.label13)
     if out is not None:
-        from rgbd_rs.viz import outline_segments, save_png, tile
-
-        pictures = [np.ascontiguousarray(f.rgb[..., ::-1]), outline_segments(f.rgb, r.labels)]
-        names = ["colour", f"{int(res['segments'])} segments"]
-        if r.semantic is not None:
-            from rgbd_rs.data.synth_indoor import label_colors
-
-            pictures += [
-                label_colors(np.clip(r.semantic, 0, 255).astype(np.uint8)),
-                label_colors(f.label13),
-            ]
-            names += ["classes (refined)", "ground truth"]
-        save_png(out / "segmentation.png", tile(pictures, names, columns=2, width=640))
+        save_png(out / "segmentation.png", segmentation_figure(f.rgb, r, f.label13))
     return res
+
+
+def segmentation_figure(rgb: np.ndarray, r: Segmentation, label13: np.ndarray) -> np.ndarray:
+    """Colour, the segments' boundaries, the refined classes and the ground truth, 640 px
+    panels, the class images with a legend of NYUv2's 13 classes."""
+    from rgbd_rs.data.nyuv2 import LABEL13_NAMES
+    from rgbd_rs.data.synth_indoor import LABEL13_COLORS
+    from rgbd_rs.viz import class_picture, grid, image_panel, outline_segments
+
+    panels = [
+        image_panel(np.ascontiguousarray(rgb[..., ::-1]), "colour", width=640),
+        image_panel(outline_segments(rgb, r.labels), f"{r.merge.n_segments} segments", width=640),
+    ]
+    if r.semantic is not None:
+        for labels, title in (
+            (r.semantic, "classes (ConvNet + segment refinement)"),
+            (label13.astype(np.int64), "ground truth (NYUv2 13 classes)"),
+        ):
+            panels.append(class_picture(labels, LABEL13_NAMES, LABEL13_COLORS, title, width=640))
+    return grid(panels, columns=2)
 
 
 def run_shapes() -> list[tuple[str, str, float]] | None:

@@ -14,9 +14,15 @@ from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.io import write_png
 
 __all__ = [
+    "NO_DATA_BGR",
     "as_bgr",
+    "class_legend",
+    "class_picture",
     "colorize",
     "colorize_with_bar",
+    "grid",
+    "image_panel",
+    "map_panel",
     "outline_segments",
     "paint_segments",
     "save_png",
@@ -113,6 +119,131 @@ def colorize_with_bar(
         cv2.putText(strip, title, (5, text_h - 2), font, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
         parts.insert(0, strip)
     return np.ascontiguousarray(np.vstack(parts))
+
+
+#: Panel width of the figures (pixels): readable at 960x540 inputs, four to a 1920-px row.
+PANEL_WIDTH = 480
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+def _title_strip(title: str, width: int) -> U8:
+    strip = np.full((28, width, 3), 255, np.uint8)
+    cv2.putText(strip, title, (5, 20), _FONT, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+    return strip
+
+
+def _width(width: object) -> int:
+    return _validate.integer("width", width, minimum=16, maximum=MAX_TILE_WIDTH)
+
+
+def map_panel(
+    values: npt.ArrayLike,
+    title: str,
+    *,
+    unit: str,
+    vmin: float | None = None,
+    vmax: float | None = None,
+    width: int = PANEL_WIDTH,
+    colormap: int = cv2.COLORMAP_TURBO,
+) -> U8:
+    """A titled panel of an ``H x W`` float map at ``width`` pixels: the map in colour (NaN in
+    the "no data" grey, :data:`NO_DATA_BGR`) over a colour bar labelled in ``unit`` with a
+    "no data" swatch. Range: ``vmin`` / ``vmax``, else the 1st / 99th percentile."""
+    v = np.asarray(_validate.array("values", values, shape=(None, None)), np.float32)
+    w = _width(width)
+    h = max(1, round(v.shape[0] * w / v.shape[1]))
+    small = cv2.resize(v, (w, h), interpolation=cv2.INTER_NEAREST)
+    return colorize_with_bar(small, vmin, vmax, unit=unit, colormap=colormap, title=title)
+
+
+def image_panel(image: npt.ArrayLike, title: str, *, width: int = PANEL_WIDTH) -> U8:
+    """A titled panel of a BGR (or grey) uint8 image at ``width`` pixels."""
+    img = _u8_image("image", image)
+    if img.ndim == 2:
+        img = np.repeat(img[:, :, None], 3, axis=2)
+    if not isinstance(title, str):
+        raise InvalidArgumentError(f"title: got {type(title).__name__}, expected str")
+    w = _width(width)
+    h = max(1, round(img.shape[0] * w / img.shape[1]))
+    cell = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+    return np.ascontiguousarray(np.vstack([_title_strip(title, w), cell]))
+
+
+def grid(panels: Sequence[U8], columns: int) -> U8:
+    """Panels (BGR uint8, any sizes) in rows of ``columns``, each cell padded with white to the
+    largest panel, a white gutter between cells."""
+    if not isinstance(panels, Sequence) or len(panels) == 0:
+        raise InvalidArgumentError(
+            f"panels: got {type(panels).__name__}, expected a non-empty list of BGR images"
+        )
+    columns = _validate.integer("columns", columns, minimum=1, maximum=MAX_TILE_COLUMNS)
+    cells = [_u8_image(f"panels[{i}]", p) for i, p in enumerate(panels)]
+    cells = [np.repeat(c[:, :, None], 3, axis=2) if c.ndim == 2 else c for c in cells]
+    hmax, wmax = max(c.shape[0] for c in cells) + 8, max(c.shape[1] for c in cells) + 8
+    padded = [
+        cv2.copyMakeBorder(
+            c,
+            4,
+            hmax - c.shape[0] - 4,
+            4,
+            wmax - c.shape[1] - 4,
+            cv2.BORDER_CONSTANT,
+            value=(255, 255, 255),
+        )
+        for c in cells
+    ]
+    blank = np.full_like(padded[0], 255)
+    rows = []
+    for i in range(0, len(padded), columns):
+        row = padded[i : i + columns]
+        rows.append(np.hstack(row + [blank] * (columns - len(row))))
+    return np.ascontiguousarray(np.vstack(rows))
+
+
+def class_legend(names: Sequence[str], colors: Sequence[tuple[int, int, int]], width: int) -> U8:
+    """A white strip of ``width`` pixels with one swatch (RGB ``colors``) and name per class,
+    wrapped into as many rows as needed."""
+    if len(names) != len(colors) or not names:
+        raise InvalidArgumentError(
+            f"names/colors: got {len(names)} names and {len(colors)} colours, expected as many"
+        )
+    w = _width(width)
+    items, x, y, rows = [], 5, 0, 1
+    for name in names:
+        tw = cv2.getTextSize(name, _FONT, 0.45, 1)[0][0] + 30
+        if x + tw > w and x > 5:
+            x, y, rows = 5, y + 22, rows + 1
+        items.append((x, y))
+        x += tw
+    strip = np.full((rows * 22 + 6, w, 3), 255, np.uint8)
+    for (x, y), name, rgb in zip(items, names, colors, strict=True):
+        cv2.rectangle(strip, (x, y + 6), (x + 14, y + 20), tuple(int(c) for c in rgb[::-1]), -1)
+        cv2.rectangle(strip, (x, y + 6), (x + 14, y + 20), (0, 0, 0), 1)
+        cv2.putText(strip, name, (x + 19, y + 18), _FONT, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    return strip
+
+
+def class_picture(
+    labels: npt.ArrayLike,
+    names: Sequence[str],
+    colors: Sequence[tuple[int, int, int]],
+    title: str,
+    *,
+    width: int = PANEL_WIDTH,
+) -> U8:
+    """A titled panel of a class-label image (``H x W`` ints indexing ``names`` / RGB
+    ``colors``; negative = no data, in :data:`NO_DATA_BGR`) with a legend of the classes."""
+    lab = _label_image("labels", labels)
+    if lab.size and int(lab.max()) >= len(names):
+        raise InvalidArgumentError(
+            f"labels: got label {int(lab.max())}, expected < {len(names)} (one name per class)"
+        )
+    lut = np.array([c[::-1] for c in colors], np.uint8)
+    img = lut[np.clip(lab, 0, None)]
+    img[lab < 0] = NO_DATA_BGR
+    panel = image_panel(img, title, width=width)
+    legend = class_legend([*names, "no data"], [*colors, NO_DATA_BGR[::-1]], panel.shape[1])
+    return np.ascontiguousarray(np.vstack([panel, legend]))
 
 
 def _u8_image(name: str, value: object) -> U8:

@@ -32,9 +32,10 @@ DESCRIPTION = (
     "eq. 4.8 holds); --pdfs (per-pixel class probabilities, H x W x C .npy) replaces the ConvNet. "
     "Writes OUT/labels.png (16-bit, the final segments numbered 1..N, 0 = no depth), "
     "OUT/labels.npy (the merge's segment ids, -1 = no depth), OUT/over.npy, "
-    "OUT/overlay.png (boundaries on the colour image), OUT/segments.png; with classes "
-    "OUT/semantic.npy, OUT/semantic.png (refined classes), OUT/network.png (the ConvNet's "
-    "per-pixel classes); with --frames N every N-th merge step as OUT/merge/NNNN.png (Fig. 4.5)."
+    "OUT/overlay.png (boundaries on the colour image), OUT/segments.png (labels.png in colour); "
+    "with classes OUT/semantic.npy, OUT/semantic.png (refined classes), OUT/network.png (the "
+    "ConvNet's per-pixel classes), both with a class legend, and OUT/classes.json (id, name, "
+    "colour of each class); with --frames N every N-th merge step as OUT/merge/NNNN.png (Fig. 4.5)."
 )
 
 
@@ -48,6 +49,7 @@ SEGMENT_OUTPUTS = (
     "semantic.npy",
     "semantic.png",
     "network.png",
+    "classes.json",
     "merge/[0-9][0-9][0-9][0-9].png",
 )
 
@@ -124,6 +126,17 @@ def register(commands: Commands) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress output")
 
 
+def class_names(pdfs: np.ndarray | None) -> list[str]:
+    """The class names of the labeler's PDFs: NYUv2's 13 (+ unlabeled) for the shipped
+    network's 14 channels, else ``class 0`` ... ``class C-1``."""
+    from rgbd_rs.data.nyuv2 import LABEL13_NAMES
+
+    count = len(LABEL13_NAMES) if pdfs is None else int(pdfs.shape[-1])
+    if count == len(LABEL13_NAMES):
+        return list(LABEL13_NAMES)
+    return [f"class {i}" for i in range(count)]
+
+
 def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.cli.fusion import depth_png_scale, load_map
     from rgbd_rs.data.calibration import load_camera
@@ -183,16 +196,38 @@ def run_segment(args: argparse.Namespace) -> int:
     save_png(out / "segments.png", paint_segments(result.labels))
     written = "labels.png, labels.npy, over.npy, overlay.png, segments.png"
     if result.semantic is not None:
-        from rgbd_rs.data.synth_indoor import label_colors
+        from rgbd_rs.data.nyuv2 import LABEL13_NAMES
+        from rgbd_rs.data.synth_indoor import LABEL13_COLORS
+        from rgbd_rs.io import write_json
+        from rgbd_rs.viz import class_picture
 
+        names = class_names(result.pdfs)
+        if tuple(names) == LABEL13_NAMES:
+            colors = list(LABEL13_COLORS)
+        else:  # another labeler's classes: the segment pictures' colour of each id (BGR -> RGB)
+            swatches = paint_segments(np.arange(len(names))[None, :], boundaries=False)[0]
+            colors = [(int(b[2]), int(b[1]), int(b[0])) for b in swatches]
         np.save(out / "semantic.npy", result.semantic)
-        save_png(
-            out / "semantic.png", label_colors(np.clip(result.semantic, 0, 255).astype(np.uint8))
+        write_json(
+            out / "classes.json",
+            [
+                {"id": i, "name": n, "rgb": list(c)}
+                for i, (n, c) in enumerate(zip(names, colors, strict=True))
+            ],
         )
-        written += ", semantic.npy, semantic.png"
+        width = int(rgb.shape[1])
+        save_png(
+            out / "semantic.png",
+            class_picture(result.semantic, names, colors, "classes after the segment refinement",
+                          width=width),
+        )  # fmt: skip
+        written += ", semantic.npy, semantic.png, classes.json"
         if result.network_labels is not None:
-            net = np.clip(result.network_labels, 0, 255).astype(np.uint8)
-            save_png(out / "network.png", label_colors(net))
+            net = np.where(result.labels >= 0, result.network_labels, -1)
+            save_png(
+                out / "network.png",
+                class_picture(net, names, colors, "the ConvNet's per-pixel classes", width=width),
+            )
             written += ", network.png"
     if args.frames:
         steps = len(result.merge.history)

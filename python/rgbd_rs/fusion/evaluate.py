@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # torch is imported only when a ConvNet is evaluated
     from rgbd_rs.nn.confidence import ConfidenceEstimator
 from rgbd_rs.metrics import bad_pixel_rate, edge_band, rms_error
 from rgbd_rs.render import Material, Scene, ToFModel
-from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+from rgbd_rs.viz import as_bgr, grid, image_panel, map_panel, save_png
 
 METHODS = ("Interpolated ToF", "SGM", "LC uniform", "LC heuristic", "LC oracle confidence")
 #: The learned-confidence row, evaluated when an estimator is given (before the oracle).
@@ -274,41 +274,50 @@ def markdown_table(results: list[SceneResult], title: str) -> str:
 
 
 def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
-    """BGR picture in the thesis Fig. 3.4 layout: colour, GT, ToF, ToF error, stereo, stereo
-    error, fused, error (grey = excluded, red intensity = |error| up to ``ORACLE_T`` px)."""
-    cells, labels = [], []
+    """BGR picture in the thesis Fig. 3.4 layout, two rows of four 480-px panels per scene:
+    colour, ground truth, ToF, stereo; the fused map (the ConvNet fusion when it was run, else
+    the heuristic one) and the |error| of ToF, stereo and fused. Disparities share one colour
+    bar in px, errors one of 0..``ORACLE_T`` px; excluded pixels (occluded, or without a value in
+    some compared map) are the "no data" grey."""
+    panels = []
     for s, r in zip(samples, results, strict=True):
         gt, mask = r.maps["gt"], r.maps["mask"] > 0
         lo, hi = float(np.nanpercentile(gt, 1)), float(np.nanpercentile(gt, 99))
         ref = s.right if s.rig.reference == "right" else s.left
-        cells += [as_bgr(ref), colorize(gt, lo, hi)]
-        labels += [f"{s.name} colour", "ground truth"]
-        for key, short in (("Interpolated ToF", "ToF"), ("SGM", "stereo"), ("LC heuristic", "LC")):
-            d = r.maps[key]
-            err = np.clip(np.abs(d - gt) / ORACLE_T, 0, 1)
-            red = np.zeros((*gt.shape, 3), np.uint8)
-            red[..., 2] = np.where(mask, 255 * err, 128).astype(np.uint8)
-            red[..., 1] = np.where(mask, 0, 128).astype(np.uint8)
-            red[..., 0] = red[..., 1]
-            cells += [colorize(d, lo, hi), red]
-            labels += [short, f"{short} error (RMS {r.rms[key]:.2f})"]
-    return tile(cells, labels, columns=8, width=240)
+        fused = CONVNET if CONVNET in r.maps else "LC heuristic"
+        shown = (("Interpolated ToF", "ToF"), ("SGM", "stereo"), (fused, f"fused ({fused})"))
+        panels += [
+            image_panel(as_bgr(ref), f"{s.name}: colour ({s.rig.reference} camera)"),
+            map_panel(gt, "ground-truth disparity", unit="px", vmin=lo, vmax=hi),
+        ]
+        panels += [
+            map_panel(r.maps[k], f"{short} disparity", unit="px", vmin=lo, vmax=hi)
+            for k, short in shown[:2]
+        ]
+        panels.append(map_panel(r.maps[fused], shown[2][1], unit="px", vmin=lo, vmax=hi))
+        for key, short in shown:
+            err = np.where(mask, np.abs(r.maps[key] - gt), np.nan)
+            title = f"{short.split(' (')[0]} |error|, RMS {r.rms[key]:.2f} px"
+            panels.append(map_panel(err, title, unit="px", vmin=0.0, vmax=ORACLE_T))
+    return grid(panels, columns=4)
 
 
 def confidence_figure(samples: list[Sample], results: list[SceneResult]) -> U8:
     """BGR picture in the thesis Fig. 3.5 layout: colour view, estimated ToF confidence, estimated
-    stereo confidence (bright = reliable), beside the GT-derived targets for comparison."""
-    cells, labels = [], []
+    stereo confidence (1 = reliable), beside the GT-derived targets for comparison; one row of
+    five 480-px panels per scene, "no data" grey."""
+    panels = []
     for s, r in zip(samples, results, strict=True):
         ref = views(s.left, s.right, s.rig.reference)[0]
         gt = r.maps["gt"]
-        cells.append(as_bgr(ref))
-        labels.append(f"{s.name} colour")
+        panels.append(image_panel(as_bgr(ref), f"{s.name}: colour"))
         for key, src, short in (("P_T", "Interpolated ToF", "ToF"), ("P_S", "SGM", "stereo")):
             target = target_confidence(r.maps[src], gt, ORACLE_T)
-            cells += [colorize(r.maps[key], 0, 1), colorize(target, 0, 1)]
-            labels += [f"{short} confidence (ConvNet)", f"{short} target (GT)"]
-    return tile(cells, labels, columns=5, width=240)
+            panels += [
+                map_panel(r.maps[key], f"{short} confidence (ConvNet)", unit="", vmin=0, vmax=1),
+                map_panel(target, f"{short} target (GT)", unit="", vmin=0, vmax=1),
+            ]
+    return grid(panels, columns=5)
 
 
 def evaluate(

@@ -1,0 +1,109 @@
+"""Figures people read (issue 30): readable panels with colour bars and one "no data" colour,
+class legends, and the demo's one-page index loaded in a real headless browser."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.viz import NO_DATA_BGR, class_legend, class_picture, grid, image_panel, map_panel
+
+
+def test_map_panel_has_the_width_a_bar_and_no_data_grey() -> None:
+    v = np.linspace(0, 10, 96 * 54, dtype=np.float32).reshape(54, 96)
+    v[:10, :10] = np.nan
+    p = map_panel(v, "disparity", unit="px", width=480)
+    assert p.shape[1] == 480
+    assert p.shape[0] > 28 + 270  # title + map + colour bar below
+    title_h = 28
+    assert tuple(p[title_h + 5, 5]) == NO_DATA_BGR  # the NaN corner
+    assert tuple(p[title_h + 200, 400]) != NO_DATA_BGR
+    bar = p[title_h + 270 :]
+    assert (np.abs(bar.astype(int) - NO_DATA_BGR).sum(-1) == 0).any()  # the "no data" swatch
+    assert len({tuple(c) for c in bar.reshape(-1, 3)}) > 50  # the colour ramp
+
+
+def test_class_picture_legend_and_no_data() -> None:
+    labels = np.array([[0, 1, 2], [-1, 2, 1]])
+    names, colors = ["a", "b", "c"], [(255, 0, 0), (0, 255, 0), (0, 0, 255)]
+    p = class_picture(labels, names, colors, "classes", width=320)
+    assert p.shape[1] == 320
+    body = p[28 : 28 + 213]
+    assert tuple(body[150, 5]) == NO_DATA_BGR  # label -1, lower left
+    assert tuple(body[5, 5]) == (0, 0, 255)  # label 0 in red, as BGR
+    legend = class_legend(names, colors, 320)
+    assert legend.shape[1] == 320 and legend.shape[0] >= 22
+    with pytest.raises(InvalidArgumentError, match=r"^labels: got label 3"):
+        class_picture(labels + 1, names, colors, "x")
+    with pytest.raises(InvalidArgumentError, match=r"^names/colors: got 3 names and 2"):
+        class_legend(names, colors[:2], 320)
+
+
+def test_grid_pads_panels_with_white() -> None:
+    a = image_panel(np.zeros((10, 20, 3), np.uint8), "a", width=100)
+    b = image_panel(np.zeros((20, 20, 3), np.uint8), "b", width=100)
+    g = grid([a, b, a], columns=2)
+    assert g.shape[1] == 2 * (100 + 8)
+    assert g.shape[0] == 2 * (max(a.shape[0], b.shape[0]) + 8)
+    assert (g[-10:, -10:] == 255).all()  # the empty cell
+
+
+@pytest.fixture(scope="module")
+def demo_out(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
+    out = tmp_path_factory.mktemp("demo")
+    res = subprocess.run(
+        [sys.executable, "-m", "rgbd_rs.cli", "demo", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def test_demo_figures_are_readable_grids(demo_out: Path) -> None:
+    from rgbd_rs.io import read_png
+
+    for name, columns in (("fusion.png", 4), ("kinect_depth_to_color.png", 3)):
+        img = read_png(demo_out / name)
+        assert img.shape[1] >= columns * 320, (name, img.shape)
+    page = (demo_out / "index.html").read_text()
+    for name in ("synthetic_reprojection", "kinect_depth_to_color", "fusion", "segmentation"):
+        assert f'src="{name}.png"' in page
+    assert "RMS disparity error (px)" in page and "VoI" in page  # the printed measurements
+
+
+def _browser() -> str | None:
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.skipif(_browser() is None, reason="Chromium not installed (.ci/run installs it)")
+def test_demo_page_loads_every_image_in_a_browser(demo_out: Path) -> None:
+    """The page as a browser shows it: a copy of index.html beside it with a script that
+    records each image's decoded width once the page has loaded."""
+    probe = demo_out / "probe.html"
+    script = (
+        "<script>window.addEventListener('load', () => {document.body.setAttribute("
+        "'data-widths', [...document.images].map(i => i.complete ? i.naturalWidth : -1)"
+        ".join(','));});</script>"
+    )
+    probe.write_text((demo_out / "index.html").read_text().replace("</body>", script + "</body>"))
+    browser = _browser()
+    assert browser is not None
+    res = subprocess.run(
+        [browser, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=10000",
+         "--dump-dom", probe.as_uri()],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr[-2000:]
+    found = re.search(r'data-widths="([^"]*)"', res.stdout)
+    assert found, res.stdout[-2000:]
+    widths = [int(w) for w in found.group(1).split(",")]
+    assert len(widths) == 4 and all(w >= 960 for w in widths), widths
