@@ -326,11 +326,31 @@ def test_bad_input(case: Case) -> None:
     [
         ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 -1\n", "vertex index -1"),
         ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "vertex index 3"),
-        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "ends inside a face"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "ends inside face 0"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1\n", "header says 3 vertices, found 2"),
+        ("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "header says 2 faces, found 1"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 x\n", "not a whole number"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 y\n0 1 0\n3 0 1 2\n", "vertex coordinate is not a number"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n-2 0 1 2\n", "negative vertex count"),
+        ("OFF\n-3 1 0\n", "negative counts"),
+        ("OFF\n", "no 'vertices faces edges' counts"),
         ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 1e39\n3 0 1 2\n", "float32"),
         ("", "no OFF header"),
     ],
-    ids=["index -1", "index past the end", "truncated", "beyond float32", "empty"],
+    ids=[
+        "index -1",
+        "index past the end",
+        "truncated face",
+        "truncated vertices",
+        "missing face",
+        "face index not a number",
+        "coordinate not a number",
+        "negative face size",
+        "negative counts",
+        "no counts",
+        "beyond float32",
+        "empty",
+    ],
 )
 def test_bad_off_files_name_the_file(tmp_path: Path, text: str, match: str) -> None:
     path = _mesh_file(tmp_path, "bad.off", text)

@@ -221,16 +221,37 @@ def _read_off(path: Path) -> Mesh:
             raise ValueError("no OFF header")
         head = tokens[0][3:]
         rest = ([head] if head else []) + tokens[1:]
-        nv, nf = int(rest[0]), int(rest[1])
+        try:
+            nv, nf = int(rest[0]), int(rest[1])
+        except (IndexError, ValueError):
+            raise ValueError("no 'vertices faces edges' counts after the OFF header") from None
+        if nv < 0 or nf < 0:
+            raise ValueError(f"the header gives negative counts ({nv} vertices, {nf} faces)")
         vals = rest[3:]
-        v = np.asarray(vals[: 3 * nv], np.float64).reshape(nv, 3)
+        if len(vals) < 3 * nv:
+            raise ValueError(
+                f"the header says {nv} vertices, found {len(vals) // 3} (truncated file?)"
+            )
+        try:
+            v = np.asarray(vals[: 3 * nv], np.float64).reshape(nv, 3)
+        except ValueError:
+            raise ValueError("a vertex coordinate is not a number") from None
         pos = 3 * nv
         tris: list[list[int]] = []
-        for _ in range(nf):
-            k = int(vals[pos])
-            idx = [int(x) for x in vals[pos + 1 : pos + 1 + k]]
+        for face in range(nf):
+            if pos >= len(vals):
+                raise ValueError(f"the header says {nf} faces, found {face} (truncated file?)")
+            try:
+                k = int(vals[pos])
+                idx = [int(x) for x in vals[pos + 1 : pos + 1 + k]]
+            except ValueError:
+                raise ValueError(
+                    f"face {face} has a vertex count or index that is not a whole number"
+                ) from None
+            if k < 0:
+                raise ValueError(f"face {face} has a negative vertex count ({k})")
             if len(idx) != k:
-                raise ValueError("file ends inside a face")
+                raise ValueError(f"the file ends inside face {face} (truncated file?)")
             bad = [i for i in idx if not 0 <= i < nv]
             if bad:
                 raise ValueError(
