@@ -67,6 +67,18 @@ def _file(name: str, data: bytes | str) -> Path:
     return p
 
 
+def _pickled(name: str) -> Path:
+    """An .npz or .npy holding an object array (numpy pickles it)."""
+    p = TMP / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    objects = np.array([{"depth": 1}], dtype=object)
+    if name.endswith(".npz"):
+        np.savez(p, depth=objects)
+    else:
+        np.save(p, objects)
+    return p
+
+
 def _kinect_calibration(tmp: Path, **override: object) -> Path:
     """A minimal Azure Kinect calibration JSON; ``override`` replaces D0 intrinsics fields."""
     params = [0.5, 0.5, 0.5, 0.5, *([0.0] * 10)]
@@ -205,7 +217,7 @@ CASES: list[Case] = [
             _frame_npz("no_ir.npz", np.ones((4, 4), np.uint16), ir=None)
         ),
         ARG,
-        r"^path: could not read .*no_ir\.npz \(no 'ir' in it\)",
+        r"^path: could not read .*no_ir\.npz \(it has no 'ir'\)",
         "missing array",
     ),
     Case(
@@ -262,6 +274,18 @@ CASES: list[Case] = [
         r"rig_fx\.json.*camera 'stereo\.left': fx: got -1",
         "which camera",
     ),
+    Case(
+        "load_rig",
+        lambda: load_rig(
+            _file(
+                "one_cam.json",
+                '{"fx": 500, "fy": 500, "cx": 32, "cy": 24, "width": 64, "height": 48}',
+            )
+        ),
+        FILE,
+        r"one_cam\.json: holds one camera, expected a ToF \+ stereo rig .*`rgbd reproject`",
+        "one camera",
+    ),
     Case("save_rig", lambda: save_rig(TMP / "r.json", "rig"), ARG, r"^rig: got str"),
     Case("synth3_rig", lambda: synth3_rig(1000.0), ARG, r"^scale: got 1000"),
     Case("synth3_rig", lambda: synth3_rig(1e-6), ARG, r"^scale: got 1e-06", "tiny"),
@@ -305,8 +329,22 @@ CASES: list[Case] = [
         "read_npz",
         lambda: read_npz(_file("trunc.npz", b"PK\x03\x04 truncated")),
         FILE,
-        r"trunc\.npz: corrupt or truncated",
+        r"trunc\.npz: not a readable npz archive \(it is not a zip archive",
         "truncated",
+    ),
+    Case(
+        "read_npz",
+        lambda: read_npz(_pickled("pickled.npz")),
+        FILE,
+        r"pickled\.npz: not a readable npz archive \(it holds Python objects, not plain numeric",
+        "pickled",
+    ),
+    Case(
+        "read_npz",
+        lambda: read_npz(_file("text.npz", b"depth,amplitude\n1,2\n")),
+        FILE,
+        r"text\.npz: not a readable npz archive \(not a zip archive\)$",
+        "text",
     ),
     Case("read_npz", lambda: read_npz(TMP / "x.npz", "a"), ARG, r"^keys: got 'a'", "keys"),
     Case("read_npy", lambda: read_npy(_file("empty.npy", b"")), FILE, r"empty\.npy: empty file"),
@@ -314,8 +352,22 @@ CASES: list[Case] = [
         "read_npy",
         lambda: read_npy(_file("trunc.npy", b"\x93NUMPY\x01\x00v\x00{'descr'")),
         FILE,
-        r"trunc\.npy: corrupt or truncated",
+        r"trunc\.npy: not a readable \.npy array \(it ends inside an array header: truncated",
         "truncated",
+    ),
+    Case(
+        "read_npy",
+        lambda: read_npy(_pickled("pickled.npy")),
+        FILE,
+        r"pickled\.npy: not a readable \.npy array \(it holds Python objects",
+        "pickled",
+    ),
+    Case(
+        "read_npy",
+        lambda: read_npy(_file("text.npy", b"1 2 3\n")),
+        FILE,
+        r"text\.npy: not a readable \.npy array \(no \.npy header\)$",
+        "text",
     ),
     Case("read_npy", lambda: read_npy(42), ARG, r"^path: got 42", "int"),
     Case("write_png", lambda: write_png(TMP / "f.png", D), ARG, r"^image: got dtype float32"),

@@ -184,6 +184,11 @@ def _bad_file(tmp: Path, name: str, data: bytes) -> Path:
     return p
 
 
+def _pickled_npz(path: Path, key: str = "depth") -> Path:
+    np.savez(path, **{key: np.array([{"depth": 1.0}], dtype=object)})
+    return path
+
+
 def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str) -> None:
     assert res.returncode == 2, (res.returncode, res.stdout, res.stderr)
     assert "Traceback" not in res.stderr, res.stderr
@@ -213,6 +218,9 @@ def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str)
         "--weights with heuristic",
         "maps with heuristic",
         "tiny --depth-scale",
+        "pickled .npz",
+        "one-camera calibration",
+        "--weights not a checkpoint",
     ],
 )
 def test_bad_fuse_runs_end_in_one_line(
@@ -275,12 +283,37 @@ def test_bad_fuse_runs_end_in_one_line(
             ("--confidence uniform", "--tof-confidence/--stereo-confidence"),
         ),
         "tiny --depth-scale": ({"depth_scale": Path("1e-300")}, ("--depth-scale", "1e-300")),
+        "pickled .npz": (
+            {"tof_depth": _pickled_npz(tmp_path / "p.npz")},
+            ("--tof-depth", "p.npz", "it holds Python objects, not plain numeric arrays"),
+        ),
+        "one-camera calibration": (
+            {"calib": Path(__file__).parents[1] / "examples" / "nyu_camera.json"},
+            ("--calib", "holds one camera, expected a ToF + stereo rig", "`rgbd reproject`"),
+        ),
+        "--weights not a checkpoint": (
+            {"weights": _bad_file(tmp_path, "w.pt", b"PK\x03\x04 not a zip")},
+            ("--weights", "w.pt", "not a readable rgbd_rs checkpoint (it is not a torch"),
+        ),
         "--weights with heuristic": (
             {"confidence": Path("heuristic"), "weights": tmp_path / "w.pt"},
             ("--weights", "--confidence heuristic", "only with --confidence convnet"),
         ),
     }[case]
-    _assert_one_line_error(run(*_fuse_argv(good, **replace)), *needles)
+    res = run(*_fuse_argv(good, **replace))
+    _assert_one_line_error(res, *needles)
+    for leak in ("allow_pickle", "PytorchStreamReader", "inline_container", "has no key 'stereo'"):
+        assert leak not in res.stderr, res.stderr
+
+
+def test_reproject_of_a_pickled_frame_says_what_the_file_holds(
+    tmp_path: Path, shared_data: Path
+) -> None:
+    calib = shared_data / "tof" / "azure_kinect_calibration.json"
+    frame = _pickled_npz(tmp_path / "x_depth.npz", "depth_mm")
+    res = run("reproject", "--frame", str(frame), "--calib", str(calib), "--out", str(tmp_path))
+    _assert_one_line_error(res, "x_depth.npz", "it holds Python objects")
+    assert "allow_pickle" not in res.stderr
 
 
 def _png(path: Path, arr: np.ndarray) -> Path:

@@ -220,5 +220,25 @@ def test_cli_warns_on_a_wrong_depth_unit_naming_the_flag(
         assert main([*argv, "--out", str(tmp_path / "a")]) == 0
         lines = capsys.readouterr().err.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("rgbd: warning: --depth: median 3"), lines
+        # It names the value that fixes it (this file's unit is 0.1 mm).
+        assert lines[0].endswith("; --depth-scale 0.0001 brings it to 3.04 m"), lines
         assert main([*argv, "--out", str(tmp_path / "b"), "--depth-scale", "0.0001"]) == 0
         assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    ("median_m", "scale", "fix"),
+    [
+        (31.0, 1e-3, 1e-4),  # 0.1 mm counts read as millimetres
+        (12.5, 1e-3, 2e-4),  # TUM's 1/5000 m counts read as millimetres, a far scene
+        (0.025, 1e-3, 1e-1 * 1e-1),  # centimetres read as millimetres
+        (2.0, 1e-3, None),  # plausible already
+        (1e6, 1e-3, None),  # no common unit makes it plausible
+        (float("nan"), 1e-3, None),
+    ],
+)
+def test_suggested_depth_scale(median_m: float, scale: float, fix: float | None) -> None:
+    from rgbd_rs.segmentation.pipeline import suggested_depth_scale
+
+    got = suggested_depth_scale(median_m, scale)
+    assert got == fix if fix is None else got == pytest.approx(fix)

@@ -215,6 +215,10 @@ def test_load_checkpoint_errors_name_the_file(tmp_path: Path) -> None:
     missing = tmp_path / "nothing.pt"
     garbage = tmp_path / "garbage.pt"
     garbage.write_bytes(b"\x00not a checkpoint" * 10)
+    empty = tmp_path / "empty.pt"
+    empty.write_bytes(b"")
+    zipped = tmp_path / "zipped.pt"
+    zipped.write_bytes(b"PK\x03\x04 not really a zip archive")
     other = tmp_path / "other.pt"
     torch.save({"weights": torch.zeros(2)}, other)
 
@@ -230,14 +234,19 @@ def test_load_checkpoint_errors_name_the_file(tmp_path: Path) -> None:
     torch.save(data, no_norm)
     for path, what in [
         (missing, "checkpoint file not found"),
-        (garbage, "not a readable rgbd_rs checkpoint"),
-        (unsafe, "not a readable rgbd_rs checkpoint"),
+        (garbage, r"not a readable rgbd_rs checkpoint \(it is not a torch checkpoint\)"),
+        (unsafe, r"not a readable rgbd_rs checkpoint \(it holds Python objects that are unsafe"),
+        (empty, r"not a readable rgbd_rs checkpoint \(it ends early: truncated or empty\?\)"),
+        (zipped, r"not a readable rgbd_rs checkpoint \(it is not a torch checkpoint\)"),
         (other, "format tag None, expected 'rgbd_rs.checkpoint/1'"),
         (no_norm, "checkpoint has no normalisation"),
     ]:
         with pytest.raises(RgbdError, match=what) as err:
             load_checkpoint(path, arch=ARCH)
         assert str(path) in str(err.value)
+        # Our words, not torch's internals.
+        for leak in ("PytorchStreamReader", "inline_container", "weights_only", "enforce fail"):
+            assert leak not in str(err.value)
     # save_checkpoint round-trips and leaves no temporary file behind.
     copy = save_checkpoint(load_checkpoint(good).stripped(), tmp_path / "sub" / "copy.pt")
     assert load_checkpoint(copy).optimizer_state is None

@@ -23,6 +23,8 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 
+from ._reasons import reason
+
 __all__ = [
     "read_json",
     "read_npy",
@@ -113,6 +115,9 @@ def read_npz(path: str | Path, keys: Sequence[str] | None = None) -> dict[str, n
     ):
         raise InvalidArgumentError(f"keys: got {keys!r}, expected a sequence of array names")
     data = _read_bytes(path)
+    if not data.startswith(b"PK"):
+        what = "a single-array .npy" if data.startswith(NPY_MAGIC) else "not a zip archive"
+        raise RgbdError(f"{path}: not a readable npz archive ({what})")
     try:
         # From memory: np.load leaks its file handle when the archive is corrupt.
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
@@ -125,7 +130,7 @@ def read_npz(path: str | Path, keys: Sequence[str] | None = None) -> dict[str, n
         if isinstance(exc, RgbdError):
             raise
         # AttributeError: np.load returned a plain array (an .npy, not an archive).
-        raise RgbdError(f"{path}: corrupt or truncated npz ({exc})") from exc
+        raise RgbdError(f"{path}: not a readable npz archive ({reason(exc)})") from exc
 
 
 def read_npy(path: str | Path) -> np.ndarray:
@@ -133,10 +138,13 @@ def read_npy(path: str | Path) -> np.ndarray:
     non-``.npy`` file raises RgbdError naming it."""
     path = _path(path)
     data = _read_bytes(path)
+    if not data.startswith(NPY_MAGIC):
+        what = "an npz archive" if data.startswith(b"PK") else "no .npy header"
+        raise RgbdError(f"{path}: not a readable .npy array ({what})")
     try:
         arr = np.load(io.BytesIO(data), allow_pickle=False)
     except (OSError, ValueError, EOFError) as exc:
-        raise RgbdError(f"{path}: corrupt or truncated .npy ({exc})") from exc
+        raise RgbdError(f"{path}: not a readable .npy array ({reason(exc)})") from exc
     if not isinstance(arr, np.ndarray):
         arr.close()
         raise RgbdError(f"{path}: is an npz archive, expected a single-array .npy")
@@ -167,6 +175,9 @@ def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
         raise RgbdError(f"{out}: could not encode the image as PNG")
     return _atomic_bytes(out, buf.tobytes())
 
+
+#: An ``.npy`` file's first 6 bytes.
+NPY_MAGIC = b"\x93NUMPY"
 
 #: A PNG file's first 8 bytes, and its IEND chunk (type + CRC), its last 8 (a truncated file
 #: lacks it).
@@ -208,7 +219,7 @@ def read_json(path: str | Path) -> Any:
     try:
         return json.loads(data.decode())
     except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
-        raise RgbdError(f"{path}: malformed JSON ({exc})") from exc
+        raise RgbdError(f"{path}: malformed JSON ({reason(exc)})") from exc
 
 
 def sha256(path: str | Path) -> str:

@@ -20,6 +20,8 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
+from ._reasons import reason
+
 __all__ = ["Mesh", "box", "concat", "cylinder", "load_mesh", "quad", "sphere"]
 
 F32 = npt.NDArray[np.float32]
@@ -273,7 +275,7 @@ def _read_ply(path: Path) -> Mesh:
         m = trimesh.load(path, file_type="ply", force="mesh", process=False)
         v, f = np.asarray(getattr(m, "vertices", [])), np.asarray(getattr(m, "faces", []))
     except Exception as exc:  # trimesh raises many types for corrupt files
-        raise RgbdError(f"{path}: not a valid PLY mesh ({exc})") from exc
+        raise RgbdError(f"{path}: not a valid PLY mesh ({reason(exc)})") from exc
     if len(v) == 0 or len(f) == 0:
         raise RgbdError(f"{path}: PLY mesh has no vertices or faces")
     if f.ndim != 2 or f.shape[1] != 3 or f.min() < 0 or f.max() >= len(v):

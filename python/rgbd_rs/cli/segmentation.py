@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -20,6 +21,8 @@ from rgbd_rs.cli._args import (
     real,
 )
 from rgbd_rs.cli.fusion import DEPTH_SCALE_HELP, DEPTH_SCALE_RANGE
+
+T = TypeVar("T")
 
 DESCRIPTION = (
     "Segment an RGB-D frame: 9-D colour/position/normal features (eq. 4.1), normalized-cuts "
@@ -172,17 +175,22 @@ def run_segment(args: argparse.Namespace) -> int:
         labeler = named("--labeler", lambda: SemanticLabeler.load(path))
     result = flagged(
         SEGMENT_FLAGS,
-        lambda: segment(
-            rgb,
+        lambda: _naming_the_depth_scale(
+            args.depth,
             depth,
-            camera,
-            pdfs=pdfs,
-            labeler=labeler,
-            n_segments=n,
-            touching=args.touching,
-            pooling=args.pooling,
-            seed=args.seed,
-            quiet=args.quiet,
+            scale,
+            lambda: segment(
+                rgb,
+                depth,
+                camera,
+                pdfs=pdfs,
+                labeler=labeler,
+                n_segments=n,
+                touching=args.touching,
+                pooling=args.pooling,
+                seed=args.seed,
+                quiet=args.quiet,
+            ),
         ),
     )
     out = output_folder(args.out, SEGMENT_OUTPUTS)
@@ -243,3 +251,32 @@ def run_segment(args: argparse.Namespace) -> int:
         )
         print(f"wrote in {out}/: {written}")
     return 0
+
+
+def _naming_the_depth_scale(
+    path: Path, depth: np.ndarray, scale: float, call: Callable[[], T]
+) -> T:
+    """``call()``, its depth-unit warning (if any) ending with the --depth-scale value that
+    makes the PNG's median depth plausible (a .npy/.npz holds metres: no flag fixes it)."""
+    import warnings
+
+    from rgbd_rs.segmentation.pipeline import suggested_depth_scale
+
+    seen: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return call()
+            finally:
+                seen = list(caught)
+    finally:  # re-emitted outside the recording context
+        for w in seen:
+            text = str(w.message)
+            if text.startswith("depth: median ") and path.suffix.lower() == ".png":
+                valid = depth[np.isfinite(depth) & (depth > 0)]
+                med = float(np.median(valid)) if valid.size else 0.0
+                fix = suggested_depth_scale(med, scale)
+                if fix is not None:
+                    text += f"; --depth-scale {fix:g} brings it to {med / scale * fix:.3g} m"
+            warnings.warn(text, w.category, stacklevel=2)

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs._reasons import reason
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.geometry import Reprojection, reproject_depth
@@ -112,29 +113,11 @@ def load_azure_kinect_calibration(
     except (OSError, KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
         # json.JSONDecodeError and the cameras' own InvalidArgumentError are ValueErrors.
         raise InvalidArgumentError(
-            f"path: could not read an Azure Kinect calibration from {path} ({_reason(exc)}), "
+            f"path: could not read an Azure Kinect calibration from {path} ({reason(exc)}), "
             "expected the "
             "device's calibration JSON with D0 and PV0 cameras"
         ) from None
     return AzureKinectCalibration(depth_cam, color_cam, pose, radius)
-
-
-def _reason(exc: BaseException) -> str:
-    """What went wrong reading a file, in words (no Python reprs)."""
-    if isinstance(exc, KeyError):
-        if not exc.args:
-            return "a key is missing"
-        key = str(exc.args[0]).split(" is not a file in the archive")[0]  # numpy's npz wording
-        return f"no {key!r} in it"
-    if isinstance(exc, IsADirectoryError):
-        return "a folder, not a file"
-    if isinstance(exc, FileNotFoundError):
-        return "no such file"
-    if isinstance(exc, OSError) and exc.strerror:
-        return exc.strerror
-    if isinstance(exc, AttributeError):
-        return "not an npz archive"
-    return str(exc) or type(exc).__name__
 
 
 def _numbers(what: str, values: object, count: int) -> list[float]:
@@ -194,7 +177,7 @@ def load_azure_kinect_frame(path: str | Path) -> AzureKinectFrame:
         TypeError,
     ) as exc:
         raise InvalidArgumentError(
-            f"path: could not read an Azure Kinect frame from {path} ({_reason(exc)}), expected "
+            f"path: could not read an Azure Kinect frame from {path} ({reason(exc)}), expected "
             "an npz "
             "with depth_mm, ir and color"
         ) from None

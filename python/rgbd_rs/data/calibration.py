@@ -193,6 +193,13 @@ def load_rig(path: str | Path) -> ToFStereoRig:
     """
     d = read_json(path)
     cam = _camera
+    if isinstance(d, dict) and "stereo" not in d and {"fx", "fy", "cx", "cy"} <= set(d):
+        raise RgbdError(
+            f"{path}: holds one camera, expected a ToF + stereo rig (stereo.left, "
+            "stereo.right, baseline, tof, tof_to_reference): fusion needs a rectified "
+            "stereo pair and a ToF camera; to reproject one depth camera onto another "
+            "use `rgbd reproject`, to read one camera use load_camera"
+        )
     try:
         top = _object("the file", d)
         _require("the file", top, ("stereo", "tof", "tof_to_reference"), ("reference",))

@@ -42,6 +42,8 @@ from rgbd_rs.data.nyuv2 import LABEL13_NAMES, LABELED_FRAMES, SPLITS, UNLABELED,
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
+from .._reasons import reason
+
 __all__ = [
     "NyuClassMapping",
     "NyuMatDataset",
@@ -100,7 +102,7 @@ def _loadmat(path: Path, variables: tuple[str, ...]) -> dict[str, Any]:
     try:
         data: dict[str, Any] = loadmat(path, variable_names=list(variables))
     except Exception as exc:  # scipy raises ValueError/TypeError/OSError for broken files
-        raise RgbdError(f"{path}: corrupt or not a MATLAB v5 MAT-file ({exc})") from exc
+        raise RgbdError(f"{path}: corrupt or not a MATLAB v5 MAT-file ({reason(exc)})") from exc
     missing = [v for v in variables if v not in data]
     if missing:
         raise RgbdError(f"{path}: has no variable {missing[0]!r} (expected {list(variables)})")
@@ -371,7 +373,8 @@ class NyuMatDataset:
             try:
                 self._file = h5py.File(self.path, "r", rdcc_nbytes=CHUNK_CACHE_BYTES)
             except OSError as exc:
-                raise RgbdError(f"{self.path}: corrupt or truncated HDF5 file ({exc})") from exc
+                why = reason(exc)
+                raise RgbdError(f"{self.path}: corrupt or truncated HDF5 file ({why})") from exc
             self._pid = os.getpid()
         return self._file
 
@@ -466,7 +469,7 @@ class NyuMatDataset:
             raw = np.asarray(f[LABELS][j])
             inst = np.asarray(f[INSTANCES][j]) if self.has_instances else None
         except (OSError, ValueError, KeyError) as exc:
-            raise RgbdError(f"{self.path}: frame {index}: read failed ({exc})") from exc
+            raise RgbdError(f"{self.path}: frame {index}: read failed ({reason(exc)})") from exc
         rgb = np.ascontiguousarray(image.transpose(2, 1, 0))
         d = np.ascontiguousarray(depth.T, dtype=np.float32)
         d[~(np.isfinite(d) & (d > 0))] = np.nan
@@ -524,7 +527,7 @@ class NyuTestLabels:
                     if m.isfile() and match and int(match.group(1)) == self.classes:
                         self._members[int(match.group(2))] = m
         except (tarfile.TarError, OSError, EOFError) as exc:
-            raise RgbdError(f"{self.path}: corrupt or not a .tgz archive ({exc})") from exc
+            raise RgbdError(f"{self.path}: corrupt or not a .tgz archive ({reason(exc)})") from exc
         if not self._members:
             raise RgbdError(f"{self.path}: no new_nyu_class{self.classes}_NNNN.png label images")
         self.indices = tuple(sorted(self._members))
@@ -548,7 +551,7 @@ class NyuTestLabels:
                 fh = tar.extractfile(self._members[i])
                 data = b"" if fh is None else fh.read()
         except (tarfile.TarError, OSError, EOFError) as exc:
-            raise RgbdError(f"{self.path}: frame {i}: read failed ({exc})") from exc
+            raise RgbdError(f"{self.path}: frame {i}: read failed ({reason(exc)})") from exc
         img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
         name = self._members[i].name
         if img is None or img.ndim != 2 or img.dtype != np.uint8:

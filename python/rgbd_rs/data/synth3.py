@@ -27,6 +27,8 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
+from .._reasons import reason
+
 F32 = npt.NDArray[np.float32]
 
 #: (folder, file suffix after ``scene_<i>_``, MATLAB variable) of each map.
@@ -54,7 +56,7 @@ def _load_mat(path: Path, variable: str) -> F32:
     try:
         data = loadmat(path, variable_names=[variable])
     except Exception as exc:  # scipy raises ValueError/TypeError/OSError for broken files
-        raise RgbdError(f"{path}: corrupt or truncated MATLAB file ({exc})") from exc
+        raise RgbdError(f"{path}: corrupt or truncated MATLAB file ({reason(exc)})") from exc
     if variable not in data:
         raise RgbdError(f"{path}: has no variable {variable!r}")
     raw = np.asarray(data[variable])

@@ -20,6 +20,7 @@ import os
 import random
 import subprocess
 import tempfile
+import warnings
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +29,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from rgbd_rs._reasons import reason
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
 #: Format tag of every checkpoint this module writes; bump it when the layout changes.
@@ -293,11 +295,15 @@ def load_checkpoint(
     if not path.is_file():
         raise RgbdError(f"{path}: checkpoint file not found")
     try:
-        data = torch.load(path, map_location=map_location, weights_only=True)
+        with warnings.catch_warnings():
+            # torch warns about a pickle protocol before refusing a foreign pickle anyway.
+            warnings.simplefilter("ignore", UserWarning)
+            data = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # torch raises several types for garbage / unsafe content
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        # A KeyError is torch's legacy unpickler reading a stray byte as a "magic number".
+        why = "it is not a torch checkpoint" if isinstance(exc, KeyError) else reason(exc)
         raise RgbdError(
-            f"{path}: not a readable rgbd_rs checkpoint ({reason[:200]}); "
+            f"{path}: not a readable rgbd_rs checkpoint ({why}); "
             f"expected a file written by rgbd_rs.nn (format {FORMAT!r})"
         ) from None
     tag = data.get("format") if isinstance(data, dict) else None

@@ -64,6 +64,38 @@ def depth_unit_warning(points: npt.NDArray[np.float32]) -> str | None:
     )
 
 
+#: Depth units 16-bit depth PNGs are written in (metres per count): millimetres (Kinect,
+#: RealSense, Azure Kinect), 1/5000 m (TUM RGB-D), 0.1 mm (NYUv2's raw HHA depth), 1/4000 m
+#: (RealSense's 0.25 mm mode), centimetres.
+PNG_DEPTH_UNITS_M = (1e-3, 2e-4, 1e-4, 2.5e-4, 1e-2)
+#: The median depth a plausible unit should give (metres): a typical indoor RGB-D scene.
+TYPICAL_MEDIAN_DEPTH_M = 2.5
+
+
+def suggested_depth_scale(median_m: float, scale: float) -> float | None:
+    """The common PNG depth unit (:data:`PNG_DEPTH_UNITS_M`) that brings a median depth of
+    ``median_m`` metres, read with ``scale`` metres per count, into the plausible range
+    nearest :data:`TYPICAL_MEDIAN_DEPTH_M`; None if ``median_m`` is plausible already or no
+    common unit makes it so.
+
+    >>> suggested_depth_scale(31.0, 1e-3)  # NYUv2's 0.1 mm counts read as millimetres
+    0.0001
+    """
+    if not (median_m > 0 and scale > 0 and np.isfinite(median_m) and np.isfinite(scale)):
+        return None
+    if MIN_PLAUSIBLE_MEDIAN_DEPTH_M <= median_m <= MAX_PLAUSIBLE_MEDIAN_DEPTH_M:
+        return None  # the unit given is plausible: nothing to fix
+    counts = median_m / scale
+    fits = [
+        u
+        for u in PNG_DEPTH_UNITS_M
+        if u != scale and MIN_PLAUSIBLE_MEDIAN_DEPTH_M <= counts * u <= MAX_PLAUSIBLE_MEDIAN_DEPTH_M
+    ]
+    if not fits:
+        return None
+    return min(fits, key=lambda u: abs(np.log(counts * u / TYPICAL_MEDIAN_DEPTH_M)))
+
+
 @dataclass(frozen=True)
 class Segmentation:
     """What :func:`segment` returns."""

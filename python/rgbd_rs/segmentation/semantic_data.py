@@ -54,6 +54,8 @@ from rgbd_rs.data.nyuv2 import LABEL13_NAMES, NYUV2_CAMERA, UNLABELED
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.nn.semantic import DOWNSAMPLE, N_CUES, THESIS_INPUT_SIZE
 
+from .._reasons import reason
+
 __all__ = [
     "CACHE_FORMAT",
     "FrameFolder",
@@ -543,7 +545,7 @@ class SemanticCache:
         try:
             meta = json.loads(meta_path.read_text())
         except (ValueError, UnicodeDecodeError) as exc:
-            raise RgbdError(f"{meta_path}: not valid JSON ({exc})") from None
+            raise RgbdError(f"{meta_path}: not valid JSON ({reason(exc)})") from None
         if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
             tag = meta.get("format") if isinstance(meta, dict) else None
             raise RgbdError(f"{meta_path}: format {tag!r}, expected {CACHE_FORMAT!r}")
@@ -568,7 +570,7 @@ class SemanticCache:
         try:
             arr: np.ndarray = np.load(file, mmap_mode="r", allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise RgbdError(f"{file}: unreadable cache array ({exc})") from None
+            raise RgbdError(f"{file}: unreadable cache array ({reason(exc)})") from None
         if arr.shape != shape:
             raise RgbdError(f"{file}: shape {arr.shape}, expected {shape}")
         return arr

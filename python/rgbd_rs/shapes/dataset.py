@@ -57,6 +57,8 @@ from rgbd_rs.nn.shapes import (
     parse_representations,
 )
 
+from .._reasons import reason
+
 __all__ = [
     "CACHE_FORMAT",
     "InputSpec",
@@ -160,7 +162,8 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
     try:
         loaded = trimesh.load(p, file_type=suffix[1:], process=False)
     except Exception as exc:  # trimesh raises many types for corrupt files
-        raise RgbdError(f"{p}: not a readable {suffix} mesh or point cloud ({exc})") from None
+        why = reason(exc)
+        raise RgbdError(f"{p}: not a readable {suffix} mesh or point cloud ({why})") from None
     if isinstance(loaded, trimesh.Scene):
         geoms = list(loaded.geometry.values())
         meshes = [g for g in geoms if isinstance(g, trimesh.Trimesh)]
@@ -204,14 +207,14 @@ def _read_pcd(p: Path) -> np.ndarray:
         mode = header["DATA"][0].lower()
         cols = [fields.index(a) for a in ("x", "y", "z")]
     except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
-        raise RgbdError(f"{p}: not a PCD point cloud (bad header: {exc})") from None
+        raise RgbdError(f"{p}: not a PCD point cloud (bad header: {reason(exc)})") from None
     if mode == "ascii":
         try:
             table = np.loadtxt(raw[pos:].decode("ascii").splitlines(), ndmin=2)
             offsets = np.cumsum([0, *counts[:-1]])
             return table[:n, [offsets[c] for c in cols]]
         except (ValueError, UnicodeDecodeError, IndexError) as exc:
-            raise RgbdError(f"{p}: not a PCD point cloud (bad ASCII data: {exc})") from None
+            raise RgbdError(f"{p}: not a PCD point cloud (bad ASCII data: {reason(exc)})") from None
     if mode != "binary":
         raise RgbdError(f"{p}: PCD DATA {mode!r} not supported, expected ascii or binary")
     kinds = {"F": "f", "I": "i", "U": "u"}
@@ -224,7 +227,7 @@ def _read_pcd(p: Path) -> np.ndarray:
         )
         rec = np.frombuffer(raw, dtype=dtype, count=n, offset=pos)
     except (KeyError, ValueError, TypeError) as exc:
-        raise RgbdError(f"{p}: not a PCD point cloud (bad binary data: {exc})") from None
+        raise RgbdError(f"{p}: not a PCD point cloud (bad binary data: {reason(exc)})") from None
     return np.stack([rec[f"f{c}"].astype(np.float64) for c in cols], axis=1)
 
 
@@ -790,7 +793,7 @@ class ShapeCache:
         try:
             meta = json.loads(meta_path.read_text())
         except (ValueError, UnicodeDecodeError) as exc:
-            raise RgbdError(f"{meta_path}: not valid JSON ({exc})") from None
+            raise RgbdError(f"{meta_path}: not valid JSON ({reason(exc)})") from None
         if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
             tag = meta.get("format") if isinstance(meta, dict) else None
             raise RgbdError(f"{meta_path}: format {tag!r}, expected {CACHE_FORMAT!r}")
@@ -829,7 +832,7 @@ class ShapeCache:
         try:
             arr = np.load(file, mmap_mode="r", allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise RgbdError(f"{file}: unreadable cache array ({exc})") from None
+            raise RgbdError(f"{file}: unreadable cache array ({reason(exc)})") from None
         want = (len(self), *self.spec.shapes[rep])
         if arr.shape != want:
             raise RgbdError(f"{file}: shape {arr.shape}, expected {want}")
