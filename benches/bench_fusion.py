@@ -247,7 +247,7 @@ def main() -> None:
     import rgbd_rs.fusion.confidence as conf_mod
     import rgbd_rs.fusion.upsample as up_mod
     from rgbd_rs.fusion.fuse import FUSION_CENSUS, shipped_estimator
-    from rgbd_rs.fusion.stereo import _cost_curve_stats_numpy, whole_steps
+    from rgbd_rs.fusion.stereo import _cost_curve_stats_numpy, _whole_steps
 
     def old_segmentation(image, **_: object):  # type: ignore[no-untyped-def]
         filtered = cv2.pyrMeanShiftFiltering(image, 8, 16)
@@ -291,7 +291,7 @@ def main() -> None:
         return sgm(
             s.left,
             s.right,
-            max_disparity=min(whole_steps(dmax), s.left.shape[1] - 1),
+            max_disparity=min(_whole_steps(dmax), s.left.shape[1] - 1),
             method="census",
             params=FUSION_CENSUS,
         )

@@ -56,11 +56,11 @@ def timed(fn: Callable[[], object]) -> tuple[float, float]:
 
 def scene_and_rays():  # type: ignore[no-untyped-def]
     from rgbd_rs.data.synth import synth3_rig
-    from rgbd_rs.data.synth_scene import random_scene, shared_meshes
+    from rgbd_rs.data.synth_scene import _random_scene, _shared_meshes
     from rgbd_rs.meshes import sphere
 
     rng = np.random.default_rng(0)
-    sc = random_scene(rng, shared_meshes())
+    sc = _random_scene(rng, _shared_meshes())
     n_tris = sum(len(m.triangles) for m, _ in sc.objects)
     # Top up to ~100k triangles with a finely tessellated sphere in view.
     rings = int(np.sqrt(max(100_000 - n_tris, 0) / 2))
@@ -176,7 +176,7 @@ def main() -> None:
     )
     args = ap.parse_args()
 
-    from rgbd_rs.data.synth import rig_poses
+    from rgbd_rs.data.synth import _rig_poses
     from rgbd_rs.render import Scene, ToFModel
 
     threads = int(os.environ.get("RAYON_NUM_THREADS", os.cpu_count() or 1))
@@ -222,7 +222,7 @@ def main() -> None:
                 )
     if args.no_scene:
         return
-    to_left, to_right, to_tof = rig_poses(rig)
+    to_left, to_right, to_tof = _rig_poses(rig)
     model = ToFModel(subsamples=2, multipath_rays=8)
 
     def full_scene() -> None:

@@ -57,9 +57,9 @@ def resized(img: np.ndarray, w: int, h: int) -> np.ndarray:
 
 def opencv(left: np.ndarray, right: np.ndarray, nd: int) -> np.ndarray:
     """OpenCV's SGBM-HH 7x7 as ``sgm(method="opencv")`` configures it, raw output."""
-    from rgbd_rs.fusion.stereo import sgbm_matcher
+    from rgbd_rs.fusion.stereo import _sgbm_matcher
 
-    return np.asarray(sgbm_matcher(0, nd - 1, 7).compute(left, right))
+    return np.asarray(_sgbm_matcher(0, nd - 1, 7).compute(left, right))
 
 
 def ours(left: np.ndarray, right: np.ndarray, nd: int, stats: bool) -> object:

@@ -89,7 +89,6 @@ EXEMPT: dict[str, str] = {
     "MergeStep": "result container built by merge_regions",
     "MergeResult": "result container built by merge_regions",
     "Segmentation": "result container built by segment",
-    "ShapeEvaluation": "result container built by evaluate",
     "ShapeEvaluation.confusion_markdown": "no arguments",
     "ShapeEvaluation.heatmap": "no arguments",
     "ShapeEvaluation.markdown": "no arguments",

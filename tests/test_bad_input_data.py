@@ -33,7 +33,7 @@ from rgbd_rs.data import (
     synth3_rig,
     write_dataset,
 )
-from rgbd_rs.data.calibration import rig_to_dict
+from rgbd_rs.data.calibration import _rig_to_dict
 from rgbd_rs.io import (
     read_json,
     read_npy,
@@ -105,14 +105,14 @@ def _kinect_strings() -> object:
 
 
 def _rig_with_strings() -> object:
-    doc = rig_to_dict(synth3_rig(0.125))
+    doc = _rig_to_dict(synth3_rig(0.125))
     doc["tof"]["fx"] = "365.9"
     return load_rig(_file("rig_strings.json", json.dumps(doc)))
 
 
 def _rig_edited(name: str, edit: Callable[[dict[str, Any]], object]) -> Callable[[], object]:
     def call() -> object:
-        doc = rig_to_dict(synth3_rig(0.125))
+        doc = _rig_to_dict(synth3_rig(0.125))
         edit(doc)
         return load_rig(_file(name, json.dumps(doc)))
 

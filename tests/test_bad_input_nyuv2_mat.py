@@ -512,11 +512,21 @@ CASES: list[Case] = [
     Case(
         "NyuTestLabels.label",
         lambda: NyuTestLabels(
-            13, _tgz(members={"new_nyu_class13_0001.png": _png(np.full((3, 3), 14, np.uint8))})
+            13,
+            _tgz(members={"new_nyu_class13_0001.png": _png(np.full((480, 640), 14, np.uint8))}),
         ).label(1),
         FILE,
         r"new_nyu_class13_0001\.png: got class 14, expected 0\.\.13",
         "class",
+    ),
+    Case(
+        "NyuTestLabels.label",
+        lambda: NyuTestLabels(
+            13, _tgz(members={"new_nyu_class13_0001.png": _png(np.ones((5, 5), np.uint8))})
+        ).label(1),
+        FILE,
+        r"new_nyu_class13_0001\.png: got a 5x5 label image, expected NYUv2's 640x480 frames",
+        "size",
     ),
     Case(
         "NyuTestLabels.label",

@@ -22,10 +22,10 @@ from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.nn.checkpoint import Checkpoint, save_checkpoint
 from rgbd_rs.nn.semantic import (
     ARCH,
-    GroupedConv,
-    LocalContrastNorm,
     SemanticNet,
-    block_filters,
+    _block_filters,
+    _GroupedConv,
+    _LocalContrastNorm,
     class_probabilities,
     lcn_window,
 )
@@ -138,11 +138,11 @@ ALL_CASES: list[Case] = [
         ARG,
         r"^arch_config",
     ),
-    Case("LocalContrastNorm", lambda: LocalContrastNorm(4), ARG, r"^window: got 4"),
-    Case("LocalContrastNorm", lambda: LocalContrastNorm(3, eps=0), ARG, r"^eps", "eps"),
-    Case("GroupedConv", lambda: GroupedConv(9, 10, 7, 9), ARG, r"^groups: got 9"),
+    Case("_LocalContrastNorm", lambda: _LocalContrastNorm(4), ARG, r"^window: got 4"),
+    Case("_LocalContrastNorm", lambda: _LocalContrastNorm(3, eps=0), ARG, r"^eps", "eps"),
+    Case("_GroupedConv", lambda: _GroupedConv(9, 10, 7, 9), ARG, r"^groups: got 9"),
     Case("lcn_window", lambda: lcn_window(0), ARG, r"^width: got 0"),
-    Case("block_filters", lambda: block_filters(-1), ARG, r"^width: got -1"),
+    Case("_block_filters", lambda: _block_filters(-1), ARG, r"^width: got -1"),
     Case("class_probabilities", lambda: class_probabilities(torch.zeros(2, 3)), SHAPE, r"^logits"),
     Case(
         "class_probabilities",

@@ -23,12 +23,12 @@ from rgbd_rs.nn.checkpoint import Checkpoint, save_checkpoint
 from rgbd_rs.nn.shapes import (
     ARCH,
     ShapeNet,
-    input_shapes,
+    _input_shapes,
+    _view_pools,
+    _volume_pools,
     pack,
     parse_representations,
     unpack,
-    view_pools,
-    volume_pools,
 )
 from rgbd_rs.shapes.classify import ShapeClassifier, classify, to_z_up, weights_path
 from rgbd_rs.shapes.dataset import (
@@ -171,9 +171,11 @@ ALL_CASES: list[Case] = [
         r"^representations: got 3",
         "type",
     ),  # type: ignore[arg-type]
-    Case("view_pools", lambda: view_pools(7), ARG, r"^resolution: got 7"),
-    Case("volume_pools", lambda: volume_pools(15), ARG, r"^volume_resolution: got 15"),
-    Case("input_shapes", lambda: input_shapes(["volume"], 0, 32), ARG, r"^view_resolution: got 0"),
+    Case("_view_pools", lambda: _view_pools(7), ARG, r"^resolution: got 7"),
+    Case("_volume_pools", lambda: _volume_pools(15), ARG, r"^volume_resolution: got 15"),
+    Case(
+        "_input_shapes", lambda: _input_shapes(["volume"], 0, 32), ARG, r"^view_resolution: got 0"
+    ),
     Case(
         "pack",
         lambda: pack({"volume": np.zeros((2, 3, 8, 8))}, NET.shapes),

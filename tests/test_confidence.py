@@ -9,9 +9,9 @@ import pytest
 import torch
 
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
-from rgbd_rs.fusion.clues import Clues, compute_clues, normalise, target_confidence
+from rgbd_rs.fusion.clues import Clues, _target_confidence, compute_clues, normalise
 from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
-from rgbd_rs.nn.confidence_data import PatchDataset, TileDataset, masked_mse
+from rgbd_rs.nn.confidence_data import PatchDataset, TileDataset, _masked_mse
 from rgbd_rs.nn.train import TrainConfig, train
 
 RNG = np.random.default_rng(0)
@@ -63,7 +63,7 @@ def test_nan_never_reaches_the_network() -> None:
 
 
 def test_target_confidence() -> None:
-    t = target_confidence([0.0, 1.0, 5.0, np.nan], [0.0, 0.0, 0.0, 0.0], 3.0)
+    t = _target_confidence([0.0, 1.0, 5.0, np.nan], [0.0, 0.0, 0.0, 0.0], 3.0)
     np.testing.assert_allclose(t[:3], [1.0, 2 / 3, 0.0])
     assert np.isnan(t[3])
 
@@ -100,7 +100,7 @@ def test_patches_are_deterministic_and_masked() -> None:
     assert inp.shape == (4, 16, 16) and tgt.shape == mask.shape == (2, 16, 16)
     assert torch.isfinite(tgt).all()
     out = torch.zeros(1, 2, 16, 16)
-    loss = masked_mse(out, (inp[None], tgt[None], mask[None]))
+    loss = _masked_mse(out, (inp[None], tgt[None], mask[None]))
     expect = (tgt * mask).square().sum() / mask.sum()
     assert torch.isclose(loss, expect)
     with pytest.raises(InvalidArgumentError, match="patch"):
@@ -117,7 +117,7 @@ def test_tiny_training_run_loads_as_an_estimator(tmp_path: Path) -> None:
         net,
         PatchDataset(scenes, sig, patch=16, per_scene=4),
         TileDataset(scenes, sig, tile=32),
-        masked_mse,
+        _masked_mse,
         config,
         tmp_path,
         arch="confidence-convnet/1",
@@ -196,8 +196,8 @@ def test_cached_targets_retarget_to_a_smaller_threshold() -> None:
 
     d = np.linspace(0, 5, 51, dtype=np.float32)[None]
     gt = np.zeros_like(d)
-    cached = target_confidence(d, gt, TARGET_T)
-    np.testing.assert_allclose(retarget(cached, 1.0), target_confidence(d, gt, 1.0), atol=1e-5)
+    cached = _target_confidence(d, gt, TARGET_T)
+    np.testing.assert_allclose(retarget(cached, 1.0), _target_confidence(d, gt, 1.0), atol=1e-5)
     assert retarget(cached, TARGET_T) is cached
     with pytest.raises(InvalidArgumentError, match="target_t"):
         PatchDataset([_scene()], np.ones(4), patch=16, target_t=4.0)
@@ -214,7 +214,7 @@ def test_disagreement_weighted_loss() -> None:
     target[0, 0, 1, 0] = 1.0
     out = torch.full((1, 2, 2, 2), 0.5)
     batch = (torch.zeros(1, 4, 2, 2), target, mask)
-    torch.testing.assert_close(DisagreementMSE(0.0)(out, batch), masked_mse(out, batch))
+    torch.testing.assert_close(DisagreementMSE(0.0)(out, batch), _masked_mse(out, batch))
     err = (out - target).square() * mask
     w = mask.clone()
     w[0, :, 0, 0] *= 5.0  # the one disagreeing pixel, both channels

@@ -15,7 +15,7 @@ from rgbd_rs.data import load_stereo_scene
 from rgbd_rs.fusion import LcParams, fuse, sgm
 from rgbd_rs.fusion.real_scenes import TOF_SCALE, real_sample, real_samples
 from rgbd_rs.fusion.score import score_maps, summarize
-from rgbd_rs.fusion.stereo import whole_steps
+from rgbd_rs.fusion.stereo import _whole_steps
 from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet
 
 FUSE = sys.modules["rgbd_rs.fusion.fuse"]
@@ -76,7 +76,7 @@ def test_fuse_runs_the_matcher_the_network_was_trained_on(shared_data: Path) -> 
         s.left,
         s.right,
         reference="left",
-        max_disparity=min(whole_steps(out.max_disparity), s.left.shape[1] - 1),
+        max_disparity=min(_whole_steps(out.max_disparity), s.left.shape[1] - 1),
         method="census",
         params=FUSE.FUSION_CENSUS,
     )
@@ -131,20 +131,20 @@ def test_pixels_lc_leaves_empty_take_the_input_that_measured_them() -> None:
     st = np.array([[1.2, nan, 3.0, 5.0, nan]], np.float32)
     ct = np.full((1, 5), 0.5, np.float32)
     cs = np.full((1, 5), 0.25, np.float32)
-    d, p, src = FUSE.fill_single_source(lc, plaus, tof, st, ct, cs)
+    d, p, src = FUSE._fill_single_source(lc, plaus, tof, st, ct, cs)
     np.testing.assert_array_equal(d, [[1.0, 2.0, 3.0, 4.0, nan]])
     np.testing.assert_array_equal(p, np.float32([[0.9, 0.5, 0.25, 0.5, nan]]))
     np.testing.assert_array_equal(src, [[1, 2, 3, 2, 0]])
     # A zero confidence keeps an input out.
     cz = cs.copy()
     cz[0, 2] = 0.0
-    d, _, src = FUSE.fill_single_source(lc, plaus, tof, st, ct, cz, keep_out_zero=True)
+    d, _, src = FUSE._fill_single_source(lc, plaus, tof, st, ct, cz, keep_out_zero=True)
     assert np.isnan(d[0, 2]) and src[0, 2] == 0
     # ... where the caller gave the weights; an estimate's zero still shows the measurement.
-    d, p, src = FUSE.fill_single_source(lc, plaus, tof, st, ct, cz)
+    d, p, src = FUSE._fill_single_source(lc, plaus, tof, st, ct, cz)
     assert d[0, 2] == 3.0 and p[0, 2] == 0.0 and src[0, 2] == 3
     # Uniform weights: plausibility 1 where one input filled the pixel.
-    _, p, _ = FUSE.fill_single_source(lc, plaus, tof, st, None, None)
+    _, p, _ = FUSE._fill_single_source(lc, plaus, tof, st, None, None)
     np.testing.assert_array_equal(p, np.float32([[0.9, 1.0, 1.0, 1.0, nan]]))
 
 

@@ -12,20 +12,20 @@ import numpy as np
 import pytest
 
 from rgbd_rs import InvalidArgumentError, RgbdError, ShapeMismatchError
-from rgbd_rs.data.calibration import load_rig, rig_to_dict
+from rgbd_rs.data.calibration import _rig_to_dict, load_rig
 from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
 from rgbd_rs.fusion import FusionResult, fuse, sgm, tof_confidence, tof_to_reference
 from rgbd_rs.fusion._inputs import with_reference
 from rgbd_rs.fusion.stereo import (
     DISPARITY_STEP,
     MAX_RANGE_FRACTION,
-    max_search,
-    predict_search_range,
-    same_search,
+    _max_search,
+    _predict_search_range,
+    _same_search,
+    _whole_steps,
     search_range,
-    whole_steps,
 )
-from rgbd_rs.fusion.upsample import reproject_tof
+from rgbd_rs.fusion.upsample import _reproject_tof
 
 RIG = synth3_rig(0.25)  # 480 x 270
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -130,7 +130,7 @@ def test_search_range_clamps_and_falls_back() -> None:
     assert search_range(far) == int(np.ceil(40 * 1.15))
     # The map's width by default; a given width bounds it (and OpenCV's limit does too).
     assert search_range(near, width=2000) == 288
-    assert search_range(np.full((5, 40), 30.0, np.float32)) <= max(1, max_search(40))
+    assert search_range(np.full((5, 40), 30.0, np.float32)) <= max(1, _max_search(40))
     # Bad input names the argument (search_range is not in rgbd_rs.fusion.__all__, so its cases
     # live here rather than in the bad-input suite).
     with pytest.raises(ShapeMismatchError, match=r"^tof_disparity: got shape \(300,\)"):
@@ -142,12 +142,12 @@ def test_search_range_clamps_and_falls_back() -> None:
 def test_search_range_predicted_from_the_sparse_tof(
     scene: SynthSample, fused: FusionResult
 ) -> None:
-    sparse = reproject_tof(scene.tof_depth, scene.tof_amplitude, RIG)
+    sparse = _reproject_tof(scene.tof_depth, scene.tof_amplitude, RIG)
     disp = RIG.stereo.baseline * RIG.stereo.focal / sparse.depth
-    assert abs(predict_search_range(disp) - fused.max_disparity) <= 2
-    assert same_search(16, 1) and same_search(33, 48) and not same_search(48, 49)
+    assert abs(_predict_search_range(disp) - fused.max_disparity) <= 2
+    assert _same_search(16, 1) and _same_search(33, 48) and not _same_search(48, 49)
     with pytest.raises(ShapeMismatchError, match=r"^sparse_disparity: got shape"):
-        predict_search_range(disp[0])
+        _predict_search_range(disp[0])
 
 
 @pytest.mark.parametrize("guess", [16, 120])
@@ -157,14 +157,14 @@ def test_fuse_reruns_sgm_when_the_predicted_range_misses(
     # SGM starts early with the range predicted from the sparse ToF; a prediction in another
     # SGBM step than the upsampled ToF's range is redone, so the output never depends on it.
     fuse_module = importlib.import_module("rgbd_rs.fusion.fuse")  # the name is also the function
-    assert not same_search(guess, fused.max_disparity)
-    monkeypatch.setattr(fuse_module, "predict_search_range", lambda *_: guess)
+    assert not _same_search(guess, fused.max_disparity)
+    monkeypatch.setattr(fuse_module, "_predict_search_range", lambda *_: guess)
     out = fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG)
     assert out.max_disparity == fused.max_disparity
     np.testing.assert_array_equal(out.stereo_disparity, fused.stereo_disparity)
     np.testing.assert_array_equal(out.disparity, fused.disparity)
     # The census matcher searched the range in OpenCV's whole steps, as SGBM does.
-    top = whole_steps(fused.max_disparity)
+    top = _whole_steps(fused.max_disparity)
     expect = sgm(
         scene.left,
         scene.right,
@@ -253,8 +253,8 @@ def test_with_reference_carries_the_pose_across_the_baseline() -> None:
 
 def test_example_calibration_is_the_synthetic_rig() -> None:
     rig = load_rig(EXAMPLES / "calibration.json")
-    assert rig_to_dict(rig) == rig_to_dict(synth3_rig(0.5))
-    assert json.loads((EXAMPLES / "calibration.json").read_text()) == rig_to_dict(rig)
+    assert _rig_to_dict(rig) == _rig_to_dict(synth3_rig(0.5))
+    assert json.loads((EXAMPLES / "calibration.json").read_text()) == _rig_to_dict(rig)
 
 
 @pytest.mark.parametrize(
@@ -270,7 +270,7 @@ def test_example_calibration_is_the_synthetic_rig() -> None:
 def test_missing_calibration_keys_are_named(
     tmp_path: Path, path: tuple[str, ...], match: str
 ) -> None:
-    doc = rig_to_dict(RIG)
+    doc = _rig_to_dict(RIG)
     where = doc
     for key in path[:-1]:
         where = where[key]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rgbd_rs import PinholeCamera, Pose, RgbdError, reproject_depth
-from rgbd_rs.data.synth import rig_poses, synth3_rig
+from rgbd_rs.data.synth import _rig_poses, synth3_rig
 from rgbd_rs.meshes import box, quad, sphere
 from rgbd_rs.render import Material, OrthographicCamera, Scene, Texture, ToFModel, render_points
 
@@ -20,7 +20,7 @@ def wall(z: float, half: float = 20.0) -> Scene:
 def test_plane_gives_analytic_disparity_on_the_synth3_rig() -> None:
     rig = synth3_rig(0.25)  # 480x270
     scene = wall(3.7).build()
-    _, to_right, _ = rig_poses(rig)
+    _, to_right, _ = _rig_poses(rig)
     z = scene.depth(rig.reference_camera, to_right)
     np.testing.assert_allclose(z, 3.7, rtol=1e-6)
     from rgbd_rs import depth_to_disparity
@@ -35,7 +35,7 @@ def test_stereo_gt_matches_the_left_view() -> None:
     pts = np.array([[-9, -9], [9, -9], [9, 9], [-9, 9]], float)
     slanted = quad(np.column_stack([pts, 3.0 + 0.2 * pts[:, 0]]))  # z = 3 + 0.2 x
     built = Scene().add(slanted).build()
-    to_left, to_right, _ = rig_poses(rig)
+    to_left, to_right, _ = _rig_poses(rig)
     zl = built.depth(rig.stereo.left, to_left)
     zr = built.depth(rig.stereo.right, to_right)
     cols = np.arange(zl.shape[1], dtype=float)
@@ -54,7 +54,7 @@ def test_tof_truth_reprojected_lands_on_the_reference_gt() -> None:
         .add(wall(4.0).objects[0][0])
     )
     built = s.build()
-    _, to_right, to_tof = rig_poses(rig)
+    _, to_right, to_tof = _rig_poses(rig)
     frame = built.tof(rig.tof, to_tof, ToFModel.ideal())
     gt = built.depth(rig.reference_camera, to_right)
     rep = reproject_depth(
@@ -80,7 +80,7 @@ def test_tof_effects_move_the_error_as_physics_says() -> None:
     )
     scene.add(box((0.4, 0.4, 0.4), center=(-0.8, 0.0, 2.0)), Material(albedo_ir=0.8))
     built = scene.build()
-    _, _, to_tof = rig_poses(rig)
+    _, _, to_tof = _rig_poses(rig)
     model = ToFModel()
 
     def err(m: ToFModel) -> tuple[np.ndarray, np.ndarray]:

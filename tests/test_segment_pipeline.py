@@ -58,11 +58,11 @@ def test_depth_in_a_wrong_unit_warns(frame) -> None:  # type: ignore[no-untyped-
     features accept, so segment() warns naming the unit."""
     with pytest.warns(RuntimeWarning, match=r"^depth: median .* check the depth unit"):
         segment(frame.rgb, frame.depth * 10, NYUV2_CAMERA, n_segments=20, labeler=None)
-    from rgbd_rs.segmentation.pipeline import depth_unit_warning
+    from rgbd_rs.segmentation.pipeline import _depth_unit_warning
 
-    assert depth_unit_warning(NYUV2_CAMERA.depth_to_points(frame.depth)) is None
+    assert _depth_unit_warning(NYUV2_CAMERA.depth_to_points(frame.depth)) is None
     # ... and 1000x too near (kilometres, or metres scaled twice) as well.
-    too_near = depth_unit_warning(NYUV2_CAMERA.depth_to_points(frame.depth / 1000))
+    too_near = _depth_unit_warning(NYUV2_CAMERA.depth_to_points(frame.depth / 1000))
     assert too_near is not None and too_near.startswith("depth: median 0.00")
     assert "below the ~0.05 m" in too_near
 
@@ -238,7 +238,7 @@ def test_cli_warns_on_a_wrong_depth_unit_naming_the_flag(
     ],
 )
 def test_suggested_depth_scale(median_m: float, scale: float, fix: float | None) -> None:
-    from rgbd_rs.segmentation.pipeline import suggested_depth_scale
+    from rgbd_rs.segmentation.pipeline import _suggested_depth_scale
 
-    got = suggested_depth_scale(median_m, scale)
+    got = _suggested_depth_scale(median_m, scale)
     assert got == fix if fix is None else got == pytest.approx(fix)

@@ -288,13 +288,13 @@ def test_commands_parse_and_run(tmp_path: Path, capsys: pytest.CaptureFixture[st
 def test_split_default_follows_the_source(tmp_path: Path) -> None:
     # --split defaults to train for sources with splits and to all for other folders (the only
     # split they have): `semantic cache --frames DIR` used to fail on a flag never given.
-    from rgbd_rs.segmentation.semantic_data import frames_have_splits
+    from rgbd_rs.segmentation.semantic_data import _frames_have_splits
 
-    assert frames_have_splits("nyuv2") and frames_have_splits("NYUv2")
+    assert _frames_have_splits("nyuv2") and _frames_have_splits("NYUv2")
     nyu = tmp_path / "nyu"
     nyu.mkdir()
     (nyu / "0001_label40.png").write_bytes(b"")
-    assert frames_have_splits(nyu) and not frames_have_splits(nyu, "camera.json")
+    assert _frames_have_splits(nyu) and not _frames_have_splits(nyu, "camera.json")
     (tmp_path / "own").mkdir()
-    assert not frames_have_splits(tmp_path / "own")
+    assert not _frames_have_splits(tmp_path / "own")
     assert _parser().parse_args(["semantic", "cache", "--frames", "d", "--out", "c"]).split is None

@@ -19,10 +19,10 @@ from rgbd_rs.errors import RgbdError
 from rgbd_rs.nn.checkpoint import load_checkpoint
 from rgbd_rs.nn.semantic import (
     ARCH,
-    GroupedConv,
-    LocalContrastNorm,
     SemanticNet,
-    block_filters,
+    _block_filters,
+    _GroupedConv,
+    _LocalContrastNorm,
     class_probabilities,
     lcn_window,
 )
@@ -58,15 +58,15 @@ def test_thesis_layout() -> None:
     """Fig. 4.3 at full width: 9 convolutions 7x7 (90, 128, 256 filters), tanh after all but
     the last, max-pool after blocks 1 and 2, a 256 x 14 classifier without bias."""
     net = SemanticNet()
-    assert block_filters(256) == (90, 128, 256)
-    convs = [m for m in net.features if isinstance(m, (nn.Conv2d, GroupedConv))]
+    assert _block_filters(256) == (90, 128, 256)
+    convs = [m for m in net.features if isinstance(m, (nn.Conv2d, _GroupedConv))]
     assert [c.out_channels for c in convs] == [90] * 3 + [128] * 3 + [256] * 3
     assert all(c.kernel_size == (7, 7) for c in convs)
     kinds = [type(m).__name__ for m in net.features]
     assert kinds.count("Tanh") == 8 and kinds.count("MaxPool2d") == 2
     assert kinds[-1] == "Conv2d"  # no activation after the last convolution
     pools = [i for i, k in enumerate(kinds) if k == "MaxPool2d"]
-    assert [sum(k.endswith("Conv2d") or k == "GroupedConv" for k in kinds[:i]) for i in pools] == [
+    assert [sum(k.endswith("Conv2d") or k == "_GroupedConv" for k in kinds[:i]) for i in pools] == [
         3,
         6,
     ]
@@ -102,7 +102,7 @@ def test_first_layer_is_grouped_by_channel() -> None:
     torch.manual_seed(0)
     net = SemanticNet(width=64, lcn_window=5)  # 27 first-block filters: 3 per channel
     first = net.features[0]
-    assert isinstance(first, GroupedConv)
+    assert isinstance(first, _GroupedConv)
     assert first.groups == 9 and first.weight.shape == (27, 1, 7, 7)
     # The same as torch's grouped convolution with these weights.
     ref = nn.Conv2d(9, 27, 7, padding=3, groups=9)
@@ -124,7 +124,7 @@ def test_lcn_matches_the_rust_kernel_and_is_per_channel() -> None:
     rng = np.random.default_rng(1)
     x = rng.normal(size=(2, 9, 20, 28)).astype(np.float32) * rng.uniform(0.01, 100, (1, 9, 1, 1))
     x[0, 3] = 2.5  # a constant map normalises to 0
-    lcn = LocalContrastNorm(7)
+    lcn = _LocalContrastNorm(7)
     y = lcn(torch.from_numpy(x)).numpy()
     assert np.allclose(y, local_contrast_normalize(x, 7), atol=2e-5)
     assert np.abs(y[0, 3]).max() == 0
@@ -144,7 +144,7 @@ def test_lcn_matches_the_rust_kernel_and_is_per_channel() -> None:
 def test_lcn_window_and_width_rules() -> None:
     assert lcn_window(320) == 15 and lcn_window(160) == 9 and lcn_window(640) == 31
     assert lcn_window(16) == 3
-    assert block_filters(32) == (9, 16, 32) and block_filters(64) == (27, 32, 64)
+    assert _block_filters(32) == (9, 16, 32) and _block_filters(64) == (27, 32, 64)
     net = SemanticNet(5, width=8, lcn_window=3)
     again = SemanticNet.from_config(net.arch_config())
     assert again.arch_config() == {"n_classes": 5, "width": 8, "lcn_window": 3}

@@ -14,10 +14,10 @@ from rgbd_rs.shapes import InputSpec, shape_inputs
 from rgbd_rs.shapes.augment import (
     AugmentedShapes,
     RotatedShapes,
-    mirror_inputs,
-    mirror_pair,
-    quarter_turns,
-    turn_inputs,
+    _mirror_inputs,
+    _mirror_pair,
+    _quarter_turns,
+    _turn_inputs,
 )
 
 SPEC = InputSpec(("depth", "volume", "curvature"), view_resolution=32, volume_resolution=32)
@@ -48,7 +48,7 @@ def test_turns_match_rendered_inputs(k: int) -> None:
     points = _chair_like()
     base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(points, SPEC).items()}
     want = shape_inputs(_turned(points, k), SPEC)
-    got = turn_inputs(base, k)
+    got = _turn_inputs(base, k)
     for name in want:
         assert not np.allclose(base[name][0].numpy(), want[name], atol=1e-3), "shape not symmetric"
         np.testing.assert_allclose(got[name][0].numpy(), want[name], atol=1e-4, err_msg=name)
@@ -62,7 +62,7 @@ def test_turn_matches_on_a_mesh() -> None:
     turned = Mesh(_turned(mesh.vertices, 1), mesh.triangles)
     base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(mesh, SPEC).items()}
     want = shape_inputs(turned, SPEC)
-    for name, value in turn_inputs(base, 1).items():
+    for name, value in _turn_inputs(base, 1).items():
         np.testing.assert_allclose(value[0].numpy(), want[name], atol=1e-4, err_msg=name)
 
 
@@ -73,7 +73,7 @@ def test_turn_matches_on_a_modelnet_cloud() -> None:
     points = open_shapes("modelnet10").load(7)
     base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(points, SPEC).items()}
     want = shape_inputs(_turned(points, 1), SPEC)
-    for name, value in turn_inputs(base, 1).items():
+    for name, value in _turn_inputs(base, 1).items():
         got = value[0].numpy()
         if name != "curvature":
             np.testing.assert_allclose(got, want[name], atol=1e-4, err_msg=name)
@@ -88,13 +88,13 @@ def test_turn_matches_on_a_modelnet_cloud() -> None:
 def test_four_turns_are_the_identity_and_packing_round_trips() -> None:
     shapes = {"depth": (6, 8, 8), "volume": (3, 8, 8), "curvature": (6, 2, 8, 8)}
     x = pack({n: torch.randn(2, *s) for n, s in shapes.items()}, shapes)
-    turned = quarter_turns(x, shapes)
+    turned = _quarter_turns(x, shapes)
     assert len(turned) == 4
     torch.testing.assert_close(turned[0], x)
     assert not torch.equal(turned[1], x)
-    back = pack(turn_inputs(unpack(turned[3], shapes), 1), shapes)
+    back = pack(_turn_inputs(unpack(turned[3], shapes), 1), shapes)
     torch.testing.assert_close(back, x)
-    assert turn_inputs(unpack(x, shapes), -1)["depth"].equal(unpack(turned[3], shapes)["depth"])
+    assert _turn_inputs(unpack(x, shapes), -1)["depth"].equal(unpack(turned[3], shapes)["depth"])
 
 
 def test_rotated_dataset_is_deterministic_and_turns_items() -> None:
@@ -114,9 +114,9 @@ def test_rotated_dataset_is_deterministic_and_turns_items() -> None:
 
 def test_bad_representation_and_turns() -> None:
     with pytest.raises(InvalidArgumentError, match="inputs"):
-        turn_inputs({"colour": torch.zeros(1, 6, 4, 4)}, 1)
+        _turn_inputs({"colour": torch.zeros(1, 6, 4, 4)}, 1)
     with pytest.raises(InvalidArgumentError, match="turns"):
-        turn_inputs({"depth": torch.zeros(1, 6, 4, 4)}, 1.5)  # type: ignore[arg-type]
+        _turn_inputs({"depth": torch.zeros(1, 6, 4, 4)}, 1.5)  # type: ignore[arg-type]
 
 
 def _mirrored(points: np.ndarray) -> np.ndarray:
@@ -129,7 +129,7 @@ def test_mirror_matches_rendered_inputs() -> None:
     points = _chair_like()
     base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(points, SPEC).items()}
     want = shape_inputs(_mirrored(points), SPEC)
-    got = mirror_inputs(base)
+    got = _mirror_inputs(base)
     for name in want:
         assert not np.allclose(base[name][0].numpy(), want[name], atol=1e-3), "shape symmetric"
         np.testing.assert_allclose(got[name][0].numpy(), want[name], atol=1e-4, err_msg=name)
@@ -144,19 +144,19 @@ def test_mirror_matches_on_a_mesh() -> None:
     mirrored = Mesh(_mirrored(mesh.vertices), mesh.triangles[:, ::-1].copy())
     base = {n: torch.from_numpy(v)[None] for n, v in shape_inputs(mesh, SPEC).items()}
     want = shape_inputs(mirrored, SPEC)
-    for name, value in mirror_inputs(base).items():
+    for name, value in _mirror_inputs(base).items():
         np.testing.assert_allclose(value[0].numpy(), want[name], atol=1e-4, err_msg=name)
 
 
 def test_mirror_is_an_involution_and_commutes_with_a_half_turn() -> None:
     shapes = {"depth": (6, 8, 8), "volume": (3, 8, 8), "curvature": (6, 2, 8, 8)}
     x = pack({n: torch.randn(2, *s) for n, s in shapes.items()}, shapes)
-    pair = mirror_pair(x, shapes)
+    pair = _mirror_pair(x, shapes)
     assert len(pair) == 2 and torch.equal(pair[0], x) and not torch.equal(pair[1], x)
-    torch.testing.assert_close(mirror_pair(pair[1], shapes)[1], x)
+    torch.testing.assert_close(_mirror_pair(pair[1], shapes)[1], x)
     # x -> -x then a half turn = y -> -y; both orders give the same inputs.
-    a = turn_inputs(mirror_inputs(unpack(x, shapes)), 2)
-    b = mirror_inputs(turn_inputs(unpack(x, shapes), 2))
+    a = _turn_inputs(_mirror_inputs(unpack(x, shapes)), 2)
+    b = _mirror_inputs(_turn_inputs(unpack(x, shapes), 2))
     for name in shapes:
         torch.testing.assert_close(a[name], b[name])
 
@@ -171,11 +171,11 @@ def test_augmented_dataset_mirrors_about_half_and_is_deterministic() -> None:
     torch.manual_seed(5)
     b = [ds[i][0] for i in range(40)]
     assert all(torch.equal(p, q) for p, q in zip(a, b, strict=True))
-    mirrored = [torch.equal(a[i], mirror_pair(x[i : i + 1], shapes)[1][0]) for i in range(40)]
+    mirrored = [torch.equal(a[i], _mirror_pair(x[i : i + 1], shapes)[1][0]) for i in range(40)]
     kept = [torch.equal(a[i], x[i]) for i in range(40)]
     assert all(m or k for m, k in zip(mirrored, kept, strict=True))
     assert 10 <= sum(mirrored) <= 30, sum(mirrored)
     with pytest.raises(InvalidArgumentError, match="mirror"):
         AugmentedShapes(data, shapes, mirror=1)  # type: ignore[arg-type]
     with pytest.raises(InvalidArgumentError, match="inputs"):
-        mirror_inputs({"colour": torch.zeros(1, 6, 4, 4)})
+        _mirror_inputs({"colour": torch.zeros(1, 6, 4, 4)})

@@ -16,12 +16,12 @@ from rgbd_rs.nn.shapes import (
     CAP_VIEWS,
     SIDE_VIEWS,
     ShapeNet,
-    input_shapes,
+    _input_shapes,
+    _view_pools,
+    _volume_pools,
     pack,
     parse_representations,
     unpack,
-    view_pools,
-    volume_pools,
 )
 from rgbd_rs.nn.train import TrainConfig
 from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, build_cache
@@ -41,13 +41,13 @@ def _inputs(net: ShapeNet, n: int, seed: int = 0) -> dict[str, torch.Tensor]:
 
 
 def test_pool_rule_gives_the_thesis_pools_at_320_and_a_1x1_map_everywhere() -> None:
-    assert view_pools(320) == (4, 4, 4, 5)  # Table 5.1
-    assert volume_pools(32) == (2, 2, 2, 2, 2)  # Table 5.1, volumetric row
-    assert view_pools(64) == (2, 2, 2, 8)
-    assert view_pools(32) == (2, 2, 2, 4)
+    assert _view_pools(320) == (4, 4, 4, 5)  # Table 5.1
+    assert _volume_pools(32) == (2, 2, 2, 2, 2)  # Table 5.1, volumetric row
+    assert _view_pools(64) == (2, 2, 2, 8)
+    assert _view_pools(32) == (2, 2, 2, 4)
     for r in (8, 17, 32, 50, 64, 100, 128, 320):
         side = r
-        for p in view_pools(r):
+        for p in _view_pools(r):
             side //= p
         assert side == 1, r
         net = ShapeNet(3, representations=("depth",), view_resolution=r, width=4)
@@ -131,7 +131,7 @@ def test_packed_and_dict_inputs_agree() -> None:
     assert torch.allclose(net(packed), net(x))
     single = pack({k: v[0].numpy() for k, v in x.items()}, net.shapes)  # no batch axis
     assert torch.equal(single, packed[:1])
-    assert input_shapes(["volume"], 16, 32) == {"volume": (3, 32, 32)}
+    assert _input_shapes(["volume"], 16, 32) == {"volume": (3, 32, 32)}
 
 
 def test_arch_config_rebuilds_the_network() -> None:

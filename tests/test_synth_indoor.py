@@ -22,7 +22,7 @@ from rgbd_rs.data.synth_indoor import (
 )
 from rgbd_rs.data.synth_indoor_objects import CEILING, FLOOR, WALL, Part
 from rgbd_rs.data.synth_indoor_scene import IndoorScene
-from rgbd_rs.data.synth_indoor_sensor import kinect_depth
+from rgbd_rs.data.synth_indoor_sensor import _kinect_depth
 from rgbd_rs.meshes import quad
 from rgbd_rs.render import Material, Scene
 
@@ -140,7 +140,7 @@ def _strips(dark_lower: bool = True) -> tuple[IndoorScene, list[float]]:
 def _measure(scene: IndoorScene, seed: int) -> tuple[np.ndarray, np.ndarray]:
     built = scene.scene.build()
     gb = built.gbuffer(scene.camera, scene.pose)
-    depth = kinect_depth(np.random.default_rng(seed), gb, built, scene)
+    depth = _kinect_depth(np.random.default_rng(seed), gb, built, scene)
     return depth, gb.depth
 
 

@@ -67,8 +67,20 @@ def array(
             f"{name}: got an empty array of shape {tuple(value.shape)}, "
             "expected at least one element"
         )
+    if value.size > MAX_ELEMENTS:
+        raise ShapeMismatchError(
+            f"{name}: got {value.size} elements (shape {tuple(value.shape)}), expected at most "
+            f"{MAX_ELEMENTS} (2**32)"
+        )
     # np.ascontiguousarray keeps an unaligned buffer as it is; the kernels need aligned memory.
-    out = np.require(value, dtype=dtype, requirements=["C_CONTIGUOUS", "ALIGNED"])
+    try:
+        out = np.require(value, dtype=dtype, requirements=["C_CONTIGUOUS", "ALIGNED"])
+    except MemoryError:
+        need = value.size * np.dtype(dtype).itemsize
+        raise MemoryError(
+            f"{name}: out of memory copying shape {tuple(value.shape)} to a contiguous "
+            f"{np.dtype(dtype)} array ({need / 2**30:.1f} GiB)"
+        ) from None
     if finite and out.size and not np.isfinite(out).all():
         bad = int(np.size(out) - np.count_nonzero(np.isfinite(out)))
         raise InvalidArgumentError(f"{name}: got {bad} non-finite values, expected finite values")
@@ -92,11 +104,25 @@ def real(name: str, value: object, *, positive: bool = False, nonnegative: bool 
     return v
 
 
-def integer(name: str, value: object, *, minimum: int = 0, maximum: int | None = None) -> int:
-    """Validate an integer in ``[minimum, maximum]``."""
+#: The most elements an array argument may hold (16 GiB of float32): a larger one, e.g. a
+#: zero-stride view of a huge shape, is refused before a copy is attempted.
+MAX_ELEMENTS = 2**32
+
+#: The largest integer a parameter takes unless it says otherwise (counts, sizes, strides,
+#: indices: what Rust's i32/u32 and numpy's shapes hold); seeds pass ``maximum=MAX_SEED``.
+MAX_INT = 2**31 - 1
+#: The largest seed (numpy's and Rust's u64 generators take any 63-bit integer).
+MAX_SEED = 2**63 - 1
+
+
+def integer(name: str, value: object, *, minimum: int = 0, maximum: int | None = MAX_INT) -> int:
+    """Validate an integer in ``[minimum, maximum]`` (``maximum`` defaults to :data:`MAX_INT`:
+    a count beyond it would overflow the kernels or allocate without bound)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise InvalidArgumentError(f"{name}: got {value!r}, expected an integer")
     v = int(value)
+    if maximum is not None and maximum < minimum:
+        raise InvalidArgumentError(f"{name}: got {v}, but no value is allowed here")
     if v < minimum or (maximum is not None and v > maximum):
         hi = "" if maximum is None else f" and <= {maximum}"
         raise InvalidArgumentError(f"{name}: got {v}, expected an integer >= {minimum}{hi}")

@@ -266,8 +266,8 @@ class PinholeCamera:
 
     def cropped(self, x0: int, y0: int, width: int, height: int) -> PinholeCamera:
         """The camera of the sub-image ``[y0:y0+height, x0:x0+width]``."""
-        x0 = _validate.integer("x0", x0)
-        y0 = _validate.integer("y0", y0)
+        x0 = _validate.integer("x0", x0, maximum=self.width - 1)
+        y0 = _validate.integer("y0", y0, maximum=self.height - 1)
         width = _validate.integer("width", width, minimum=1, maximum=self.width - x0)
         height = _validate.integer("height", height, minimum=1, maximum=self.height - y0)
         return replace(self, cx=self.cx - x0, cy=self.cy - y0, width=width, height=height)

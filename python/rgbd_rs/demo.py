@@ -51,7 +51,7 @@ def _cast(origin: F64, dirs: F64) -> F64:
     return np.where(np.isfinite(s), s, np.nan)
 
 
-def analytic_depth(cam: PinholeCamera, world_to_cam: Pose) -> npt.NDArray[np.float32]:
+def _analytic_depth(cam: PinholeCamera, world_to_cam: Pose) -> npt.NDArray[np.float32]:
     """Ground-truth depth (z in ``cam``) of the analytic scene, scene frame = camera A's."""
     u, v = np.meshgrid(
         np.arange(cam.width, dtype=np.float64), np.arange(cam.height, dtype=np.float64)
@@ -88,8 +88,8 @@ def run_synthetic(out: Path | None, seed: int = 0) -> SyntheticResult:
     back = cam_a.backproject(px, pts[:, 2])
     round_trip = float(np.nanmax(np.linalg.norm(back - pts, axis=1)))
 
-    depth_a = analytic_depth(cam_a, Pose.identity())
-    depth_b = analytic_depth(cam_b, a_to_b)
+    depth_a = _analytic_depth(cam_a, Pose.identity())
+    depth_b = _analytic_depth(cam_b, a_to_b)
     rep = reproject_depth(depth_a, cam_a, cam_b, a_to_b, splat_radius=1)
     both = np.isfinite(rep.depth) & np.isfinite(depth_b)
     err = np.abs(rep.depth - depth_b)
@@ -115,7 +115,7 @@ def _coverage(
 ) -> npt.NDArray[np.int64]:
     """Per pixel of B: 0 reprojected, 1 a hole although camera A sees the direction (occlusion,
     or a splat gap), 2 outside camera A's image, -1 no scene at all."""
-    truth = analytic_depth(cam_b, a_to_b)
+    truth = _analytic_depth(cam_b, a_to_b)
     pts = cam_b.depth_to_points(truth).reshape(-1, 3)
     in_a = a_to_b.inverse().apply(pts)
     px = cam_a.project(in_a)

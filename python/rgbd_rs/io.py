@@ -176,6 +176,9 @@ def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
     return _atomic_bytes(out, buf.tobytes())
 
 
+#: The most pixels :func:`read_png` decodes (OpenCV's own limit, CV_IO_MAX_IMAGE_PIXELS).
+MAX_PNG_PIXELS = 2**30
+
 #: An ``.npy`` file's first 6 bytes.
 NPY_MAGIC = b"\x93NUMPY"
 
@@ -194,7 +197,19 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     if raw.startswith(PNG_SIGNATURE) and PNG_END not in raw:
         # Caught here: OpenCV would print its own warning line before returning nothing.
         raise RgbdError(f"{path}: corrupt or truncated image (no PNG end chunk)")
-    img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
+    if raw.startswith(PNG_SIGNATURE) and len(raw) >= 24 and raw[12:16] == b"IHDR":
+        # The header's size, checked before OpenCV allocates (or refuses) the pixels.
+        width, height = int.from_bytes(raw[16:20], "big"), int.from_bytes(raw[20:24], "big")
+        side = _validate.MAX_SIDE
+        if not (0 < width <= side and 0 < height <= side) or width * height > MAX_PNG_PIXELS:
+            raise RgbdError(
+                f"{path}: the PNG header says {width}x{height} pixels, expected sides "
+                f"1..{side} and at most {MAX_PNG_PIXELS} pixels"
+            )
+    try:
+        img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        img = None
     if img is None:
         raise RgbdError(f"{path}: corrupt or truncated image")
     if rgb and img.ndim == 3:
@@ -233,7 +248,7 @@ def sha256(path: str | Path) -> str:
 # -- create-once files (package-internal: shared by the resumable, sharded dataset jobs) --------
 
 
-def create_once(path: Path, write: Callable[[Path], None]) -> None:
+def _create_once(path: Path, write: Callable[[Path], None]) -> None:
     """Write ``path`` through ``write(tmp)`` unless it exists; concurrent callers (the shards of
     one job) race safely: a hard link cannot overwrite, so the first one wins."""
     if path.exists():
@@ -250,8 +265,8 @@ def create_once(path: Path, write: Callable[[Path], None]) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def npy_writer(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path], None]:
-    """A :func:`create_once` writer of a zero-filled ``.npy`` of ``shape`` (memory-mappable)."""
+def _npy_writer(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path], None]:
+    """A :func:`_create_once` writer of a zero-filled ``.npy`` of ``shape`` (memory-mappable)."""
 
     def write(tmp: Path) -> None:
         arr = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
@@ -261,8 +276,8 @@ def npy_writer(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path],
     return write
 
 
-def bytes_writer(data: bytes) -> Callable[[Path], None]:
-    """A :func:`create_once` writer of ``data``."""
+def _bytes_writer(data: bytes) -> Callable[[Path], None]:
+    """A :func:`_create_once` writer of ``data``."""
 
     def write(tmp: Path) -> None:
         tmp.write_bytes(data)
@@ -270,7 +285,7 @@ def bytes_writer(data: bytes) -> Callable[[Path], None]:
     return write
 
 
-def npy_bytes(arr: np.ndarray) -> bytes:
+def _npy_bytes(arr: np.ndarray) -> bytes:
     """``arr`` as the bytes of a ``.npy`` file."""
     buf = io.BytesIO()
     np.lib.format.write_array(buf, arr, allow_pickle=False)

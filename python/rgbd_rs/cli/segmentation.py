@@ -260,7 +260,7 @@ def _naming_the_depth_scale(
     makes the PNG's median depth plausible (a .npy/.npz holds metres: no flag fixes it)."""
     import warnings
 
-    from rgbd_rs.segmentation.pipeline import suggested_depth_scale
+    from rgbd_rs.segmentation.pipeline import _suggested_depth_scale
 
     seen: list[warnings.WarningMessage] = []
     try:
@@ -276,7 +276,7 @@ def _naming_the_depth_scale(
             if text.startswith("depth: median ") and path.suffix.lower() == ".png":
                 valid = depth[np.isfinite(depth) & (depth > 0)]
                 med = float(np.median(valid)) if valid.size else 0.0
-                fix = suggested_depth_scale(med, scale)
+                fix = _suggested_depth_scale(med, scale)
                 if fix is not None:
                     text += f"; --depth-scale {fix:g} brings it to {med / scale * fix:.3g} m"
             warnings.warn(text, w.category, stacklevel=2)

@@ -98,9 +98,9 @@ def run_cache(args: argparse.Namespace) -> int:
     from rgbd_rs.segmentation.semantic_data import build_semantic_cache, open_frames
 
     if args.split is None:
-        from rgbd_rs.segmentation.semantic_data import frames_have_splits
+        from rgbd_rs.segmentation.semantic_data import _frames_have_splits
 
-        args.split = "train" if frames_have_splits(args.frames, args.calib) else "all"
+        args.split = "train" if _frames_have_splits(args.frames, args.calib) else "all"
     frames = named("--frames", lambda: open_frames(args.frames, args.split, args.calib))
     source = (
         f"nyuv2-{args.split}"

@@ -86,7 +86,7 @@ def _search_range(args: argparse.Namespace, width: int) -> int:
 def run_stereo(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from rgbd_rs.fusion.stereo import max_search, sgm
+    from rgbd_rs.fusion.stereo import _max_search, sgm
     from rgbd_rs.io import read_png, write_npz, write_png
     from rgbd_rs.viz import colorize_with_bar, save_png
 
@@ -94,7 +94,7 @@ def run_stereo(args: argparse.Namespace) -> int:
     right = named("--right", lambda: read_png(args.right))
     dmax = _search_range(args, left.shape[1])
     if args.method == "opencv":
-        dmax = min(dmax, max_search(left.shape[1]))
+        dmax = min(dmax, _max_search(left.shape[1]))
     out = output_folder(args.out, STEREO_OUTPUTS)
     disp = flagged(
         {"left": "--left", "right": "--right", "max_disparity": "--max-disparity"},

@@ -50,7 +50,7 @@ def _cam(c: PinholeCamera) -> dict[str, Any]:
     }
 
 
-def rig_to_dict(rig: ToFStereoRig) -> dict[str, Any]:
+def _rig_to_dict(rig: ToFStereoRig) -> dict[str, Any]:
     """The JSON-ready description of ``rig``."""
     return {
         "stereo": {
@@ -71,7 +71,7 @@ def save_rig(path: str | Path, rig: ToFStereoRig) -> Path:
     """Write ``rig`` as calibration JSON (atomically)."""
     if not isinstance(rig, ToFStereoRig):
         raise InvalidArgumentError(f"rig: got {type(rig).__name__}, expected a ToFStereoRig")
-    return write_json(path, rig_to_dict(rig))
+    return write_json(path, _rig_to_dict(rig))
 
 
 def _number(where: str, value: object) -> float:

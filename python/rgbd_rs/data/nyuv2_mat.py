@@ -38,7 +38,14 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
-from rgbd_rs.data.nyuv2 import LABEL13_NAMES, LABELED_FRAMES, SPLITS, UNLABELED, NyuFrame
+from rgbd_rs.data.nyuv2 import (
+    LABEL13_NAMES,
+    LABELED_FRAMES,
+    NYUV2_CAMERA,
+    SPLITS,
+    UNLABELED,
+    NyuFrame,
+)
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
@@ -293,6 +300,11 @@ def load_nyuv2_splits(folder: str | Path | None = None) -> NyuSplits:
     return NyuSplits(out[0], out[1])
 
 
+#: The most pixels a frame of a labeled .mat may have (16 Mpx: 25x NYUv2's 640 x 480); a
+#: larger header is refused before a frame is read, not met by a MemoryError.
+MAX_FRAME_PIXELS = 2**24
+
+
 def _h5py() -> Any:
     try:
         import h5py
@@ -407,6 +419,11 @@ class NyuMatDataset:
         n, _, w, h = (int(v) for v in images.shape)
         if n == 0 or w == 0 or h == 0:
             raise RgbdError(f"{self.path}: dataset {IMAGES!r} is empty ({images.shape})")
+        if w * h > MAX_FRAME_PIXELS:
+            raise RgbdError(
+                f"{self.path}: dataset {IMAGES!r} holds {w}x{h} frames, expected at most "
+                f"{MAX_FRAME_PIXELS} pixels a frame (NYUv2's are 640x480)"
+            )
         has_instances = INSTANCES in f and isinstance(f[INSTANCES], h5py.Dataset)
         kinds = {need[1]: "f", LABELS: "iu"} | ({INSTANCES: "iu"} if has_instances else {})
         for key, kind in kinds.items():
@@ -557,6 +574,12 @@ class NyuTestLabels:
         if img is None or img.ndim != 2 or img.dtype != np.uint8:
             got = "undecodable data" if img is None else f"{img.dtype} {img.shape}"
             raise RgbdError(f"{self.path}: {name}: got {got}, expected a uint8 label PNG")
+        size = (NYUV2_CAMERA.height, NYUV2_CAMERA.width)
+        if img.shape != size:
+            raise RgbdError(
+                f"{self.path}: {name}: got a {img.shape[1]}x{img.shape[0]} label image, expected "
+                f"NYUv2's {size[1]}x{size[0]} frames"
+            )
         if int(img.max()) > self.classes:
             raise RgbdError(
                 f"{self.path}: {name}: got class {int(img.max())}, expected 0..{self.classes}"

@@ -34,7 +34,7 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.calibration import load_rig, save_rig
-from rgbd_rs.data.synth_scene import random_scene, shared_meshes
+from rgbd_rs.data.synth_scene import _random_scene, _shared_meshes
 from rgbd_rs.data.tof_variation import apply, random_variation
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.geometry import depth_to_disparity
@@ -111,9 +111,13 @@ class SynthSample:
     gt_disparity: F32
 
 
-def rig_poses(rig: ToFStereoRig) -> tuple[Pose, Pose, Pose]:
+def _rig_poses(rig: ToFStereoRig) -> tuple[Pose, Pose, Pose]:
     """World-to-camera poses of the left, right and ToF cameras; the world frame is the
     reference (right) camera's."""
+    if not isinstance(rig, ToFStereoRig):
+        raise InvalidArgumentError(
+            f"rig: got {type(rig).__name__}, expected a rgbd_rs.ToFStereoRig"
+        )
     b = rig.stereo.baseline
     to_left = Pose(np.eye(3), np.array([b, 0.0, 0.0]))
     return to_left, Pose.identity(), rig.tof_to_reference.inverse()
@@ -134,7 +138,7 @@ def render_sample(
 ) -> tuple[SynthSample, ToFFrame]:
     """Render the stereo pair, ToF frame and ground truth of a built scene (``rng`` draws the
     exposure and colour noise, ``tof_seed`` the ToF noise and multipath rays)."""
-    to_left, to_right, to_tof = rig_poses(rig)
+    to_left, to_right, to_tof = _rig_poses(rig)
     right = scene.color(rig.stereo.right, to_right, supersample=SUPERSAMPLE)
     left = scene.color(rig.stereo.left, to_left, supersample=SUPERSAMPLE)
     # Auto-exposure on the reference image (median -> 40 % grey), the left one off by a bit.
@@ -155,16 +159,20 @@ def render_sample(
     return sample, tof
 
 
-def scene_rng(seed: int, split: Split, index: int, stream: int = 0) -> np.random.Generator:
+def _scene_rng(seed: int, split: Split, index: int, stream: int = 0) -> np.random.Generator:
     """Generator ``stream`` of scene ``index`` of ``split`` (independent of every other scene):
     stream 0 draws the scene and colour noise, stream 1 the ToF seed, stream 2 the varied ToF
     sensor of a ``vary_tof`` dataset."""
-    return np.random.default_rng([seed, 0 if split == "train" else 1, index, stream])
+    s = _validate.integer("seed", seed, maximum=_validate.MAX_SEED)
+    sp = _validate.choice("split", split, ("train", "test"))
+    i = _validate.integer("index", index)
+    k = _validate.integer("stream", stream)
+    return np.random.default_rng([s, 0 if sp == "train" else 1, i, k])
 
 
 def tof_seed(seed: int, split: Split, index: int) -> int:
     """The ToF simulator's seed for scene ``index`` of ``split``."""
-    return int(scene_rng(seed, split, index, 1).integers(2**62))
+    return int(_scene_rng(seed, split, index, 1).integers(2**62))
 
 
 def generate(
@@ -178,11 +186,11 @@ def generate(
 ) -> tuple[SynthSample, RenderScene]:
     """Build and render scene ``index`` of ``split``; ``vary_tof`` draws the scene's own ToF
     sensor (:mod:`rgbd_rs.data.tof_variation`, from a stream of its own)."""
-    rng = scene_rng(seed, split, index)
-    scene = random_scene(rng, shared_meshes() if meshes is None else meshes).build()
+    rng = _scene_rng(seed, split, index)
+    scene = _random_scene(rng, _shared_meshes() if meshes is None else meshes).build()
     if not vary_tof:
         return render_sample(scene, rig, rng, tof_seed=tof_seed(seed, split, index))[0], scene
-    vrng = scene_rng(seed, split, index, 2)
+    vrng = _scene_rng(seed, split, index, 2)
     variation = random_variation(vrng)
     sample, _ = render_sample(
         scene, rig, rng, model=variation.model, tof_seed=tof_seed(seed, split, index)
@@ -233,7 +241,7 @@ def write_dataset(
     n_test = _validate.integer("test", test, maximum=MAX_SCENES)
     seed = _validate.integer("seed", seed, maximum=2**32 - 1)
     rig = synth3_rig(scale)
-    meshes = shared_meshes()
+    meshes = _shared_meshes()
     params = {
         "seed": seed,
         "scale": float(scale),

@@ -37,10 +37,10 @@ from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.calibration import load_camera, save_camera
 from rgbd_rs.data.nyuv2 import DEPTH_PNG_PER_METRE, LABEL13_NAMES
-from rgbd_rs.data.synth_indoor_scene import IndoorScene, random_indoor_scene
-from rgbd_rs.data.synth_indoor_sensor import kinect_color, kinect_depth
+from rgbd_rs.data.synth_indoor_scene import IndoorScene, _random_indoor_scene
+from rgbd_rs.data.synth_indoor_sensor import _kinect_color, _kinect_depth
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.io import bytes_writer, create_once, read_json, read_png, write_png
+from rgbd_rs.io import _bytes_writer, _create_once, read_json, read_png, write_png
 from rgbd_rs.viz import colorize, save_png, tile
 
 __all__ = [
@@ -109,15 +109,15 @@ def _frame_rng(seed: int, index: int) -> np.random.Generator:
 def _render(seed: int, index: int, width: int, height: int) -> tuple[IndoorFrame, IndoorScene, F32]:
     """The frame, its scene and the noise-free depth (for tests)."""
     rng = _frame_rng(seed, index)
-    scene = random_indoor_scene(rng, width, height)
+    scene = _random_indoor_scene(rng, width, height)
     built = scene.scene.build()
     gb = built.gbuffer(scene.camera, scene.pose)
     obj = gb.object
     lut = np.array([p.label for p in scene.parts] + [0], np.uint8)  # -1 (miss) -> 0
     label13 = lut[obj]
     linear = built.color(scene.camera, scene.pose, supersample=1)
-    rgb = kinect_color(rng, linear, obj, scene)
-    depth = kinect_depth(rng, gb, built, scene)
+    rgb = _kinect_color(rng, linear, obj, scene)
+    depth = _kinect_depth(rng, gb, built, scene)
     mm = np.round(depth * DEPTH_PNG_PER_METRE)
     mm = np.where(np.isfinite(mm) & (mm > 0) & (mm < 65536), mm, np.nan)
     depth = (mm / DEPTH_PNG_PER_METRE).astype(np.float32)
@@ -186,7 +186,7 @@ def _check_manifest(out: Path, seed: int, width: int, height: int) -> None:
         "height": height,
     }
     path = out / MANIFEST
-    create_once(path, bytes_writer((json.dumps(want, indent=1, sort_keys=True) + "\n").encode()))
+    _create_once(path, _bytes_writer((json.dumps(want, indent=1, sort_keys=True) + "\n").encode()))
     have = read_json(path)
     if have != want:
         raise InvalidArgumentError(

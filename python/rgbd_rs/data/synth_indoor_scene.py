@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera, Pose
 from rgbd_rs.data.nyuv2 import NYUV2_CAMERA
 from rgbd_rs.data.synth_indoor_objects import (
@@ -333,8 +334,11 @@ def _lights(rng: Rng, room: _Room) -> tuple[list[PointLight], tuple[float, float
     return lights, (float(amb * tint[0]), float(amb * tint[1]), float(amb * tint[2]))
 
 
-def random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
-    """A furnished room and a camera in it, drawn from ``rng``."""
+def _random_indoor_scene(rng: Rng, width: int, height: int) -> IndoorScene:
+    """A furnished room and a camera in it, drawn from ``rng``; the camera's image is
+    ``width x height`` pixels."""
+    width = _validate.size("width", width)
+    height = _validate.size("height", height)
     room = _Room(rng)
     w, d, h = room.w, room.d, room.h
     shell: list[list[list[float]]] = [

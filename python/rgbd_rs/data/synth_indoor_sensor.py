@@ -85,7 +85,7 @@ def _rays(scene: IndoorScene) -> F32:
     return np.asarray(d / np.linalg.norm(d, axis=-1, keepdims=True), np.float32)
 
 
-def kinect_color(
+def _kinect_color(
     rng: Rng, linear: F32, obj: npt.NDArray[np.int32], scene: IndoorScene
 ) -> npt.NDArray[np.uint8]:
     """8-bit sRGB from the linear radiance (windows replaced by daylight)."""
@@ -133,7 +133,7 @@ def kinect_color(
     return np.asarray(np.clip(np.round(srgb * 255), 0, 255), np.uint8)
 
 
-def kinect_depth(rng: Rng, gb: GBuffer, built: RenderScene, scene: IndoorScene) -> F32:
+def _kinect_depth(rng: Rng, gb: GBuffer, built: RenderScene, scene: IndoorScene) -> F32:
     """Kinect-v1-like depth (metres, NaN = hole) from the true first-hit depth."""
     cam = scene.camera
     h, w = gb.depth.shape

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from rgbd_rs.data.synth import generate, rig_poses, synth3_rig, tof_seed
+from rgbd_rs.data.synth import _rig_poses, generate, synth3_rig, tof_seed
 from rgbd_rs.metrics import rms_error
 from rgbd_rs.render import ToFModel
 from rgbd_rs.viz import as_bgr, colorize, save_png, tile
@@ -23,7 +23,7 @@ def write_preview(
     """Render test scene ``index`` and write the preview PNG; returns per-effect RMS errors (m)."""
     rig = synth3_rig(scale)
     sample, scene = generate(seed, "test", index, rig)
-    _, _, to_tof = rig_poses(rig)
+    _, _, to_tof = _rig_poses(rig)
     model = ToFModel()
     noise_seed = tof_seed(seed, "test", index)
     images = [

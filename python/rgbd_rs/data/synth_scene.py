@@ -32,7 +32,7 @@ P_DARK = 0.2
 P_PLAIN_WALL = 0.35
 
 
-def shared_meshes() -> list[Mesh]:
+def _shared_meshes() -> list[Mesh]:
     """The real meshes of ``../shared/data/meshes`` (empty when the data is absent)."""
     root = data_root()
     if root is None or not (root / "meshes").is_dir():
@@ -108,7 +108,7 @@ def _furniture(rng: np.random.Generator, meshes: Sequence[Mesh]) -> Mesh:
     return box(tuple(float(v) for v in rng.uniform([0.2, 0.2, 0.2], [1.2, 1.4, 1.0])))
 
 
-def random_scene(rng: np.random.Generator, meshes: Sequence[Mesh] = ()) -> Scene:
+def _random_scene(rng: np.random.Generator, meshes: Sequence[Mesh] = ()) -> Scene:
     """A furnished room in the reference camera's frame, drawn from ``rng``."""
     zb = float(rng.uniform(*BACK_WALL_Z))
     cam_h = float(rng.uniform(*CAMERA_HEIGHT))

@@ -26,7 +26,7 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import views
 from rgbd_rs.fusion.evaluate import Sample, non_occluded
-from rgbd_rs.fusion.fuse import fill_single_source, fuse
+from rgbd_rs.fusion.fuse import _fill_single_source, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.metrics import bad_pixel_rate, rms_error
 
@@ -178,7 +178,7 @@ def calibrate_stereo_power(
                 lc_d, lc_p = lc_fuse(
                     ref, tgt, [tof_d, st_d], [p_t, conf_s], target_sign=sign, params=params
                 )
-                fused = fill_single_source(
+                fused = _fill_single_source(
                     lc_d,
                     lc_p,
                     tof_d,

@@ -100,7 +100,7 @@ def compute_clues(
     return Clues(maps)
 
 
-def scene_sigmas(clues: Clues) -> F32:
+def _scene_sigmas(clues: Clues) -> F32:
     """Per-scene standard deviation of each clue over its valid pixels (NaN if none)."""
     out = np.full(len(NAMES), np.nan, np.float32)
     for k in range(len(NAMES)):
@@ -110,7 +110,7 @@ def scene_sigmas(clues: Clues) -> F32:
     return out
 
 
-def training_sigmas(per_scene: npt.ArrayLike) -> F32:
+def _training_sigmas(per_scene: npt.ArrayLike) -> F32:
     """Eq. 3.3-3.6's sigma: the average over training scenes of each clue's per-scene std."""
     s = np.asarray(per_scene, dtype=np.float64)
     if s.ndim != 2 or s.shape[1] != len(NAMES) or s.shape[0] == 0:
@@ -134,13 +134,14 @@ def normalise(clues: Clues, sigmas: npt.ArrayLike) -> F32:
     return np.where(np.isfinite(x), x, 0).astype(np.float32)
 
 
-def target_confidence(disparity: npt.ArrayLike, gt: npt.ArrayLike, threshold: float) -> F32:
+def _target_confidence(disparity: npt.ArrayLike, gt: npt.ArrayLike, threshold: float) -> F32:
     """Training target (thesis §3.7): ``1 - min(|d - gt|, T)/T``; NaN where either is missing.
 
     The thesis' sentence gives ``min(|err|, T)/T`` (an error, 1 = bad); its figures show bright =
     reliable, so the confidence is one minus that (METHOD_NOTES §3)."""
-    d = np.asarray(disparity, dtype=np.float32)
-    g = np.asarray(gt, dtype=np.float32)
+    d = _validate.asarray("disparity", disparity)
+    d = _validate.array("disparity", d, shape=(None,) * d.ndim, allow_empty=True)
+    g = _validate.array("gt", gt, shape=d.shape, allow_empty=True)  # same shape: no broadcast
     t = _validate.real("threshold", threshold, positive=True)
     e = np.abs(d - g)
     return np.where(np.isfinite(e), 1 - np.minimum(e, t) / t, np.nan).astype(np.float32)

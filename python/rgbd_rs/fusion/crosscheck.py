@@ -13,13 +13,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32
 
 #: Agreement (px) between the two views' fused disparities. Chosen.
 CROSS_CHECK_TOL = 1.0
 
 
-def warp_to_target(disparity: F32, confidence: F32 | None, sign: int) -> tuple[F32, F32 | None]:
+def _warp_to_target(disparity: F32, confidence: F32 | None, sign: int) -> tuple[F32, F32 | None]:
     """Forward-warp a reference-view map (and its confidence) to the target view, nearest wins."""
     h, w = disparity.shape
     ys, xs = np.nonzero(np.isfinite(disparity))
@@ -39,8 +41,13 @@ def warp_to_target(disparity: F32, confidence: F32 | None, sign: int) -> tuple[F
     return out, conf
 
 
-def consistent(reference: F32, target: F32, sign: int, tol: float = CROSS_CHECK_TOL) -> F32:
+def _consistent(reference: F32, target: F32, sign: int, tol: float = CROSS_CHECK_TOL) -> F32:
     """``reference`` with NaN where the target view's disparity at ``x + s d`` disagrees."""
+    reference = _validate.array("reference", reference, shape=(None, None))
+    target = _validate.array("target", target, shape=reference.shape)
+    if sign not in (-1, 1) or isinstance(sign, bool):
+        raise InvalidArgumentError(f"sign: got {sign!r}, expected -1 or 1")
+    tol = _validate.real("tol", tol, nonnegative=True)
     h, w = reference.shape
     ys, xs = np.nonzero(np.isfinite(reference))
     tx = np.rint(xs + sign * reference[ys, xs]).astype(np.int64)

@@ -27,8 +27,8 @@ from rgbd_rs.data.paths import data_root
 from rgbd_rs.data.synth import SynthDataset
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, U8, views
-from rgbd_rs.fusion.clues import target_confidence
-from rgbd_rs.fusion.crosscheck import warp_to_target
+from rgbd_rs.fusion.clues import _target_confidence
+from rgbd_rs.fusion.crosscheck import _warp_to_target
 from rgbd_rs.fusion.fuse import fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.meshes import Mesh
@@ -96,7 +96,7 @@ def non_occluded(disparity: npt.ArrayLike, target_sign: int) -> npt.NDArray[np.b
     """Pixels of the reference view visible in the target view: no nearer reference pixel
     (larger disparity) lands on the same target pixel (within 1 px of disparity)."""
     d = np.asarray(disparity, np.float32)
-    front, _ = warp_to_target(d, None, target_sign)  # the nearest disparity per target pixel
+    front, _ = _warp_to_target(d, None, target_sign)  # the nearest disparity per target pixel
     ys, xs = np.nonzero(np.isfinite(d))
     tx = np.rint(xs + target_sign * d[ys, xs]).astype(np.int64)
     inside = (tx >= 0) & (tx < d.shape[1])
@@ -106,7 +106,7 @@ def non_occluded(disparity: npt.ArrayLike, target_sign: int) -> npt.NDArray[np.b
     return out
 
 
-def depth_mesh(depth: F32, camera: PinholeCamera) -> Mesh:
+def _depth_mesh(depth: F32, camera: PinholeCamera) -> Mesh:
     """A triangle mesh of a depth map (two triangles per pixel quad; depth edges dropped)."""
     h, w = depth.shape
     pts = camera.depth_to_points(depth).reshape(-1, 3)
@@ -151,7 +151,7 @@ def simulate_tof(
     tof_f = f * tw / w * TOF_FOV_MARGIN
     tof_cam = PinholeCamera(tof_f, tof_f, (tw - 1) / 2, (th - 1) / 2, tw, th)
     to_ref = Pose(np.eye(3), np.array([0.0, TOF_OFFSET_Y, 0.0]))
-    scene = Scene().add(depth_mesh(z, cam), Material(albedo_ir=0.5)).build()
+    scene = Scene().add(_depth_mesh(z, cam), Material(albedo_ir=0.5)).build()
     frame = scene.tof(tof_cam, to_ref.inverse(), model, seed=seed)
     rig = ToFStereoRig(tof_cam, StereoRig(cam, cam, MIDDLEBURY_BASELINE), to_ref, "left")
     return frame.depth, frame.amplitude, rig
@@ -216,7 +216,7 @@ def evaluate_sample(
     gt = s.gt_disparity
 
     def oracle(d: F32) -> F32:
-        return np.nan_to_num(target_confidence(d, gt, ORACLE_T))  # undefined -> weight 0
+        return np.nan_to_num(_target_confidence(d, gt, ORACLE_T))  # undefined -> weight 0
 
     orc, _ = lc_fuse(
         ref, tgt, [tof_d, st_d], [oracle(tof_d), oracle(st_d)], target_sign=sign, params=params
@@ -312,7 +312,7 @@ def confidence_figure(samples: list[Sample], results: list[SceneResult]) -> U8:
         gt = r.maps["gt"]
         panels.append(image_panel(as_bgr(ref), f"{s.name}: colour"))
         for key, src, short in (("P_T", "Interpolated ToF", "ToF"), ("P_S", "SGM", "stereo")):
-            target = target_confidence(r.maps[src], gt, ORACLE_T)
+            target = _target_confidence(r.maps[src], gt, ORACLE_T)
             panels += [
                 map_panel(r.maps[key], f"{short} confidence (ConvNet)", unit="", vmin=0, vmax=1),
                 map_panel(target, f"{short} target (GT)", unit="", vmin=0, vmax=1),

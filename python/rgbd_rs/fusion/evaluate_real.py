@@ -57,12 +57,12 @@ def markdown(scores: list[CaseScore], title: str) -> str:
     return "\n".join(rows) + "\n"
 
 
-def title_of(out: FusionResult) -> str:
+def _title_of(out: FusionResult) -> str:
     """The confidences a fused map was made with, for a panel title."""
     return "uniform weights" if out.tof_confidence is None else "confidence-weighted"
 
 
-def case_panels(s: Sample, out: FusionResult) -> tuple[list[U8], list[str]]:
+def _case_panels(s: Sample, out: FusionResult) -> tuple[list[U8], list[str]]:
     """One case's panels: colour, ground truth, ToF, SGM, fused (one disparity scale), the fused
     error, and the two confidences."""
     gt = s.gt_disparity
@@ -74,7 +74,7 @@ def case_panels(s: Sample, out: FusionResult) -> tuple[list[U8], list[str]]:
         ("ground truth", gt),
         ("ToF (upsampled)", out.tof_fused),
         (f"SGM ({out.stereo_matcher})", out.stereo_disparity),
-        (f"fused (LC, {title_of(out)})", out.disparity),
+        (f"fused (LC, {_title_of(out)})", out.disparity),
     ):
         cells.append(colorize_with_bar(d, lo, hi, "px"))
         labels.append(title)
@@ -122,7 +122,7 @@ def evaluate_real(
         )
         scores.append(score_result(s, res))
         if len(scores) <= figure_cases:
-            c, lab = case_panels(s, res)
+            c, lab = _case_panels(s, res)
             cells += c
             labels += lab
     if out is not None:

@@ -26,7 +26,7 @@ from rgbd_rs.data.stereo_scenes import StereoScene
 from rgbd_rs.fusion._inputs import F32
 from rgbd_rs.fusion.census import CensusParams, census_match
 from rgbd_rs.fusion.evaluate import non_occluded
-from rgbd_rs.fusion.stereo import max_search, sgbm_disparity, sgm
+from rgbd_rs.fusion.stereo import _max_search, _sgbm_disparity, sgm
 
 #: A ground-truth disparity step above this many pixels between 4-neighbours is a depth edge.
 EDGE_JUMP = 2.0
@@ -56,7 +56,7 @@ def edge_band(gt: npt.ArrayLike) -> npt.NDArray[np.bool_]:
     return np.asarray(cv2.dilate(edge.astype(np.uint8), k), bool)
 
 
-def scored_pixels(scene: StereoScene) -> npt.NDArray[np.bool_]:
+def _scored_pixels(scene: StereoScene) -> npt.NDArray[np.bool_]:
     """The left view's pixels with ground truth that the right view sees."""
     gt = scene.disparity_left
     return np.isfinite(gt) & non_occluded(gt, -1)
@@ -66,7 +66,7 @@ def measures(disparity: npt.ArrayLike, scene: StereoScene) -> dict[str, float]:
     """The protocol's measures of a left-view disparity map on ``scene``."""
     d = np.asarray(disparity, np.float32)
     gt = scene.disparity_left
-    mask = scored_pixels(scene)
+    mask = _scored_pixels(scene)
     err = np.abs(d - gt)
     have = np.isfinite(d) & mask
     n = max(1, int(mask.sum()))
@@ -108,7 +108,7 @@ def opencv_matcher(block_size: int, mode: str = "hh") -> Matcher:
     if mode == "hh":
 
         def run(scene: StereoScene, dmax: int) -> F32:
-            top = max_search(scene.left.shape[1], 0, block_size)
+            top = _max_search(scene.left.shape[1], 0, block_size)
             return sgm(
                 scene.left,
                 scene.right,
@@ -125,7 +125,7 @@ def opencv_matcher(block_size: int, mode: str = "hh") -> Matcher:
 def _opencv_3way(block_size: int) -> Matcher:
     def run(scene: StereoScene, dmax: int) -> F32:
         mode = cv2.STEREO_SGBM_MODE_SGBM_3WAY
-        return sgbm_disparity(scene.left, scene.right, "left", 0, dmax, block_size, mode)
+        return _sgbm_disparity(scene.left, scene.right, "left", 0, dmax, block_size, mode)
 
     return run
 

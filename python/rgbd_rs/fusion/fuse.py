@@ -30,13 +30,13 @@ from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.fusion.stereo import (
-    predict_search_range,
-    same_search,
+    _predict_search_range,
+    _same_search,
+    _whole_steps,
     search_range,
     sgm,
-    whole_steps,
 )
-from rgbd_rs.fusion.upsample import ToFOnReference, densify_tof, reproject_tof
+from rgbd_rs.fusion.upsample import ToFOnReference, _densify_tof, _reproject_tof
 from rgbd_rs.geometry import depth_to_disparity, disparity_to_depth
 
 if TYPE_CHECKING:  # torch is imported only when the ConvNet runs
@@ -97,7 +97,7 @@ class FusionResult:
         tof_confidence, stereo_confidence: the weights used (None = uniform).
         max_disparity: the SGM search range asked for (given, or from :func:`search_range`);
             SGBM and, inside ``fuse``, the census matcher search it in whole 16-px steps
-            (:func:`~rgbd_rs.fusion.stereo.whole_steps`).
+            (:func:`~rgbd_rs.fusion.stereo._whole_steps`).
         reference: the camera the maps lie on (``"left"`` or ``"right"``).
     """
 
@@ -145,10 +145,10 @@ def _match(
     left: U8, right: U8, *, reference: str, max_disparity: int, matcher: str, width: int
 ) -> F32:
     """SGM as ``fuse`` runs it: ``matcher`` with its settings; the census matcher searches the
-    range rounded up to OpenCV's whole steps (:func:`whole_steps`, within the image), so that,
-    as with SGBM, a range :func:`same_search` calls the same gives the same map."""
+    range rounded up to OpenCV's whole steps (:func:`_whole_steps`, within the image), so that,
+    as with SGBM, a range :func:`_same_search` calls the same gives the same map."""
     if matcher == "census":
-        top = min(whole_steps(max_disparity), width - 1)
+        top = min(_whole_steps(max_disparity), width - 1)
         return sgm(
             left,
             right,
@@ -277,21 +277,21 @@ def fuse(
         max_disparity = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        sparse = reproject_tof(tof_depth, tof_amplitude, r)
+        sparse = _reproject_tof(tof_depth, tof_amplitude, r)
     # SGM runs on a worker thread (OpenCV releases the GIL) while the ToF is upsampled here (the
     # native filter releases it too): with the range predicted from the sparse ToF, re-run in
     # the rare scene where the upsampled ToF's range asks for another SGBM step.
     if max_disparity is None:
         sparse_disp = depth_to_disparity(sparse.depth, r.stereo.baseline, r.stereo.focal)
-        guess = predict_search_range(sparse_disp, w)
+        guess = _predict_search_range(sparse_disp, w)
     else:
         guess = max_disparity
     with ThreadPoolExecutor(max_workers=1) as pool:
         early = pool.submit(match, lft, rgt, reference=r.reference, max_disparity=guess)
-        tof = densify_tof(sparse, r, ref_img)
+        tof = _densify_tof(sparse, r, ref_img)
         dmax = search_range(tof.disparity, w) if max_disparity is None else max_disparity
         st_map = early.result()
-    if not same_search(guess, dmax):
+    if not _same_search(guess, dmax):
         st_map = match(lft, rgt, reference=r.reference, max_disparity=dmax)
     no_tof = not np.isfinite(tof.disparity).any()
     if no_tof:
@@ -331,7 +331,7 @@ def fuse(
     lc_disp, lc_plaus = lc_fuse(
         ref_img, tgt_img, [tof_disp, st_map], [ct, cs], target_sign=sign, params=params
     )
-    disp, plaus, source = fill_single_source(
+    disp, plaus, source = _fill_single_source(
         lc_disp,
         lc_plaus,
         tof_disp,
@@ -351,7 +351,7 @@ def fuse(
 SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO = 0, 1, 2, 3
 
 
-def fill_single_source(
+def _fill_single_source(
     lc_disparity: F32,
     lc_plausibility: F32,
     tof: F32,

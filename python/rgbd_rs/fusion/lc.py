@@ -11,7 +11,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32, map2d, rgb8, unit_map, views
-from rgbd_rs.fusion.crosscheck import consistent, warp_to_target
+from rgbd_rs.fusion.crosscheck import _consistent, _warp_to_target
 
 #: The defaults and limits live in crates/rgbd-fusion (``LcParams::for_width``, ``MAX_RADIUS``);
 #: read here through the binding so the two languages cannot disagree.
@@ -130,7 +130,7 @@ def lc_fuse(
     disp, share = _rgbd_rs.lc_fuse(ref, tgt, ds, cs, config)
     if not p.cross_check:
         return disp, share
-    warped = [warp_to_target(d, c, target_sign) for d, c in zip(ds, cs, strict=True)]
+    warped = [_warp_to_target(d, c, target_sign) for d, c in zip(ds, cs, strict=True)]
     back, _ = _rgbd_rs.lc_fuse(
         tgt,
         ref,
@@ -138,7 +138,7 @@ def lc_fuse(
         [c for _, c in warped],
         config.with_target_sign(-target_sign),
     )
-    checked = consistent(disp, back, target_sign)
+    checked = _consistent(disp, back, target_sign)
     return checked, np.where(np.isfinite(checked), share, np.nan).astype(np.float32)
 
 

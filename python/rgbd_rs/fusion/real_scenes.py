@@ -53,7 +53,7 @@ def _seed(name: str, law: int, epoch: int | None) -> int:
     return int.from_bytes(hashlib.sha256(key).digest()[:8], "little")
 
 
-def draw_law(rng: np.random.Generator, width: int, height: int) -> Law:
+def _draw_law(rng: np.random.Generator, width: int, height: int) -> Law:
     """A sensor for a ``width x height`` colour camera."""
     variation = tof_variation.random_variation(rng)
     scale = float(rng.uniform(*TOF_SCALE))
@@ -83,7 +83,7 @@ def real_sample(scene: StereoScene, law: int = 0, *, epoch: int | None = None) -
         epoch = _validate.integer("epoch", epoch, minimum=0)
     rng = np.random.default_rng(_seed(scene.name, law, epoch))
     h, w = scene.left.shape[:2]
-    drawn = draw_law(rng, w, h)
+    drawn = _draw_law(rng, w, h)
     gt = scene.disparity_left
     depth, amplitude, rig = simulate_tof(
         gt, drawn.tof_size, drawn.variation.model, int(rng.integers(2**31))

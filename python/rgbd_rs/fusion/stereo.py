@@ -56,7 +56,7 @@ def _num_disparities(min_disparity: int, max_disparity: int) -> int:
     return DISPARITY_STEP * max(1, -(-span // DISPARITY_STEP))
 
 
-def max_search(width: int, min_disparity: int = 0, block_size: int = BLOCK_SIZE) -> int:
+def _max_search(width: int, min_disparity: int = 0, block_size: int = BLOCK_SIZE) -> int:
     """The largest ``max_disparity`` :func:`sgm` accepts on an image ``width`` pixels wide.
 
     OpenCV needs ``width - (min_disparity + numDisparities) > block_size // 2`` with
@@ -74,12 +74,12 @@ def search_range(tof_disparity: npt.ArrayLike, width: int | None = None) -> int:
     The map is median-filtered over ``RANGE_MEDIAN_WINDOW`` x ``RANGE_MEDIAN_WINDOW`` pixels
     (NaN counts as no disparity), its ``RANGE_PERCENTILE``-th percentile times ``RANGE_MARGIN``
     is rounded up, and the result is clamped to ``[DISPARITY_STEP, MAX_RANGE_FRACTION x width]``
-    and to :func:`max_search` (what OpenCV SGBM allows on that width). A ToF map without a
+    and to :func:`_max_search` (what OpenCV SGBM allows on that width). A ToF map without a
     valid pixel gives the upper clamp. ``width`` defaults to the map's.
     """
     d = np.asarray(_validate.array("tof_disparity", tof_disparity, shape=(None, None)), np.float32)
     w = d.shape[1] if width is None else _validate.integer("width", width, minimum=2)
-    top = max(1, min(w - 1, max_search(w), int(MAX_RANGE_FRACTION * w)))
+    top = max(1, min(w - 1, _max_search(w), int(MAX_RANGE_FRACTION * w)))
     with np.errstate(invalid="ignore"):
         filled = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
     smooth = cv2.medianBlur(filled, RANGE_MEDIAN_WINDOW)
@@ -90,7 +90,7 @@ def search_range(tof_disparity: npt.ArrayLike, width: int | None = None) -> int:
     return int(min(top, max(DISPARITY_STEP, want)))
 
 
-def predict_search_range(sparse_disparity: npt.ArrayLike, width: int | None = None) -> int:
+def _predict_search_range(sparse_disparity: npt.ArrayLike, width: int | None = None) -> int:
     """:func:`search_range` predicted from the ToF disparities splatted onto the reference lattice
     before upsampling (samples ~2 px apart, NaN between them), so SGM can start while the ToF is
     upsampled: the samples are spread by a 3 x 3 grey dilation (filling the gaps between them)
@@ -107,17 +107,17 @@ def predict_search_range(sparse_disparity: npt.ArrayLike, width: int | None = No
     return search_range(np.where(spread > 0, spread, np.nan), width)
 
 
-def same_search(a: int, b: int, min_disparity: int = 0) -> bool:
+def _same_search(a: int, b: int, min_disparity: int = 0) -> bool:
     """Whether :func:`sgm` gives the same map for ``max_disparity`` ``a`` and ``b`` (OpenCV
     searches whole steps of :data:`DISPARITY_STEP`, so only the step count matters)."""
     return _num_disparities(min_disparity, a) == _num_disparities(min_disparity, b)
 
 
-def whole_steps(max_disparity: int, min_disparity: int = 0) -> int:
+def _whole_steps(max_disparity: int, min_disparity: int = 0) -> int:
     """The largest disparity OpenCV SGBM searches for ``max_disparity``: ``min_disparity +
     numDisparities - 1``, with ``numDisparities`` the span rounded up to whole steps of
     :data:`DISPARITY_STEP` (so 15 for 16, 31 for 17..32). Giving the census matcher this range
-    makes its map, like SGBM's, the same for every ``max_disparity`` :func:`same_search` calls
+    makes its map, like SGBM's, the same for every ``max_disparity`` :func:`_same_search` calls
     the same."""
     return min_disparity + _num_disparities(min_disparity, max_disparity) - 1
 
@@ -193,7 +193,7 @@ def sgm(
     bs = _validate.integer("block_size", block_size, minimum=1, maximum=11)
     if bs % 2 == 0:
         raise InvalidArgumentError(f"block_size: got {bs}, expected an odd number")
-    limit = max_search(lft.shape[1], lo, bs)
+    limit = _max_search(lft.shape[1], lo, bs)
     if limit <= lo:
         raise ShapeMismatchError(
             f"left: got an image {lft.shape[1]} px wide, expected at least "
@@ -206,10 +206,10 @@ def sgm(
             f"wide (OpenCV SGBM searches in steps of {DISPARITY_STEP} and needs a "
             f"{bs // 2 + 1} px margin)"
         )
-    return sgbm_disparity(lft, rgt, ref, lo, hi, bs)
+    return _sgbm_disparity(lft, rgt, ref, lo, hi, bs)
 
 
-def sgbm_matcher(lo: int, hi: int, bs: int, mode: int = cv2.STEREO_SGBM_MODE_HH) -> cv2.StereoSGBM:
+def _sgbm_matcher(lo: int, hi: int, bs: int, mode: int = cv2.STEREO_SGBM_MODE_HH) -> cv2.StereoSGBM:
     """OpenCV's SGBM as :func:`sgm` configures it (``mode`` HH by default; benchmarks and the
     stereo evaluation also run 3WAY), arguments unchecked."""
     return cv2.StereoSGBM.create(
@@ -224,7 +224,7 @@ def sgbm_matcher(lo: int, hi: int, bs: int, mode: int = cv2.STEREO_SGBM_MODE_HH)
     )
 
 
-def sgbm_disparity(
+def _sgbm_disparity(
     lft: npt.NDArray[np.uint8],
     rgt: npt.NDArray[np.uint8],
     ref: str,
@@ -235,7 +235,7 @@ def sgbm_disparity(
 ) -> F32:
     """:func:`sgm`'s OpenCV path on checked inputs: the right reference matches the mirrored,
     swapped pair; outputs at ``d <= lo`` are NaN (see :func:`sgm`)."""
-    matcher = sgbm_matcher(lo, hi, bs, mode)
+    matcher = _sgbm_matcher(lo, hi, bs, mode)
     if ref == "left":
         raw = matcher.compute(lft, rgt)
     else:

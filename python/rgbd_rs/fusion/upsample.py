@@ -172,7 +172,7 @@ def tof_to_reference(
     """
     r = rig_arg(rig)
     img = rgb8("image", image, r.reference_camera.size)
-    return densify_tof(reproject_tof(tof_depth, tof_amplitude, r), r, img, labels, radius)
+    return _densify_tof(_reproject_tof(tof_depth, tof_amplitude, r), r, img, labels, radius)
 
 
 @dataclass(frozen=True)
@@ -184,7 +184,9 @@ class SparseToF:
     amplitude: F32
 
 
-def reproject_tof(tof_depth: npt.ArrayLike, tof_amplitude: npt.ArrayLike, rig: object) -> SparseToF:
+def _reproject_tof(
+    tof_depth: npt.ArrayLike, tof_amplitude: npt.ArrayLike, rig: object
+) -> SparseToF:
     """The reprojection step of :func:`tof_to_reference` (warns when no ToF pixel is valid)."""
     r = rig_arg(rig)
     tof_shape = (r.tof.height, r.tof.width)
@@ -207,7 +209,7 @@ def reproject_tof(tof_depth: npt.ArrayLike, tof_amplitude: npt.ArrayLike, rig: o
     return SparseToF(rep.depth, sparse_amp)
 
 
-def densify_tof(
+def _densify_tof(
     sparse: SparseToF,
     rig: object,
     image: npt.ArrayLike,

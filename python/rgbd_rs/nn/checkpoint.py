@@ -67,7 +67,7 @@ def plain(name: str, value: object) -> Any:
     )
 
 
-def package_version() -> str | None:
+def _package_version() -> str | None:
     """``rgbd_rs.__version__``, else the installed distribution's version, else None."""
     import rgbd_rs
 
@@ -108,7 +108,7 @@ def _cuda_started() -> bool:
     return bool(torch.cuda.is_initialized())  # type: ignore[no-untyped-call]
 
 
-def capture_rng() -> dict[str, Any]:
+def _capture_rng() -> dict[str, Any]:
     """The states of Python's, numpy's (legacy global) and torch's (CPU and CUDA) generators."""
     state = np.random.get_state(legacy=True)  # noqa: NPY002 - the global one datasets use
     assert isinstance(state, tuple)  # legacy=True always returns the tuple form
@@ -125,8 +125,8 @@ def capture_rng() -> dict[str, Any]:
     }
 
 
-def restore_rng(state: Mapping[str, Any]) -> None:
-    """Inverse of :func:`capture_rng` (tensors may have been mapped to another device)."""
+def _restore_rng(state: Mapping[str, Any]) -> None:
+    """Inverse of :func:`_capture_rng` (tensors may have been mapped to another device)."""
     random.setstate(state["python"])
     np_state = state["numpy"]
     np.random.set_state(  # noqa: NPY002
@@ -212,7 +212,7 @@ def same(a: object, b: object) -> bool:
     return a == b
 
 
-def resume_differences(
+def _resume_differences(
     ckpt: Checkpoint,
     *,
     arch: str,
@@ -291,6 +291,8 @@ def load_checkpoint(
     architecture or missing normalisation raise :class:`RgbdError` naming the file and what
     differs. Tensors are mapped to ``map_location``.
     """
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise InvalidArgumentError(f"path: got {path!r}, expected a checkpoint file path")
     path = Path(path)
     if not path.is_file():
         raise RgbdError(f"{path}: checkpoint file not found")
@@ -315,6 +317,19 @@ def load_checkpoint(
     missing = [k for k in _REQUIRED if k not in data]
     if missing:
         raise RgbdError(f"{path}: checkpoint is missing {missing}")
+    state = data["model_state"]
+    if not isinstance(state, Mapping):
+        raise RgbdError(f"{path}: model_state is {type(state).__name__}, expected tensors by name")
+    bad = [
+        k
+        for k, v in state.items()
+        if isinstance(v, torch.Tensor) and v.is_floating_point() and not torch.isfinite(v).all()
+    ]
+    if bad:
+        raise RgbdError(
+            f"{path}: the weights {bad[:3]}{' …' if len(bad) > 3 else ''} hold NaN or inf "
+            "(a diverged training run?); expected finite weights"
+        )
     if arch is not None and data["arch"] != arch:
         raise RgbdError(f"{path}: checkpoint of architecture {data['arch']!r}, expected {arch!r}")
     norm = data.get("normalisation")

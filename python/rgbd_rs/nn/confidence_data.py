@@ -27,7 +27,7 @@ from torch.utils.data import Dataset
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import views
-from rgbd_rs.fusion.clues import Clues, compute_clues, normalise, scene_sigmas, target_confidence
+from rgbd_rs.fusion.clues import Clues, _scene_sigmas, _target_confidence, compute_clues, normalise
 from rgbd_rs.fusion.evaluate import ORACLE_T, Sample
 from rgbd_rs.io import read_npz, write_npz
 
@@ -35,7 +35,7 @@ from rgbd_rs.io import read_npz, write_npz
 TARGET_T = ORACLE_T
 
 
-def scene_arrays(s: Sample, matcher: str = "opencv") -> dict[str, np.ndarray]:
+def _scene_arrays(s: Sample, matcher: str = "opencv") -> dict[str, np.ndarray]:
     """Clues, targets and per-scene sigma of one sample (what :func:`prepare` caches), with the
     stereo disparities of ``matcher`` (``"census"`` or ``"opencv"``)."""
     from rgbd_rs.fusion import LcParams, fuse
@@ -60,14 +60,14 @@ def scene_arrays(s: Sample, matcher: str = "opencv") -> dict[str, np.ndarray]:
     )
     target = np.stack(
         [
-            target_confidence(tof_d, s.gt_disparity, TARGET_T),
-            target_confidence(out.stereo_disparity, s.gt_disparity, TARGET_T),
+            _target_confidence(tof_d, s.gt_disparity, TARGET_T),
+            _target_confidence(out.stereo_disparity, s.gt_disparity, TARGET_T),
         ]
     )
     return {
         "clues": clues.maps.astype(np.float16),
         "target": target.astype(np.float16),
-        "sigmas": scene_sigmas(clues),
+        "sigmas": _scene_sigmas(clues),
     }
 
 
@@ -95,7 +95,7 @@ def prepare(
             continue
         path = folder / f"{s.name}.npz"
         if not path.is_file():
-            write_npz(path, scene_arrays(s, matcher))
+            write_npz(path, _scene_arrays(s, matcher))
         written.append(path)
     return written
 
@@ -116,11 +116,11 @@ def load_scenes(paths: Sequence[Path]) -> list[dict[str, np.ndarray]]:
     return scenes
 
 
-def sigmas_of(scenes: Sequence[dict[str, np.ndarray]]) -> npt.NDArray[np.float32]:
+def _sigmas_of(scenes: Sequence[dict[str, np.ndarray]]) -> npt.NDArray[np.float32]:
     """Eq. 3.3-3.6's sigma over the training scenes."""
-    from rgbd_rs.fusion.clues import training_sigmas
+    from rgbd_rs.fusion.clues import _training_sigmas
 
-    return training_sigmas(np.stack([s["sigmas"] for s in scenes]))
+    return _training_sigmas(np.stack([s["sigmas"] for s in scenes]))
 
 
 def retarget(target: npt.NDArray[np.float32], t: float) -> npt.NDArray[np.float32]:
@@ -237,7 +237,7 @@ class TileDataset(Dataset[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]):
         return _item(self.scenes[k], self.sigmas, y, x, self.tile, 0, self.target_t)
 
 
-def masked_mse(output: torch.Tensor, batch: Sequence[torch.Tensor]) -> torch.Tensor:
+def _masked_mse(output: torch.Tensor, batch: Sequence[torch.Tensor]) -> torch.Tensor:
     """§3.7's MSE between the estimated and target confidences, over defined pixels only."""
     _, target, mask = batch[0], batch[1], batch[2]
     diff = (output - target) * mask
@@ -245,7 +245,7 @@ def masked_mse(output: torch.Tensor, batch: Sequence[torch.Tensor]) -> torch.Ten
 
 
 class DisagreementMSE:
-    """:func:`masked_mse` with the pixels where the two sources disagree weighted ``1 + weight``.
+    """:func:`_masked_mse` with the pixels where the two sources disagree weighted ``1 + weight``.
 
     A pixel disagrees when both targets are defined and the sources' errors differ by more than
     ``DISAGREE_PX`` (``|t_T - t_S| > DISAGREE_PX / target_t``): there the two confidences decide

@@ -125,9 +125,9 @@ def train_on_caches(
         DisagreementMSE,
         PatchDataset,
         TileDataset,
+        _masked_mse,
+        _sigmas_of,
         load_scenes,
-        masked_mse,
-        sigmas_of,
     )
     from rgbd_rs.nn.train import TrainConfig, seed_everything, train
 
@@ -139,7 +139,7 @@ def train_on_caches(
         raise RgbdError(f"matcher: got {matcher!r}, expected one of {MATCHERS}")
     out = Path(out)
     scenes = load_scenes(sorted(train_files))
-    sig = sigmas_of(scenes)
+    sig = _sigmas_of(scenes)
     train_set = PatchDataset(
         scenes,
         sig,
@@ -160,7 +160,7 @@ def train_on_caches(
 
         load_checkpoint(init, arch=ARCH).load_weights(model)
     loss = (
-        DisagreementMSE(r.disagreement_weight, r.target_t) if r.disagreement_weight else masked_mse
+        DisagreementMSE(r.disagreement_weight, r.target_t) if r.disagreement_weight else _masked_mse
     )
     result = train(
         model,

@@ -3,7 +3,7 @@
 Input: the 9 cues of eq. 4.2 per pixel (R, G, B, HHA, fitting error f, principal curvatures c1,
 c2; :func:`rgbd_rs.segmentation.cues.semantic_cues`), at 320 x 240 in the thesis. Layers:
 
-1. local contrast normalisation of each input channel on its own (:class:`LocalContrastNorm`,
+1. local contrast normalisation of each input channel on its own (:class:`_LocalContrastNorm`,
    the formula of :func:`rgbd_rs.shapes.views.local_contrast_normalize`);
 2. three blocks of three 7 x 7 convolutions ("same" zero padding), each followed by tanh except
    the very last one; 90, 128 and 256 filters; the first convolution is grouped by input
@@ -52,10 +52,7 @@ __all__ = [
     "ARCH",
     "CUE_NAMES",
     "N_CUES",
-    "GroupedConv",
-    "LocalContrastNorm",
     "SemanticNet",
-    "block_filters",
     "class_probabilities",
     "lcn_window",
 ]
@@ -94,7 +91,7 @@ def lcn_window(width: int) -> int:
     return max(3, k if k % 2 else k + 1)
 
 
-def block_filters(width: int) -> tuple[int, int, int]:
+def _block_filters(width: int) -> tuple[int, int, int]:
     """Filters of the three blocks for ``width`` (the last block's filters; 256 -> 90, 128,
     256). The first block is a multiple of the 9 cue channels (its first layer is grouped)."""
     w = _validate.integer("width", width, minimum=1, maximum=4096)
@@ -103,7 +100,7 @@ def block_filters(width: int) -> tuple[int, int, int]:
     return N_CUES * per_channel, second, w
 
 
-class LocalContrastNorm(nn.Module):
+class _LocalContrastNorm(nn.Module):
     """Local contrast normalisation of each channel on its own (no parameters): with ``B`` the
     mean over the ``window x window`` box of the pixels inside the image,
     ``v = x - B(x)``, ``sigma = sqrt(B(v^2))``, ``y = v / max(sigma, mean(sigma), eps)`` (the
@@ -128,7 +125,11 @@ class LocalContrastNorm(nn.Module):
         return v / torch.maximum(sigma, floor)
 
 
-class GroupedConv(nn.Module):
+#: The largest convolution kernel side :class:`_GroupedConv` takes.
+MAX_KERNEL = 31
+
+
+class _GroupedConv(nn.Module):
     """A convolution whose ``out_channels`` filters are split into ``groups`` groups, group i
     seeing input channel group i only: the weights of ``nn.Conv2d(..., groups=groups)``
     (``out x in/groups x k x k``), run as one dense convolution with the block-diagonal weight
@@ -136,6 +137,10 @@ class GroupedConv(nn.Module):
 
     def __init__(self, in_channels: int, out_channels: int, kernel: int, groups: int) -> None:
         super().__init__()
+        in_channels = _validate.integer("in_channels", in_channels, minimum=1)
+        out_channels = _validate.integer("out_channels", out_channels, minimum=1)
+        kernel = _validate.integer("kernel", kernel, minimum=1, maximum=MAX_KERNEL)
+        groups = _validate.integer("groups", groups, minimum=1)
         if in_channels % groups or out_channels % groups:
             raise InvalidArgumentError(
                 f"groups: got {groups}, expected a divisor of {in_channels} and {out_channels}"
@@ -165,7 +170,7 @@ class GroupedConv(nn.Module):
 
 def _conv(c_in: int, c_out: int, groups: int = 1) -> nn.Module:
     if groups > 1:
-        return GroupedConv(c_in, c_out, KERNEL, groups)
+        return _GroupedConv(c_in, c_out, KERNEL, groups)
     return nn.Conv2d(c_in, c_out, KERNEL, padding=KERNEL // 2)
 
 
@@ -173,7 +178,7 @@ class SemanticNet(nn.Module):
     """Fig. 4.3's ConvNet: ``N x 9 x H x W`` cues -> ``N x n_classes x H/4 x W/4`` logits.
 
     ``n_classes`` (14 in the thesis: NYUv2's 13 classes and unlabeled/unknown as class 0),
-    ``width`` (the last block's filters, 256 in the thesis; see :func:`block_filters`),
+    ``width`` (the last block's filters, 256 in the thesis; see :func:`_block_filters`),
     ``lcn_window`` (odd pixels; default :func:`lcn_window` of the thesis' 320-pixel width).
     """
 
@@ -192,8 +197,8 @@ class SemanticNet(nn.Module):
             raise InvalidArgumentError(
                 f"lcn_window: got {lcn_window}, expected an odd number of pixels"
             )
-        self.filters = block_filters(self.width)
-        self.lcn = LocalContrastNorm(self.lcn_window)
+        self.filters = _block_filters(self.width)
+        self.lcn = _LocalContrastNorm(self.lcn_window)
         layers: list[nn.Module] = []
         c = N_CUES
         for b, f in enumerate(self.filters):
@@ -209,7 +214,7 @@ class SemanticNet(nn.Module):
         self.features = nn.Sequential(*layers)
         self.classifier = nn.Conv2d(c, self.n_classes, 1, bias=False)
         for m in self.modules():
-            if isinstance(m, (nn.Conv2d, GroupedConv)):
+            if isinstance(m, (nn.Conv2d, _GroupedConv)):
                 nn.init.xavier_uniform_(m.weight, gain=nn.init.calculate_gain("tanh"))
                 if m.bias is not None:
                     nn.init.zeros_(m.bias)

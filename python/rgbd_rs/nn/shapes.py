@@ -13,7 +13,7 @@ bottom views (:data:`CAP_VIEWS`), for depth and for curvature; the three volume 
 independent. The descriptors are concatenated (15 x 128 = 1920 with every representation on) and
 a linear layer **without bias** gives the class scores (softmax + cross-entropy in training).
 
-**Pool sizes adapt to the resolution** (:func:`view_pools`, :func:`volume_pools`): a view of side
+**Pool sizes adapt to the resolution** (:func:`_view_pools`, :func:`_volume_pools`): a view of side
 R is pooled by p, p, p with p = floor(R^(1/4)) (the largest p with p^4 <= R) and then by the side
 that is left, floor(floor(floor(R/p)/p)/p), so the last map is 1 x 1. At the thesis' 320 this is
 4, 4, 4, 5 exactly (Table 5.1); at 64 it is 2, 2, 2, 8 and at 32 it is 2, 2, 2, 4. Volume
@@ -43,12 +43,9 @@ __all__ = [
     "ARCH",
     "REPRESENTATIONS",
     "ShapeNet",
-    "input_shapes",
     "pack",
     "parse_representations",
     "unpack",
-    "view_pools",
-    "volume_pools",
 ]
 
 #: Name stored in checkpoints; a checkpoint of another architecture is refused.
@@ -109,7 +106,7 @@ def parse_representations(value: str | Iterable[str]) -> tuple[str, ...]:
     return tuple(r for r in REPRESENTATIONS if r in names)
 
 
-def view_pools(resolution: int) -> tuple[int, int, int, int]:
+def _view_pools(resolution: int) -> tuple[int, int, int, int]:
     """Max-pool sizes of a view branch for ``resolution`` x ``resolution`` views (see the module
     docstring): ``(p, p, p, rest)``, ``(4, 4, 4, 5)`` at the thesis' 320."""
     r = _validate.integer(
@@ -119,7 +116,7 @@ def view_pools(resolution: int) -> tuple[int, int, int, int]:
     return p, p, p, r // p // p // p
 
 
-def volume_pools(resolution: int) -> tuple[int, int, int, int, int]:
+def _volume_pools(resolution: int) -> tuple[int, int, int, int, int]:
     """Max-pool sizes of a volume branch: 2, 2, 2, 2 and what is left (2 at the thesis' 32)."""
     r = _validate.integer(
         "volume_resolution", resolution, minimum=MIN_VOLUME_RESOLUTION, maximum=MAX_RESOLUTION
@@ -127,7 +124,7 @@ def volume_pools(resolution: int) -> tuple[int, int, int, int, int]:
     return 2, 2, 2, 2, r // 16
 
 
-def input_shapes(
+def _input_shapes(
     representations: Iterable[str], view_resolution: int, volume_resolution: int
 ) -> dict[str, tuple[int, ...]]:
     """The per-shape array shape of each representation (no batch axis)."""
@@ -186,9 +183,9 @@ class ShapeNet(nn.Module):
             maximum=MAX_RESOLUTION,
         )
         self.width = _validate.integer("width", width, minimum=1, maximum=4096)
-        self.shapes = input_shapes(self.representations, self.view_resolution, volume_resolution)
+        self.shapes = _input_shapes(self.representations, self.view_resolution, volume_resolution)
         vf, pf = _scaled(VIEW_FILTERS, self.width), _scaled(VOLUME_FILTERS, self.width)
-        vp, pp = view_pools(self.view_resolution), volume_pools(self.volume_resolution)
+        vp, pp = _view_pools(self.view_resolution), _volume_pools(self.volume_resolution)
         self.branches = nn.ModuleDict()
         n_branches = 0
         for name in self.representations:

@@ -42,13 +42,13 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.nn.checkpoint import (
     Checkpoint,
-    capture_rng,
+    _capture_rng,
+    _package_version,
+    _restore_rng,
+    _resume_differences,
     git_revision,
     load_checkpoint,
-    package_version,
     plain,
-    restore_rng,
-    resume_differences,
     save_checkpoint,
 )
 from rgbd_rs.nn.distributed import Group, is_main_process, setup
@@ -201,7 +201,7 @@ def split(dataset: Dataset[Any], fraction: float, seed: int = 0) -> tuple[Subset
     n = _length("dataset", dataset)
     if n < 2:
         raise InvalidArgumentError(f"dataset: got {n} items, expected at least 2 to split")
-    seed = _validate.integer("seed", seed)
+    seed = _validate.integer("seed", seed, maximum=_validate.MAX_SEED)
     n_val = min(max(round(n * fraction), 1), n - 1)
     order = torch.randperm(n, generator=torch.Generator().manual_seed(seed)).tolist()
     return Subset(dataset, sorted(order[n_val:])), Subset(dataset, sorted(order[:n_val]))
@@ -383,7 +383,7 @@ def _run(
         raise RgbdError(found)
     if found is not None:
         ckpt = found
-        diffs = resume_differences(ckpt, **now, may_change=RESUMABLE_CHANGES)
+        diffs = _resume_differences(ckpt, **now, may_change=RESUMABLE_CHANGES)
         if diffs:
             raise RgbdError(
                 f"{last_path}: cannot resume: " + "; ".join(diffs) + ". Pass resume=False "
@@ -392,7 +392,7 @@ def _run(
         model.load_state_dict(ckpt.model_state)
         opt.load_state_dict(ckpt.optimizer_state)  # type: ignore[arg-type]
         sched.load_state_dict(ckpt.scheduler_state)
-        restore_rng(ckpt.rng_state["ranks"][g.rank])  # type: ignore[index]
+        _restore_rng(ckpt.rng_state["ranks"][g.rank])  # type: ignore[index]
         history, best_val, best_epoch = list(ckpt.history), ckpt.best_val_loss, ckpt.best_epoch
         start_epoch, start_step = ckpt.epoch, ckpt.step
         if main and ckpt.partial:
@@ -406,11 +406,11 @@ def _run(
     if g.world > 1:
         ids = [g.device.index or 0] if g.device.type == "cuda" else None
         net = DistributedDataParallel(model, device_ids=ids)
-    version, revision = package_version(), git_revision()
+    version, revision = _package_version(), git_revision()
 
     def save(epoch: int, step: int, sums: dict[str, float], paths: list[Path]) -> None:
         """Called by every rank (each contributes its RNG state); rank 0 writes ``paths``."""
-        rng = g.gather(capture_rng())
+        rng = g.gather(_capture_rng())
         if not main:
             return
         ckpt = Checkpoint(

@@ -121,7 +121,15 @@ MERGE_GRID: tuple[Params, ...] = tuple(
 
 
 def _depth_channel(depth: F32, weight: float) -> npt.NDArray[np.float64]:
-    return np.nan_to_num(depth.astype(np.float64), nan=0.0) * weight
+    """``weight * depth``, 0 where the depth is missing (NaN, inf or <= 0, as everywhere)."""
+    d = depth.astype(np.float64)
+    return np.where(np.isfinite(d) & (d > 0), d, 0.0) * weight
+
+
+def _pixels(min_size: float) -> int:
+    """A minimum segment size as skimage's C integer: sizes past any image's pixel count
+    (2**31) all mean "one segment" and are clamped there."""
+    return int(min(min_size, _validate.MAX_INT))
 
 
 def felzenszwalb_rgb(*, scale: float, min_size: float) -> Segmenter:
@@ -133,7 +141,7 @@ def felzenszwalb_rgb(*, scale: float, min_size: float) -> Segmenter:
 
     def run(rgb: U8, depth: F32, camera: PinholeCamera) -> Labels:
         return np.asarray(
-            felzenszwalb(rgb, scale=scale, sigma=FELZENSZWALB_SIGMA, min_size=int(min_size))
+            felzenszwalb(rgb, scale=scale, sigma=FELZENSZWALB_SIGMA, min_size=_pixels(min_size))
         )
 
     return run
@@ -155,7 +163,7 @@ def felzenszwalb_rgbd(*, scale: float, min_size: float, depth_weight: float) -> 
         with warnings.catch_warnings():  # "4 channels may not be intended": they are
             warnings.simplefilter("ignore", RuntimeWarning)
             out = felzenszwalb(
-                image / 255.0, scale=scale, sigma=FELZENSZWALB_SIGMA, min_size=int(min_size)
+                image / 255.0, scale=scale, sigma=FELZENSZWALB_SIGMA, min_size=_pixels(min_size)
             )
         return np.asarray(out)
 

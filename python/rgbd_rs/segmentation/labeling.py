@@ -164,7 +164,9 @@ class SemanticLabeler:
         out_size = (h, w) if size is None else size
         device = next(self.net.parameters()).device
         with torch.inference_mode():
-            logits = self.net(torch.nan_to_num(x.to(device, torch.float32)))
+            # Missing cues (NaN, and inf as everywhere) count as 0, as in the cache.
+            x = torch.nan_to_num(x.to(device, torch.float32), nan=0.0, posinf=0.0, neginf=0.0)
+            logits = self.net(x)
             p = class_probabilities(logits, out_size, ignore_index=self.ignore_index)
         arr = np.ascontiguousarray(p.permute(0, 2, 3, 1).cpu().numpy(), dtype=np.float32)
         return arr[0] if single else arr

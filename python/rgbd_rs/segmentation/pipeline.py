@@ -45,7 +45,7 @@ MAX_PLAUSIBLE_MEDIAN_DEPTH_M = 10.0
 MIN_PLAUSIBLE_MEDIAN_DEPTH_M = 0.05
 
 
-def depth_unit_warning(points: npt.NDArray[np.float32]) -> str | None:
+def _depth_unit_warning(points: npt.NDArray[np.float32]) -> str | None:
     """The warning for ``points`` (``H x W x 3`` metres) whose median depth is implausible for
     an RGB-D camera, or None."""
     z = points[..., 2]
@@ -72,13 +72,13 @@ PNG_DEPTH_UNITS_M = (1e-3, 2e-4, 1e-4, 2.5e-4, 1e-2)
 TYPICAL_MEDIAN_DEPTH_M = 2.5
 
 
-def suggested_depth_scale(median_m: float, scale: float) -> float | None:
+def _suggested_depth_scale(median_m: float, scale: float) -> float | None:
     """The common PNG depth unit (:data:`PNG_DEPTH_UNITS_M`) that brings a median depth of
     ``median_m`` metres, read with ``scale`` metres per count, into the plausible range
     nearest :data:`TYPICAL_MEDIAN_DEPTH_M`; None if ``median_m`` is plausible already or no
     common unit makes it so.
 
-    >>> suggested_depth_scale(31.0, 1e-3)  # NYUv2's 0.1 mm counts read as millimetres
+    >>> _suggested_depth_scale(31.0, 1e-3)  # NYUv2's 0.1 mm counts read as millimetres
     0.0001
     """
     if not (median_m > 0 and scale > 0 and np.isfinite(median_m) and np.isfinite(scale)):
@@ -185,7 +185,7 @@ def segment(
     # With the ConvNet, HHA is a cue; its 7x7 normals are the features' normals (computed once).
     hh = None if net is None else hha_details(depth, camera)
     f = features(rgb, depth, camera, normals=None if hh is None else hh.normals)
-    unit = depth_unit_warning(f.points)
+    unit = _depth_unit_warning(f.points)
     if unit is not None:
         warnings.warn(unit, RuntimeWarning, stacklevel=2)
     lap("features")

@@ -200,6 +200,13 @@ class FrameFolder(Sequence[LabeledFrame]):
             )
         if lab.ndim != 2 or lab.dtype != np.uint8:
             raise RgbdError(f"{stem}_label13.png: got {lab.dtype} {lab.shape}, expected uint8")
+        want = (self.camera.height, self.camera.width)
+        for suffix, img in (("rgb", rgb), ("depth", raw), ("label13", lab)):
+            if img.shape[:2] != want:
+                raise RgbdError(
+                    f"{stem}_{suffix}.png: got {img.shape[1]}x{img.shape[0]} pixels, expected "
+                    f"the camera's {want[1]}x{want[0]} (every image of a frame registered to it)"
+                )
         depth = np.where(raw > 0, raw.astype(np.float32) / np.float32(DEPTH_PNG_PER_METRE), np.nan)
         return LabeledFrame(self.names[k], rgb, depth.astype(np.float32), lab, self.camera)
 
@@ -229,7 +236,7 @@ class SyntheticFrames:
         return self.frames[k]
 
 
-def frames_have_splits(  # for the CLI; not in __all__
+def _frames_have_splits(  # for the CLI; not in __all__
     frames: str | os.PathLike[str], camera: PinholeCamera | str | os.PathLike[str] | None = None
 ) -> bool:
     """Whether :func:`open_frames` takes a ``split`` other than ``"all"`` for ``frames``: the
@@ -309,12 +316,23 @@ def _size(name: str, size: object, minimum: int = 1) -> tuple[int, int]:
     return w, h
 
 
+def _no_larger(size: tuple[int, int], hw: tuple[int, ...], what: str) -> None:
+    """Refuse a target ``size`` = (w, h) beyond the ``hw`` maps: pooling would enlarge them."""
+    w, h = size
+    if w > hw[1] or h > hw[0]:
+        raise ShapeMismatchError(
+            f"size: got {w}x{h}, larger than {what} ({hw[1]}x{hw[0]}); expected at most its "
+            "size (the cues are reduced to the network's input, never enlarged)"
+        )
+
+
 def downsample_cues(cues: npt.ArrayLike, size: tuple[int, int]) -> npt.NDArray[np.float32]:
     """``C x H x W`` maps -> ``C x h x w`` (``size`` = (w, h)): each output pixel the mean of
     its source block (torch's adaptive average pooling bins; exact 2 x 2 means at 640 x 480 ->
     320 x 240). Non-finite values count as 0."""
     x = _validate.array("cues", cues, shape=(None, None, None))
     w, h = _size("size", size)
+    _no_larger((w, h), x.shape[1:], "the cue maps")
     x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
     if x.shape[1:] == (h, w):
         return np.ascontiguousarray(x, dtype=np.float32)
@@ -334,6 +352,7 @@ def downsample_labels(
     lab = _validate.array("labels", lab, shape=(None, None), dtype=np.int64)
     n = _validate.integer("n_classes", n_classes, minimum=2, maximum=256)
     w, h = _size("size", size)
+    _no_larger((w, h), lab.shape, "the label image")
     if lab.min() < 0 or lab.max() >= n:
         raise InvalidArgumentError(
             f"labels: got values in [{lab.min()}, {lab.max()}], expected 0..{n - 1}"
@@ -368,7 +387,7 @@ def _cue_function(cues: CueFn | None) -> tuple[CueFn, str]:
     return semantic_cues, "rgbd_rs.segmentation.cues.semantic_cues"
 
 
-def frame_cues(
+def _frame_cues(
     frame: Frame, size: tuple[int, int], cues: CueFn, seed: int
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8]]:
     """One frame's cues (``9 x h x w`` float32, clipped into float16's range) and labels
@@ -388,6 +407,7 @@ def frame_cues(
         raise ShapeMismatchError(
             f"frame {name} label13: got shape {lab.shape}, expected {hw} like its rgb"
         )
+    _no_larger(size, hw, f"frame {name}")
     x = np.asarray(cues(rgb, depth, camera, seed=seed))
     if x.shape != (N_CUES, *hw):
         raise ShapeMismatchError(
@@ -455,9 +475,14 @@ def build_semantic_cache(
     src = source if source is not None else type(frames).__name__
     if not isinstance(src, str):
         raise InvalidArgumentError(f"source: got {src!r}, expected a str")
-    from rgbd_rs.io import bytes_writer, create_once, npy_writer
+    from rgbd_rs.io import _bytes_writer, _create_once, _npy_writer
 
     root = Path(out)
+    if not (root / "meta.json").is_file():
+        # Before the cache exists: a size beyond the frames would enlarge every one of them.
+        first = getattr(frames[0], "rgb", None)
+        if first is not None and np.ndim(first) == 3:
+            _no_larger((w, h), np.shape(first)[:2], f"frame {names[0]}")
     root.mkdir(parents=True, exist_ok=True)
     n = len(names)
     meta = {
@@ -473,11 +498,11 @@ def build_semantic_cache(
     }
     if (root / "meta.json").is_file():
         _check_meta(root, meta, names)
-    create_once(root / "names.json", bytes_writer(json.dumps(names).encode()))
-    create_once(root / "cues.npy", npy_writer((n, N_CUES, h, w), np.float16))
-    create_once(root / "labels.npy", npy_writer((n, h, w), np.uint8))
-    create_once(root / "done.npy", npy_writer((n,), np.uint8))
-    create_once(root / "meta.json", bytes_writer(json.dumps(meta, indent=1).encode()))
+    _create_once(root / "names.json", _bytes_writer(json.dumps(names).encode()))
+    _create_once(root / "cues.npy", _npy_writer((n, N_CUES, h, w), np.float16))
+    _create_once(root / "labels.npy", _npy_writer((n, h, w), np.uint8))
+    _create_once(root / "done.npy", _npy_writer((n,), np.uint8))
+    _create_once(root / "meta.json", _bytes_writer(json.dumps(meta, indent=1).encode()))
     _check_meta(root, meta, names)
     x_all = np.load(root / "cues.npy", mmap_mode="r+", allow_pickle=False)
     y_all = np.load(root / "labels.npy", mmap_mode="r+", allow_pickle=False)
@@ -496,8 +521,10 @@ def build_semantic_cache(
                 got = str(getattr(frame, "name", names[k]))
                 if got != names[k]:
                     raise RgbdError(f"frame {k}: named {got!r}, expected {names[k]!r}")
-                x, y = frame_cues(frame, (w, h), fn, seed)
+                x, y = _frame_cues(frame, (w, h), fn, seed)
             except RgbdError as exc:
+                if str(exc).startswith("size: "):
+                    raise  # a setting every frame shares, not one frame's fault
                 warnings.warn(
                     f"frame {k} ({names[k]}): {exc}; marked failed, skipped", stacklevel=2
                 )

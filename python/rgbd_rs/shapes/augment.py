@@ -12,7 +12,7 @@ Local contrast normalisation and per-map standardisation commute with these move
 to cached, normalised inputs.
 
 A mirror image of a shape (x -> -x, the reflection through the plane x = 0 of its bounding cube)
-is also a permutation of its inputs (:func:`mirror_inputs`, checked the same way): the +x and -x
+is also a permutation of its inputs (:func:`_mirror_inputs`, checked the same way): the +x and -x
 side views swap and every view image is flipped left-right (the +y and -y side views, top and
 bottom included: their image's right is +-x or their view direction is x), the X density profile
 stays and the Y and Z profiles flip left-right. Curvatures are invariant under a reflection of
@@ -22,8 +22,8 @@ the image. Unlike a quarter turn this keeps the front of an aligned ModelNet sha
 Training can draw a random number of quarter turns per shape and step (:class:`RotatedShapes`,
 ``ShapeRecipe(rotate=True)``, ``rgbd train shapes --rotate``) and a random mirror image
 (:class:`AugmentedShapes`, ``ShapeRecipe(mirror=True)``, ``--mirror``); evaluation can average
-the class probabilities over the four turns (:func:`quarter_turns`) and over the mirror image
-(:func:`mirror_pair`), cheap test-time augmentations.
+the class probabilities over the four turns (:func:`_quarter_turns`) and over the mirror image
+(:func:`_mirror_pair`), cheap test-time augmentations.
 """
 
 from __future__ import annotations
@@ -41,10 +41,6 @@ from rgbd_rs.nn.shapes import pack, unpack
 __all__ = [
     "AugmentedShapes",
     "RotatedShapes",
-    "mirror_inputs",
-    "mirror_pair",
-    "quarter_turns",
-    "turn_inputs",
 ]
 
 _SIDES = 4
@@ -99,7 +95,7 @@ def _check_names(inputs: Mapping[str, torch.Tensor]) -> None:
             )
 
 
-def turn_inputs(inputs: Mapping[str, torch.Tensor], turns: int) -> dict[str, torch.Tensor]:
+def _turn_inputs(inputs: Mapping[str, torch.Tensor], turns: int) -> dict[str, torch.Tensor]:
     """The inputs (``{representation: N x ...}``) of the shapes turned by ``turns`` quarter turns
     counter-clockwise about z (seen from above); any integer, taken modulo 4."""
     k = _validate.integer("turns", turns, minimum=-(2**31), maximum=2**31 - 1) % _SIDES
@@ -113,21 +109,21 @@ def turn_inputs(inputs: Mapping[str, torch.Tensor], turns: int) -> dict[str, tor
     return out
 
 
-def mirror_inputs(inputs: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+def _mirror_inputs(inputs: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
     """The inputs (``{representation: N x ...}``) of the shapes mirrored in x (x -> -x)."""
     _check_names(inputs)
     return {name: _MIRRORS[name](value).contiguous() for name, value in inputs.items()}
 
 
-def mirror_pair(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> list[torch.Tensor]:
-    """The packed batch ``x`` and its mirror image (see :func:`mirror_inputs`)."""
-    return [x, pack(mirror_inputs(unpack(x, shapes)), shapes)]
+def _mirror_pair(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> list[torch.Tensor]:
+    """The packed batch ``x`` and its mirror image (see :func:`_mirror_inputs`)."""
+    return [x, pack(_mirror_inputs(unpack(x, shapes)), shapes)]
 
 
-def quarter_turns(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> list[torch.Tensor]:
+def _quarter_turns(x: torch.Tensor, shapes: Mapping[str, tuple[int, ...]]) -> list[torch.Tensor]:
     """The packed batch ``x`` (see :func:`rgbd_rs.nn.shapes.pack`) under 0, 1, 2 and 3 turns."""
     parts = unpack(x, shapes)
-    return [pack(turn_inputs(parts, k), shapes) for k in range(_SIDES)]
+    return [pack(_turn_inputs(parts, k), shapes) for k in range(_SIDES)]
 
 
 class AugmentedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
@@ -162,9 +158,9 @@ class AugmentedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
             return x, y
         parts = unpack(x[None], self.shapes)
         if m:
-            parts = mirror_inputs(parts)
+            parts = _mirror_inputs(parts)
         if k:
-            parts = turn_inputs(parts, k)
+            parts = _turn_inputs(parts, k)
         return pack(parts, self.shapes)[0], y
 
 

@@ -44,7 +44,7 @@ from torch.utils.data import Dataset
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
-from rgbd_rs.io import bytes_writer, create_once, npy_bytes, npy_writer, read_npy, read_npz
+from rgbd_rs.io import _bytes_writer, _create_once, _npy_bytes, _npy_writer, read_npy, read_npz
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.nn.shapes import (
     DEFAULT_REPRESENTATIONS,
@@ -53,7 +53,7 @@ from rgbd_rs.nn.shapes import (
     MIN_VOLUME_RESOLUTION,
     REPRESENTATIONS,
     THESIS_VOLUME_RESOLUTION,
-    input_shapes,
+    _input_shapes,
     parse_representations,
 )
 
@@ -208,13 +208,21 @@ def _read_pcd(p: Path) -> np.ndarray:
         cols = [fields.index(a) for a in ("x", "y", "z")]
     except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
         raise RgbdError(f"{p}: not a PCD point cloud (bad header: {reason(exc)})") from None
+    if n < 0:
+        raise RgbdError(f"{p}: not a PCD point cloud (the header says {n} points)")
     if mode == "ascii":
         try:
             table = np.loadtxt(raw[pos:].decode("ascii").splitlines(), ndmin=2)
             offsets = np.cumsum([0, *counts[:-1]])
-            return table[:n, [offsets[c] for c in cols]]
+            xyz = table[:n, [offsets[c] for c in cols]]
         except (ValueError, UnicodeDecodeError, IndexError) as exc:
             raise RgbdError(f"{p}: not a PCD point cloud (bad ASCII data: {reason(exc)})") from None
+        if len(table) < n:
+            raise RgbdError(
+                f"{p}: not a PCD point cloud (the header says {n} points, found {len(table)}: "
+                "truncated?)"
+            )
+        return xyz
     if mode != "binary":
         raise RgbdError(f"{p}: PCD DATA {mode!r} not supported, expected ascii or binary")
     kinds = {"F": "f", "I": "i", "U": "u"}
@@ -225,6 +233,14 @@ def _read_pcd(p: Path) -> np.ndarray:
                 for i, (s, t, c) in enumerate(zip(sizes, types, counts, strict=True))
             ]
         )
+    except (KeyError, ValueError, TypeError) as exc:
+        raise RgbdError(f"{p}: not a PCD point cloud (bad binary data: {reason(exc)})") from None
+    if len(raw) - pos < n * dtype.itemsize:
+        found = (len(raw) - pos) // max(dtype.itemsize, 1)
+        raise RgbdError(
+            f"{p}: not a PCD point cloud (the header says {n} points, found {found}: truncated?)"
+        )
+    try:
         rec = np.frombuffer(raw, dtype=dtype, count=n, offset=pos)
     except (KeyError, ValueError, TypeError) as exc:
         raise RgbdError(f"{p}: not a PCD point cloud (bad binary data: {reason(exc)})") from None
@@ -281,6 +297,29 @@ class ShapeSource:
         return _validate.integer("index", index, maximum=len(self) - 1)
 
 
+def _labels_and_splits(
+    where: object, labels: np.ndarray, splits: np.ndarray, n_classes: int
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.uint8]]:
+    """A file's per-shape class labels and split codes, checked: integers, labels in
+    ``0..n_classes-1``, splits one of :data:`SPLITS`' codes (0 train, 1 test)."""
+    for key, arr in (("labels", labels), ("splits", splits)):
+        if arr.ndim != 1 or arr.dtype.kind not in "iu":
+            raise RgbdError(
+                f"{where}: {key} of dtype {arr.dtype} and shape {arr.shape}, expected one "
+                "integer per shape"
+            )
+    if labels.size and (labels.min() < 0 or labels.max() >= n_classes):
+        raise RgbdError(
+            f"{where}: labels in [{labels.min()}, {labels.max()}], expected 0..{n_classes - 1} "
+            f"({n_classes} classes)"
+        )
+    codes = sorted(SPLITS.values())
+    if splits.size and not np.isin(splits, codes).all():
+        bad = sorted(set(np.unique(splits).tolist()) - set(codes))
+        raise RgbdError(f"{where}: split codes {bad[:5]}, expected {codes} ({', '.join(SPLITS)})")
+    return labels.astype(np.int64), splits.astype(np.uint8)
+
+
 class PointCloudSet(ShapeSource):
     """A ModelNet point pack (``points`` N x P x 3, ``label``, ``split``, ``classes``, ``name``;
     see the shared data README). A missing array raises :class:`RgbdError` naming the file."""
@@ -298,11 +337,9 @@ class PointCloudSet(ShapeSource):
             raise RgbdError(f"{self.path}: label/split/name lengths differ from points ({n})")
         self.points = pts
         self.classes = tuple(str(c) for c in d["classes"])
-        labels = d["label"].astype(np.int64)
-        if n and (labels.min() < 0 or labels.max() >= len(self.classes)):
-            raise RgbdError(f"{self.path}: labels outside 0..{len(self.classes) - 1}")
-        self.labels = labels
-        self.splits = d["split"].astype(np.uint8)
+        self.labels, self.splits = _labels_and_splits(
+            self.path, d["label"], d["split"], len(self.classes)
+        )
         self.names = tuple(str(x) for x in d["name"])
 
     def load(self, index: int) -> npt.NDArray[np.float32]:
@@ -490,7 +527,7 @@ class InputSpec:
     @property
     def shapes(self) -> dict[str, tuple[int, ...]]:
         """Per-shape array shape of each representation."""
-        return input_shapes(self.representations, self.view_resolution, self.volume_resolution)
+        return _input_shapes(self.representations, self.view_resolution, self.volume_resolution)
 
     def check_available(self) -> None:
         """Raise :class:`RgbdError` when a representation (or LCN) cannot be computed here."""
@@ -702,13 +739,13 @@ def build_cache(
         meta["augmentation"] = augmentation
     if (root / "meta.json").is_file():
         _check_meta(root, meta)
-    create_once(root / "labels.npy", bytes_writer(npy_bytes(src.labels.astype(np.int16))))
-    create_once(root / "splits.npy", bytes_writer(npy_bytes(src.splits)))
-    create_once(root / "names.json", bytes_writer(json.dumps(list(src.names)).encode()))
+    _create_once(root / "labels.npy", _bytes_writer(_npy_bytes(src.labels.astype(np.int16))))
+    _create_once(root / "splits.npy", _bytes_writer(_npy_bytes(src.splits)))
+    _create_once(root / "names.json", _bytes_writer(json.dumps(list(src.names)).encode()))
     for name, shape in s.shapes.items():
-        create_once(root / f"{name}.npy", npy_writer((n, *shape), np.float16))
-    create_once(root / "done.npy", npy_writer((n,), np.uint8))
-    create_once(root / "meta.json", bytes_writer(json.dumps(meta, indent=1).encode()))
+        _create_once(root / f"{name}.npy", _npy_writer((n, *shape), np.float16))
+    _create_once(root / "done.npy", _npy_writer((n,), np.uint8))
+    _create_once(root / "meta.json", _bytes_writer(json.dumps(meta, indent=1).encode()))
     _check_meta(root, meta)
     arrays = {
         name: np.load(root / f"{name}.npy", mmap_mode="r+", allow_pickle=False) for name in s.shapes
@@ -805,8 +842,12 @@ class ShapeCache:
             n = int(meta["count"])
         except (KeyError, TypeError, ValueError, RgbdError) as exc:
             raise RgbdError(f"{meta_path}: incomplete or invalid cache metadata ({exc})") from None
-        self.labels = read_npy(self.path / "labels.npy").astype(np.int64)
-        self.splits = read_npy(self.path / "splits.npy").astype(np.uint8)
+        self.labels, self.splits = _labels_and_splits(
+            self.path,
+            read_npy(self.path / "labels.npy"),
+            read_npy(self.path / "splits.npy"),
+            len(self.classes),
+        )
         names = json.loads((self.path / "names.json").read_text())
         self.names = tuple(str(x) for x in names)
         if not (len(self.labels) == len(self.splits) == len(self.names) == n):

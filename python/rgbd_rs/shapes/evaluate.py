@@ -21,8 +21,8 @@ import torch
 from tqdm import tqdm
 
 from rgbd_rs import _validate
-from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.shapes.augment import mirror_pair, quarter_turns
+from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
+from rgbd_rs.shapes.augment import _mirror_pair, _quarter_turns
 from rgbd_rs.shapes.classify import ShapeClassifier
 from rgbd_rs.shapes.dataset import ShapeCache
 
@@ -68,6 +68,32 @@ class ShapeEvaluation:
     turns: bool = False
     #: True when probabilities were averaged over the shape and its mirror image (x -> -x).
     mirror: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.classes, tuple) or not all(isinstance(c, str) for c in self.classes):
+            raise InvalidArgumentError(
+                f"classes: got {self.classes!r}, expected a tuple of class names"
+            )
+        k = len(self.classes)
+        m = _validate.asarray("confusion", self.confusion)
+        if m.shape != (k, k):
+            raise ShapeMismatchError(
+                f"confusion: got shape {m.shape}, expected ({k}, {k}) for {k} classes"
+            )
+        if m.dtype.kind not in "iuf" or (
+            m.size
+            and not (
+                np.isfinite(m).all()
+                and (m >= 0).all()
+                and (m <= 2**62).all()
+                and (m == np.round(m)).all()
+            )
+        ):
+            raise InvalidArgumentError(
+                "confusion: got values that are not counts (negative, fractional, NaN or inf), "
+                "expected non-negative whole numbers"
+            )
+        object.__setattr__(self, "confusion", m.astype(np.int64))
 
     @property
     def count(self) -> int:
@@ -223,9 +249,9 @@ def evaluate(
     bar = tqdm(total=len(data), desc="evaluate", unit="shape", disable=True if quiet else None)
     with bar:  # closed on an exception too
         for x, y in loader:
-            views = mirror_pair(x, shapes) if mirror else [x]
+            views = _mirror_pair(x, shapes) if mirror else [x]
             if turns:
-                views = [t for v in views for t in quarter_turns(v, shapes)]
+                views = [t for v in views for t in _quarter_turns(v, shapes)]
             probs = sum(np.asarray(clf.probabilities_of_inputs(v)) for v in views)
             pred = np.asarray(probs).argmax(axis=1)
             np.add.at(confusion, (y.numpy(), pred), 1)

@@ -202,7 +202,10 @@ def _options(
         background, (int, float, np.integer, np.floating)
     ):
         raise InvalidArgumentError(f"background: got {background!r}, expected a number or nan")
-    bg = float(background)
+    try:
+        bg = float(background)
+    except OverflowError:  # an int beyond the float range, e.g. 2**1100
+        bg = math.inf
     if math.isinf(bg) or (math.isnan(bg) and lcn):
         raise InvalidArgumentError(
             f"background: got {bg}, expected a finite number (nan only with lcn=False)"
