@@ -218,10 +218,10 @@ def main() -> None:
         # on them).
         import torch
 
-        from rgbd_rs.fusion.clues import compute_clues, normalise
+        from rgbd_rs.fusion.clues import _normalise, compute_clues
         from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
 
-        clues = normalise(
+        clues = _normalise(
             compute_clues(s.right, s.left, tof.disparity, tof.amplitude, st), np.ones(4, np.float32)
         )
         shipped = ConfidenceEstimator.load().net.width

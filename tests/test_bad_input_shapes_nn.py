@@ -24,13 +24,13 @@ from rgbd_rs.nn.shapes import (
     ARCH,
     ShapeNet,
     _input_shapes,
+    _parse_representations,
     _view_pools,
     _volume_pools,
     pack,
-    parse_representations,
     unpack,
 )
-from rgbd_rs.shapes.classify import ShapeClassifier, classify, to_z_up, weights_path
+from rgbd_rs.shapes.classify import ShapeClassifier, _weights_path, classify, to_z_up
 from rgbd_rs.shapes.dataset import (
     InputSpec,
     OffTree,
@@ -159,14 +159,14 @@ ALL_CASES: list[Case] = [
         r"^arch_config: got \['width'\]",
     ),
     Case(
-        "parse_representations",
-        lambda: parse_representations("depth,depth"),
+        "_parse_representations",
+        lambda: _parse_representations("depth,depth"),
         ARG,
         r"^representations: got \['depth', 'depth'\]",
     ),
     Case(
-        "parse_representations",
-        lambda: parse_representations(3),
+        "_parse_representations",
+        lambda: _parse_representations(3),
         ARG,
         r"^representations: got 3",
         "type",
@@ -595,7 +595,7 @@ ALL_CASES: list[Case] = [
         "dataset",
     ),
     Case("classify", lambda: classify(P, checkpoint=3), ARG, r"^checkpoint: got 3", "type"),  # type: ignore[arg-type]
-    Case("weights_path", lambda: weights_path("modelnet20"), ARG, r"^dataset: got 'modelnet20'"),
+    Case("_weights_path", lambda: _weights_path("modelnet20"), ARG, r"^dataset: got 'modelnet20'"),
     Case("evaluate", lambda: evaluate(TMP / "garbage.pt", CACHE), RgbdError, r"garbage\.pt"),
     Case("evaluate", lambda: evaluate(CLF, CACHE, split="val"), ARG, r"^split: got 'val'", "split"),
     Case(

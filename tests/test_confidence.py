@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
-from rgbd_rs.fusion.clues import Clues, _target_confidence, compute_clues, normalise
+from rgbd_rs.fusion.clues import Clues, _normalise, _target_confidence, compute_clues
 from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
 from rgbd_rs.nn.confidence_data import PatchDataset, TileDataset, _masked_mse
 from rgbd_rs.nn.train import TrainConfig, train
@@ -54,10 +54,10 @@ def test_nan_never_reaches_the_network() -> None:
     amp = np.ones_like(d)
     c = compute_clues(right, left, d, amp, d, reference="right")
     assert not c.valid[1, :10].any()
-    x = normalise(c, [0.1, 2.0, 2.0, 0.5])
+    x = _normalise(c, [0.1, 2.0, 2.0, 0.5])
     assert np.isfinite(x).all() and (x[1, :10] == 0).all()
     with pytest.raises(InvalidArgumentError, match="sigmas"):
-        normalise(c, [0.1, 0.0, 2.0, 0.5])
+        _normalise(c, [0.1, 0.0, 2.0, 0.5])
     with pytest.raises(ShapeMismatchError, match="tof_disparity"):
         compute_clues(right, left, d[:5], amp, d)
 

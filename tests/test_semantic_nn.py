@@ -353,9 +353,9 @@ def test_shipped_weights_label_a_real_frame_with_holes() -> None:
     the 13 real classes (holes are labeled from the colour cues, no crash)."""
     from rgbd_rs.data.nyuv2 import NYUV2_CAMERA, load_nyuv2_frame
     from rgbd_rs.data.paths import data_root
-    from rgbd_rs.segmentation.labeling import weights_path
+    from rgbd_rs.segmentation.labeling import _weights_path
 
-    file = weights_path()
+    file = _weights_path()
     if not file.is_file():
         pytest.skip(f"{file} not shipped yet")
     assert file.stat().st_size < 5_000_000

@@ -17,10 +17,10 @@ from rgbd_rs.nn.shapes import (
     SIDE_VIEWS,
     ShapeNet,
     _input_shapes,
+    _parse_representations,
     _view_pools,
     _volume_pools,
     pack,
-    parse_representations,
     unpack,
 )
 from rgbd_rs.nn.train import TrainConfig
@@ -107,8 +107,8 @@ def test_volume_branches_are_independent() -> None:
 
 
 def test_representations_switch_branches_off() -> None:
-    assert parse_representations("volume, depth") == ("depth", "volume")
-    assert parse_representations("combined") == ("depth", "volume", "curvature")
+    assert _parse_representations("volume, depth") == ("depth", "volume")
+    assert _parse_representations("combined") == ("depth", "volume", "curvature")
     for reps, n in (
         (("depth",), 6),
         (("volume",), 3),

@@ -22,7 +22,7 @@ from tqdm import tqdm
 from rgbd_rs.data.nyuv2 import LABEL13_NAMES, load_nyuv2_frame, nyuv2_frames
 from rgbd_rs.segmentation import segment, segment_classes
 from rgbd_rs.segmentation.refine import POOLINGS
-from rgbd_rs.segmentation.semantic_stage import resolve_labeler
+from rgbd_rs.segmentation.semantic_stage import _resolve_labeler
 
 #: The train frames the shipped network's fine-tuning validated on (seeded 20 % split).
 HELD_OUT_TRAIN = (16, 17, 35, 36, 38)
@@ -45,7 +45,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--segments", type=int, default=230, help="normalized-cuts clusters (230)")
     args = ap.parse_args()
-    net = resolve_labeler("auto")
+    net = _resolve_labeler("auto")
     groups = {
         "test (25)": list(nyuv2_frames("test")),
         "held-out train (5)": list(HELD_OUT_TRAIN),

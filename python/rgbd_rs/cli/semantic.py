@@ -151,12 +151,12 @@ def _score(sub: argparse._SubParsersAction[Parser]) -> None:
 
 
 def run_score(args: argparse.Namespace) -> int:
-    from rgbd_rs.segmentation.labeling import weights_path
+    from rgbd_rs.segmentation.labeling import _weights_path
     from rgbd_rs.segmentation.semantic_data import SemanticCache
     from rgbd_rs.segmentation.semantic_train import score
 
     cache = named("--cache", lambda: SemanticCache(args.cache))
-    ckpt = args.checkpoint if args.checkpoint is not None else weights_path()
+    ckpt = args.checkpoint if args.checkpoint is not None else _weights_path()
     res = named("--checkpoint", lambda: score(ckpt, cache, device=args.device))
     print(f"{ckpt} on {args.cache} ({len(cache.indices())} frames): {res.summary()}")
     for name, acc in zip(res.classes, res.per_class, strict=True):

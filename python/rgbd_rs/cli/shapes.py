@@ -32,10 +32,10 @@ def register(commands: Commands) -> None:
 
 def _representations(text: str) -> tuple[str, ...]:
     from rgbd_rs.errors import RgbdError
-    from rgbd_rs.nn.shapes import parse_representations
+    from rgbd_rs.nn.shapes import _parse_representations
 
     try:
-        return parse_representations(text)
+        return _parse_representations(text)
     except RgbdError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 

@@ -121,7 +121,7 @@ class CensusMatch:
     second: F32 | None
 
 
-def grey(image: npt.ArrayLike, name: str = "image") -> npt.NDArray[np.uint8]:
+def _grey(image: npt.ArrayLike, name: str = "image") -> npt.NDArray[np.uint8]:
     """A C-contiguous uint8 grey image of an RGB (or already grey) uint8 image."""
     arr = image8(name, image)
     if arr.ndim == 2:
@@ -174,8 +174,8 @@ def census_match(
             f"max_disparity: got {hi}, expected a search whose cost volume ({w} x {h} x "
             f"{hi - lo + 1}) holds at most {_rgbd_rs.MAX_ELEMENTS} elements"
         )
-    lft = grey(raw, "left")
-    rgt = grey(raw_r, "right")
+    lft = _grey(raw, "left")
+    rgt = _grey(raw_r, "right")
     if params is None:
         params = CensusParams()
     elif not isinstance(params, CensusParams):

@@ -125,7 +125,7 @@ def _training_sigmas(per_scene: npt.ArrayLike) -> F32:
     return np.asarray(sig, dtype=np.float32)
 
 
-def normalise(clues: Clues, sigmas: npt.ArrayLike) -> F32:
+def _normalise(clues: Clues, sigmas: npt.ArrayLike) -> F32:
     """``4 x H x W`` network input: each clue divided by its sigma, invalid pixels set to 0."""
     sig = _validate.array("sigmas", sigmas, shape=(len(NAMES),), finite=True)
     if np.any(sig <= 0):

@@ -38,7 +38,7 @@ FORMAT = "rgbd_rs.checkpoint/1"
 _PLAIN_SCALARS = (str, int, float, bool, type(None))
 
 
-def plain(name: str, value: object) -> Any:
+def _plain(name: str, value: object) -> Any:
     """Check that ``value`` holds only types a ``weights_only`` load accepts; return a copy.
 
     Numpy scalars become Python numbers; other types (numpy arrays, objects) raise an
@@ -55,10 +55,10 @@ def plain(name: str, value: object) -> Any:
         for key, item in value.items():
             if not isinstance(key, str):
                 raise InvalidArgumentError(f"{name}: got key {key!r}, expected str keys")
-            out[key] = plain(f"{name}[{key!r}]", item)
+            out[key] = _plain(f"{name}[{key!r}]", item)
         return out
     if isinstance(value, (list, tuple)):
-        items = [plain(f"{name}[{i}]", item) for i, item in enumerate(value)]
+        items = [_plain(f"{name}[{i}]", item) for i, item in enumerate(value)]
         return items if isinstance(value, list) else tuple(items)
     raise InvalidArgumentError(
         f"{name}: got {type(value).__name__}, expected plain values only (dict with str keys, "
@@ -195,7 +195,7 @@ class Checkpoint:
             ) from None
 
 
-def same(a: object, b: object) -> bool:
+def _same(a: object, b: object) -> bool:
     """Equality of plain values that compares tensors by value (``==`` on tensors is ambiguous)."""
     if isinstance(a, torch.Tensor) or isinstance(b, torch.Tensor):
         return (
@@ -206,9 +206,9 @@ def same(a: object, b: object) -> bool:
             and torch.equal(a.cpu(), b.cpu())
         )
     if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
     return a == b
 
 
@@ -231,7 +231,7 @@ def _resume_differences(
     for part, new in parts.items():
         old = getattr(ckpt, part)
         for key in sorted(set(old) | set(new)):
-            if (part == "config" and key in may_change) or same(old.get(key), new.get(key)):
+            if (part == "config" and key in may_change) or _same(old.get(key), new.get(key)):
                 continue
             shown = "" if part == "normalisation" else f": {old.get(key)!r} -> {new.get(key)!r}"
             out.append(f"{part}[{key!r}] differs{shown}")

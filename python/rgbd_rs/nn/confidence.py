@@ -203,7 +203,7 @@ class ConfidenceEstimator:
     ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
         """``(P_T, P_S)`` on the reference camera, 0 where the source has no disparity
         (``P_S`` raised to :attr:`stereo_power`)."""
-        from rgbd_rs.fusion.clues import compute_clues, normalise
+        from rgbd_rs.fusion.clues import _normalise, compute_clues
 
         clues = compute_clues(
             reference_image,
@@ -213,7 +213,7 @@ class ConfidenceEstimator:
             stereo_disparity,
             reference=reference,
         )
-        p_t, p_s = predict(self.net, normalise(clues, self.sigmas))
+        p_t, p_s = predict(self.net, _normalise(clues, self.sigmas))
         p_t = np.where(np.isfinite(clues.maps[1]), p_t, 0).astype(np.float32)
         weighted = np.where(np.isfinite(clues.maps[2]), p_s, 0) ** self.stereo_power
         return p_t, weighted.astype(np.float32)

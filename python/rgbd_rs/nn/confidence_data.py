@@ -27,7 +27,7 @@ from torch.utils.data import Dataset
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import views
-from rgbd_rs.fusion.clues import Clues, _scene_sigmas, _target_confidence, compute_clues, normalise
+from rgbd_rs.fusion.clues import Clues, _normalise, _scene_sigmas, _target_confidence, compute_clues
 from rgbd_rs.fusion.evaluate import ORACLE_T, Sample
 from rgbd_rs.io import read_npz, write_npz
 
@@ -151,7 +151,7 @@ def _item(
     target_t: float,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     clues = Clues(scene["clues"][:, y : y + p, x : x + p].astype(np.float32))
-    inp = normalise(clues, sig)
+    inp = _normalise(clues, sig)
     tgt = retarget(scene["target"][:, y : y + p, x : x + p].astype(np.float32), target_t)
     mask = np.isfinite(tgt)
     tgt = np.where(mask, tgt, 0)

@@ -1,7 +1,7 @@
 """The process group of a training run: one process, or one of ``torchrun``'s processes.
 
 ``torchrun`` sets ``WORLD_SIZE``, ``RANK``, ``LOCAL_RANK``, ``MASTER_ADDR`` and ``MASTER_PORT``;
-with ``WORLD_SIZE > 1`` :func:`setup` initialises the default process group from them (gloo on
+with ``WORLD_SIZE > 1`` :func:`_setup` initialises the default process group from them (gloo on
 CPU, nccl on CUDA, each process on GPU ``LOCAL_RANK``) unless the caller already did.
 """
 
@@ -27,13 +27,13 @@ def is_main_process() -> bool:
 
 
 @dataclass(frozen=True)
-class Group:
+class _Group:
     """This process's place in the run; collectives are no-ops in a single process."""
 
     rank: int
     world: int
     device: torch.device
-    #: setup() initialised the process group, so close() destroys it.
+    #: _setup() initialised the process group, so close() destroys it.
     owns: bool = False
 
     def sum(self, values: list[float]) -> list[float]:
@@ -70,7 +70,7 @@ class Group:
             dist.barrier()
 
     def close(self) -> None:
-        """Destroy the process group if :func:`setup` created it."""
+        """Destroy the process group if :func:`_setup` created it."""
         if self.owns and dist.is_initialized():
             dist.destroy_process_group()
 
@@ -87,7 +87,7 @@ def _env_int(name: str, default: int) -> int:
         raise RgbdError(f"environment variable {name}: got {raw!r}, expected an integer") from None
 
 
-def setup(device: str) -> Group:
+def _setup(device: str) -> _Group:
     """Resolve ``device`` (``"auto"``, ``"cpu"``, ``"cuda"``, ``"cuda:N"``) and join the process
     group when ``WORLD_SIZE > 1``."""
     world = _env_int("WORLD_SIZE", 1)
@@ -100,7 +100,7 @@ def setup(device: str) -> Group:
     if dev.type == "cuda":
         torch.cuda.set_device(dev)
     if world <= 1:
-        return Group(0, 1, dev)
+        return _Group(0, 1, dev)
     if not dist.is_available():
         raise RgbdError(f"WORLD_SIZE={world} but this torch build has no torch.distributed")
     owns = not dist.is_initialized()
@@ -115,4 +115,4 @@ def setup(device: str) -> Group:
         store = PrefixStore(f"rgbd_rs.train/{next(_CALLS)}", store)
         backend = "nccl" if dev.type == "cuda" else "gloo"
         dist.init_process_group(backend=backend, store=store, rank=rank, world_size=size)
-    return Group(dist.get_rank(), dist.get_world_size(), dev, owns)
+    return _Group(dist.get_rank(), dist.get_world_size(), dev, owns)

@@ -44,7 +44,6 @@ __all__ = [
     "REPRESENTATIONS",
     "ShapeNet",
     "pack",
-    "parse_representations",
     "unpack",
 ]
 
@@ -77,7 +76,7 @@ MIN_VOLUME_RESOLUTION = 16
 MAX_RESOLUTION = 4096
 
 
-def parse_representations(value: str | Iterable[str]) -> tuple[str, ...]:
+def _parse_representations(value: str | Iterable[str]) -> tuple[str, ...]:
     """``"depth,volume"`` or an iterable of names -> the names in :data:`REPRESENTATIONS` order.
 
     ``"combined"`` / ``"all"`` mean every representation. Unknown, repeated or no names raise
@@ -128,7 +127,7 @@ def _input_shapes(
     representations: Iterable[str], view_resolution: int, volume_resolution: int
 ) -> dict[str, tuple[int, ...]]:
     """The per-shape array shape of each representation (no batch axis)."""
-    reps = parse_representations(representations)
+    reps = _parse_representations(representations)
     r = _validate.integer("view_resolution", view_resolution, minimum=1)
     rv = _validate.integer("volume_resolution", volume_resolution, minimum=1)
     full = {
@@ -172,7 +171,7 @@ class ShapeNet(nn.Module):
     ) -> None:
         super().__init__()
         self.n_classes = _validate.integer("n_classes", n_classes, minimum=2, maximum=100_000)
-        self.representations = parse_representations(representations)
+        self.representations = _parse_representations(representations)
         self.view_resolution = _validate.integer(
             "view_resolution", view_resolution, minimum=MIN_VIEW_RESOLUTION, maximum=MAX_RESOLUTION
         )

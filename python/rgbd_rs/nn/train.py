@@ -44,14 +44,14 @@ from rgbd_rs.nn.checkpoint import (
     Checkpoint,
     _capture_rng,
     _package_version,
+    _plain,
     _restore_rng,
     _resume_differences,
     git_revision,
     load_checkpoint,
-    plain,
     save_checkpoint,
 )
-from rgbd_rs.nn.distributed import Group, is_main_process, setup
+from rgbd_rs.nn.distributed import _Group, _setup, is_main_process
 
 __all__ = [
     "EpochStats",
@@ -233,7 +233,7 @@ def _seed_worker(worker_id: int) -> None:
 
 
 def _loader(
-    data: Dataset[Any], indices: list[int], cfg: TrainConfig, g: Group, stream: list[int]
+    data: Dataset[Any], indices: list[int], cfg: TrainConfig, g: _Group, stream: list[int]
 ) -> DataLoader[Any]:
     """Batches of ``data[indices]`` in that order; worker seeds from (seed, *stream)."""
     seed = int(np.random.SeedSequence([cfg.seed, *stream]).generate_state(1)[0])
@@ -262,7 +262,7 @@ def _mean_loss(loss: torch.Tensor, where: str) -> float:
 
 
 def _evaluate(
-    model: nn.Module, data: Dataset[Any], loss_fn: LossFn, cfg: TrainConfig, g: Group
+    model: nn.Module, data: Dataset[Any], loss_fn: LossFn, cfg: TrainConfig, g: _Group
 ) -> float:
     model.eval()
     total = count = 0.0
@@ -322,11 +322,11 @@ def train(
             raise InvalidArgumentError(f"{name}: got {type(value).__name__}, expected a dict")
     now: dict[str, Any] = {
         "arch": arch,
-        "arch_config": plain("arch_config", arch_config),
-        "normalisation": plain("normalisation", normalisation),
+        "arch_config": _plain("arch_config", arch_config),
+        "normalisation": _plain("normalisation", normalisation),
         "config": config.to_dict(),
     }
-    g = setup(config.device)
+    g = _setup(config.device)
     now["world_size"] = g.world
     try:
         return _run(
@@ -344,7 +344,7 @@ def _run(
     cfg: TrainConfig,
     out: Path,
     now: dict[str, Any],
-    g: Group,
+    g: _Group,
     quiet: bool,
     resume: bool,
 ) -> TrainResult:

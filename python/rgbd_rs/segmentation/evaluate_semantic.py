@@ -20,10 +20,10 @@ import numpy.typing as npt
 from rgbd_rs import metrics
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.nyuv2 import LABEL13_NAMES, UNLABELED
-from rgbd_rs.segmentation.labeling import weights_path
+from rgbd_rs.segmentation.labeling import _weights_path
 from rgbd_rs.segmentation.pipeline import Segmentation, segment
 from rgbd_rs.segmentation.refine import DEFAULT_POOLING
-from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, resolve_labeler
+from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, _resolve_labeler
 
 __all__ = ["LabelingScores", "ours_full"]
 
@@ -136,9 +136,9 @@ def ours_full(
     """The full method: the pipeline with the semantic ConvNet (``labeler``; the shipped weights
     by default). Raises AttributeError when no ConvNet is available (the evaluation then lists
     the row as not available)."""
-    if isinstance(labeler, str) and labeler == AUTO and not weights_path().is_file():
-        raise AttributeError(f"no semantic ConvNet weights installed ({weights_path().name})")
-    net = resolve_labeler(labeler)
+    if isinstance(labeler, str) and labeler == AUTO and not _weights_path().is_file():
+        raise AttributeError(f"no semantic ConvNet weights installed ({_weights_path().name})")
+    net = _resolve_labeler(labeler)
     if net is None:
         raise AttributeError("no semantic ConvNet weights installed or given")
 

@@ -27,7 +27,7 @@ from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.nn.semantic import ARCH, N_CUES, SemanticNet, class_probabilities
 
-__all__ = ["WEIGHT_FILE", "SemanticLabeler", "weights_path"]
+__all__ = ["WEIGHT_FILE", "SemanticLabeler", "_weights_path"]
 
 #: The cue function :meth:`SemanticLabeler.pdfs` runs (what the caches record by default).
 CUE_FUNCTION = "rgbd_rs.segmentation.cues.semantic_cues"
@@ -37,7 +37,7 @@ WEIGHT_FILE = "semantic_nyuv2.pt"
 _WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "nn" / "weights"
 
 
-def weights_path() -> Path:
+def _weights_path() -> Path:
     """Where the package keeps its semantic ConvNet weights (the file may be absent)."""
     return _WEIGHTS_DIR / WEIGHT_FILE
 
@@ -98,7 +98,7 @@ class SemanticLabeler:
 
         _validate.device("device", device)
         if path is None:
-            file = weights_path()
+            file = _weights_path()
             if not file.is_file():
                 raise RgbdError(
                     f"{file}: no shipped semantic ConvNet weights in this installation; train "

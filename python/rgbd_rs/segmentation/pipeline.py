@@ -24,7 +24,7 @@ from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
 from rgbd_rs.segmentation.merge import MergeResult, merge_regions
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
 from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS
-from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, class_pdfs, resolve_labeler
+from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, _class_pdfs, _resolve_labeler
 from rgbd_rs.surface import SegmentFits
 
 __all__ = ["ADJACENCY_NORMAL_RADIUS", "Segmentation", "segment"]
@@ -181,7 +181,7 @@ def segment(
         seconds[stage] = now - t
         t = now
 
-    net = None if pdfs is not None else resolve_labeler(labeler)  # loaded once per process
+    net = None if pdfs is not None else _resolve_labeler(labeler)  # loaded once per process
     # With the ConvNet, HHA is a cue; its 7x7 normals are the features' normals (computed once).
     hh = None if net is None else hha_details(depth, camera)
     f = features(rgb, depth, camera, normals=None if hh is None else hh.normals)
@@ -195,7 +195,7 @@ def segment(
     fits = SegmentFits(f.points, over, surfaces=net is not None)
     lap("fits")
     if net is not None and hh is not None:
-        pdfs, _ = class_pdfs(
+        pdfs, _ = _class_pdfs(
             net, rgb, depth, camera, feats=f, hha=hh, over=over, fits=fits, n_segments=n, seed=seed
         )
         lap("semantic")

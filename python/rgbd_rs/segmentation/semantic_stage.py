@@ -23,11 +23,11 @@ from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.segmentation.cues import SemanticCues, cue_maps
 from rgbd_rs.segmentation.features import Features
 from rgbd_rs.segmentation.hha import HhaResult
-from rgbd_rs.segmentation.labeling import CUE_FUNCTION, SemanticLabeler, weights_path
+from rgbd_rs.segmentation.labeling import CUE_FUNCTION, SemanticLabeler, _weights_path
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
 from rgbd_rs.surface import SegmentFits
 
-__all__ = ["AUTO", "LabelerArg", "class_pdfs", "resolve_labeler"]
+__all__ = ["AUTO", "LabelerArg"]
 
 #: ``labeler`` value: the shipped weights when installed, else fit-only merging.
 AUTO = "auto"
@@ -44,12 +44,12 @@ def _load(path: str, stamp: float) -> SemanticLabeler:
 _warned: set[str] = set()
 
 
-def resolve_labeler(labeler: LabelerArg) -> SemanticLabeler | None:
+def _resolve_labeler(labeler: LabelerArg) -> SemanticLabeler | None:
     """The labeler ``labeler`` names (see the module docstring); None for fit-only merging."""
     if labeler is None or isinstance(labeler, SemanticLabeler):
         return labeler
     if isinstance(labeler, str) and labeler == AUTO:
-        file = weights_path()
+        file = _weights_path()
         if not file.is_file():
             if AUTO not in _warned:
                 _warned.add(AUTO)
@@ -71,7 +71,7 @@ def resolve_labeler(labeler: LabelerArg) -> SemanticLabeler | None:
     )
 
 
-def class_pdfs(
+def _class_pdfs(
     labeler: SemanticLabeler,
     rgb: npt.ArrayLike,
     depth: npt.ArrayLike,

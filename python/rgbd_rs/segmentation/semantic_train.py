@@ -242,12 +242,12 @@ def ship(checkpoint: str | os.PathLike[str], dest: str | os.PathLike[str] | None
     """Write the inference-only, float16 copy of ``checkpoint`` to ``dest``, by default the
     package's shipped weights (``rgbd_rs/nn/weights/semantic_nyuv2.pt``)."""
     from rgbd_rs.nn.checkpoint import load_checkpoint, save_checkpoint
-    from rgbd_rs.segmentation.labeling import weights_path
+    from rgbd_rs.segmentation.labeling import _weights_path
 
     ckpt = load_checkpoint(checkpoint, arch=ARCH, normalisation_keys=("input_size", "classes"))
     half = {k: v.half() if v.is_floating_point() else v for k, v in ckpt.model_state.items()}
     light = dataclasses.replace(ckpt.stripped(), model_state=half)
-    return save_checkpoint(light, weights_path() if dest is None else dest)
+    return save_checkpoint(light, _weights_path() if dest is None else dest)
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,6 @@ __all__ = [
     "classify",
     "shipped_weights",
     "to_z_up",
-    "weights_path",
 ]
 
 #: The checkpoints the package may ship, by dataset.
@@ -85,7 +84,7 @@ def _spread(name: str, points: npt.NDArray[np.float32], what: str) -> None:
         )
 
 
-def weights_path(dataset: str) -> Path:
+def _weights_path(dataset: str) -> Path:
     """Where the package keeps ``dataset``'s shipped weights (the file may be absent)."""
     name = _validate.choice("dataset", dataset, tuple(WEIGHT_FILES))
     return _WEIGHTS_DIR / WEIGHT_FILES[name]
@@ -93,7 +92,7 @@ def weights_path(dataset: str) -> Path:
 
 def shipped_weights() -> dict[str, Path]:
     """The shipped checkpoints present in this installation, by dataset."""
-    return {d: weights_path(d) for d in WEIGHT_FILES if weights_path(d).is_file()}
+    return {d: _weights_path(d) for d in WEIGHT_FILES if _weights_path(d).is_file()}
 
 
 class ShapeClassifier:
@@ -242,7 +241,7 @@ class ShapeClassifier:
 def _default_weights(dataset: str | None) -> Path:
     have = shipped_weights()
     if dataset is not None:
-        file = weights_path(dataset)
+        file = _weights_path(dataset)
         if not file.is_file():
             raise RgbdError(
                 f"{file}: no shipped {dataset} weights in this installation (it ships "

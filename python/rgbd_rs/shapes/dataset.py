@@ -54,7 +54,7 @@ from rgbd_rs.nn.shapes import (
     REPRESENTATIONS,
     THESIS_VOLUME_RESOLUTION,
     _input_shapes,
-    parse_representations,
+    _parse_representations,
 )
 
 from .._reasons import reason
@@ -499,7 +499,7 @@ class InputSpec:
     volume_lcn_window: int | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "representations", parse_representations(self.representations))
+        object.__setattr__(self, "representations", _parse_representations(self.representations))
         for name, lo in (
             ("view_resolution", MIN_VIEW_RESOLUTION),
             ("volume_resolution", MIN_VOLUME_RESOLUTION),
@@ -900,7 +900,7 @@ class ShapeCache:
         reps = (
             self.spec.representations
             if representations is None
-            else parse_representations(representations)
+            else _parse_representations(representations)
         )
         absent = [r for r in reps if r not in self.spec.representations]
         if absent:

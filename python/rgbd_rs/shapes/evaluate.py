@@ -42,10 +42,10 @@ _CELL, _LABEL = 44, 120
 def row_name(representations: Sequence[str]) -> str:
     """Table 5.2's row of a representation set: its single name, or ``"combined"`` for the
     thesis' three (``"depth+volume"`` for other combinations)."""
-    from rgbd_rs.nn.shapes import parse_representations
+    from rgbd_rs.nn.shapes import _parse_representations
 
     names = list(representations) if not isinstance(representations, str) else representations
-    reps = parse_representations(names)
+    reps = _parse_representations(names)
     if len(reps) == 1:
         return reps[0]
     if set(reps) == {"depth", "volume", "curvature"}:

@@ -28,7 +28,7 @@ from torch.utils.data import Subset
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, parse_representations
+from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, _parse_representations
 from rgbd_rs.shapes.augment import AugmentedShapes
 from rgbd_rs.shapes.dataset import ShapeCache
 from rgbd_rs.shapes.scaling import original_rows
@@ -67,7 +67,9 @@ class ShapeRecipe:
 
     def __post_init__(self) -> None:
         if self.representations is not None:
-            object.__setattr__(self, "representations", parse_representations(self.representations))
+            object.__setattr__(
+                self, "representations", _parse_representations(self.representations)
+            )
         object.__setattr__(
             self, "width", _validate.integer("width", self.width, minimum=1, maximum=4096)
         )
@@ -216,7 +218,7 @@ def _split_by_shape(
 def ablation_rows(available: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
     """Table 5.2's rows over the ``available`` representations: each alone, then combined (the
     combined row only when there are two or more)."""
-    reps = parse_representations(available)
+    reps = _parse_representations(available)
     rows: dict[str, tuple[str, ...]] = {name: (name,) for name in reps}
     if len(reps) > 1:
         rows[COMBINED] = reps
@@ -252,7 +254,7 @@ def ship(checkpoint: str | os.PathLike[str], dest: str | os.PathLike[str] | None
     """Write the inference-only, float16 copy of ``checkpoint`` (a few MB) to ``dest``, by default
     the package's shipped weights for its dataset (``rgbd_rs/nn/weights/shapes_<dataset>.pt``)."""
     from rgbd_rs.nn.checkpoint import load_checkpoint, save_checkpoint
-    from rgbd_rs.shapes.classify import WEIGHT_FILES, weights_path
+    from rgbd_rs.shapes.classify import WEIGHT_FILES, _weights_path
 
     ckpt = load_checkpoint(checkpoint, arch=ARCH, normalisation_keys=("spec", "classes"))
     half = {k: v.half() if v.is_floating_point() else v for k, v in ckpt.model_state.items()}
@@ -264,5 +266,5 @@ def ship(checkpoint: str | os.PathLike[str], dest: str | os.PathLike[str] | None
                 f"dest: none given for a {n}-class checkpoint, expected a path (the package "
                 f"ships {sorted(WEIGHT_FILES)} only)"
             )
-        dest = weights_path(f"modelnet{n}")
+        dest = _weights_path(f"modelnet{n}")
     return save_checkpoint(light, dest)
