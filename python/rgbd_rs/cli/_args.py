@@ -106,11 +106,16 @@ def named(flag: str, load: Callable[[], T]) -> T:
         raise RgbdError(f"{flag}: {os_message(exc)}") from None
 
 
-def flagged(names: Mapping[str, str], call: Callable[[], T]) -> T:
+def flagged(
+    names: Mapping[str, str],
+    call: Callable[[], T],
+    amend: Callable[[str], str] | None = None,
+) -> T:
     """``call()``, with its errors and warnings about a library parameter worded for the
     command line: a message that starts ``"name:"`` (a key of ``names``) starts with that
     parameter's flag instead (``"camera: got a 640x480 camera ..."`` -> ``"--calib: got a
-    640x480 camera ..."``). The call's warnings are shown once it has returned or failed."""
+    640x480 camera ..."``). The call's warnings are shown once it has returned or failed, each
+    first passed through ``amend`` (e.g. to add the flag value that fixes it)."""
 
     def worded(msg: str) -> str | None:
         for name, flag in names.items():
@@ -133,7 +138,7 @@ def flagged(names: Mapping[str, str], call: Callable[[], T]) -> T:
         raise type(exc)(msg) from None
     finally:
         for w in seen:
-            text = str(w.message)
+            text = str(w.message) if amend is None else amend(str(w.message))
             warnings.warn(worded(text) or text, w.category, stacklevel=2)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -21,8 +21,6 @@ from rgbd_rs.cli._args import (
     real,
 )
 from rgbd_rs.cli.fusion import DEPTH_SCALE_HELP, DEPTH_SCALE_RANGE
-
-T = TypeVar("T")
 
 DESCRIPTION = (
     "Segment an RGB-D frame: 9-D colour/position/normal features (eq. 4.1), normalized-cuts "
@@ -175,23 +173,19 @@ def run_segment(args: argparse.Namespace) -> int:
         labeler = named("--labeler", lambda: SemanticLabeler.load(path))
     result = flagged(
         SEGMENT_FLAGS,
-        lambda: _naming_the_depth_scale(
-            args.depth,
+        lambda: segment(
+            rgb,
             depth,
-            scale,
-            lambda: segment(
-                rgb,
-                depth,
-                camera,
-                pdfs=pdfs,
-                labeler=labeler,
-                n_segments=n,
-                touching=args.touching,
-                pooling=args.pooling,
-                seed=args.seed,
-                quiet=args.quiet,
-            ),
+            camera,
+            pdfs=pdfs,
+            labeler=labeler,
+            n_segments=n,
+            touching=args.touching,
+            pooling=args.pooling,
+            seed=args.seed,
+            quiet=args.quiet,
         ),
+        amend=_naming_the_depth_scale(args.depth, depth, scale),
     )
     out = output_folder(args.out, SEGMENT_OUTPUTS)
     np.save(out / "labels.npy", result.labels)
@@ -253,30 +247,19 @@ def run_segment(args: argparse.Namespace) -> int:
     return 0
 
 
-def _naming_the_depth_scale(
-    path: Path, depth: np.ndarray, scale: float, call: Callable[[], T]
-) -> T:
-    """``call()``, its depth-unit warning (if any) ending with the --depth-scale value that
-    makes the PNG's median depth plausible (a .npy/.npz holds metres: no flag fixes it)."""
-    import warnings
-
+def _naming_the_depth_scale(path: Path, depth: np.ndarray, scale: float) -> Callable[[str], str]:
+    """A warning rewriter: the depth-unit warning ends with the --depth-scale value that makes
+    the PNG's median depth plausible (a .npy/.npz holds metres: no flag fixes it)."""
     from rgbd_rs.segmentation.pipeline import _suggested_depth_scale
 
-    seen: list[warnings.WarningMessage] = []
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            try:
-                return call()
-            finally:
-                seen = list(caught)
-    finally:  # re-emitted outside the recording context
-        for w in seen:
-            text = str(w.message)
-            if text.startswith("depth: median ") and path.suffix.lower() == ".png":
-                valid = depth[np.isfinite(depth) & (depth > 0)]
-                med = float(np.median(valid)) if valid.size else 0.0
-                fix = _suggested_depth_scale(med, scale)
-                if fix is not None:
-                    text += f"; --depth-scale {fix:g} brings it to {med / scale * fix:.3g} m"
-            warnings.warn(text, w.category, stacklevel=2)
+    def amend(text: str) -> str:
+        if not (text.startswith("depth: median ") and path.suffix.lower() == ".png"):
+            return text
+        valid = depth[np.isfinite(depth) & (depth > 0)]
+        med = float(np.median(valid)) if valid.size else 0.0
+        fix = _suggested_depth_scale(med, scale)
+        if fix is None:
+            return text
+        return text + f"; --depth-scale {fix:g} brings it to {med / scale * fix:.3g} m"
+
+    return amend
