@@ -68,7 +68,7 @@ CASES: list[Case] = [
         "generate_indoor",
         lambda: S.generate_indoor(_file(_tmp()), 1),
         ARG,
-        r"^out: got .*a_file, which is a file",
+        r"^out: got .*a_file, a file; expected a folder",
         "file",
     ),
     Case("generate_indoor", lambda: S.generate_indoor(_tmp(), -1), ARG, r"^count: got -1", "count"),

@@ -332,3 +332,158 @@ def test_a_cache_size_beyond_the_frames_is_refused_before_the_cache_exists(
     with pytest.raises(ShapeMismatchError, match=r"^size: got 640x480, larger than frame f0"):
         build_semantic_cache([frame], tmp_path / "cache", size=(640, 480), quiet=True)
     assert not (tmp_path / "cache").exists()
+
+
+# -- the fresh fuzz of the public surface (issue 32): one case per class of finding -----------
+
+
+def _fuzz_cases(tmp: Path) -> list[Case]:
+    import rgbd_rs.fusion as fusion
+    import rgbd_rs.nn as rnn
+    import rgbd_rs.segmentation as seg
+    import rgbd_rs.shapes as shapes
+    from rgbd_rs import data, io, render, surface, viz
+    from rgbd_rs.shapes.classify import shipped_weights
+
+    grey = np.zeros((8, 8, 3), np.uint8)
+    disp = np.ones((8, 8), np.float32)
+    a_file = tmp / "a_file.bin"
+    a_file.write_bytes(b"x")
+    flags = np.array([True, False])
+    return [
+        Case(
+            "segment",
+            lambda: seg.segment(grey, disp, CAM.scaled(0.125), touching=flags),
+            ARG,
+            r"^touching: got an array of shape \(2,\), expected True or False",
+            "array flag",
+        ),
+        Case(
+            "write_json",
+            lambda: io.write_json(str(tmp / "a\0b.json"), {}),
+            ARG,
+            r"^path: got .*NUL character",
+            "NUL",
+        ),
+        Case(
+            "build_cache",
+            lambda: shapes.build_cache(shapes.open_shapes("modelnet10"), a_file, quiet=True),
+            ARG,
+            r"^out: got .*a_file\.bin, a file; expected a folder",
+            "out is a file",
+        ),
+        Case(
+            "lc_fuse",
+            lambda: fusion.lc_fuse(grey, grey, [disp], target_sign=1.0),  # type: ignore[arg-type]
+            ARG,
+            r"^target_sign: got 1\.0, expected \+1 or -1",
+            "float sign",
+        ),
+        Case(
+            "PinholeCamera.scaled",
+            lambda: CAM.scaled(1e308),
+            ARG,
+            r"^sx: got 1e\+308, which makes the image",
+            "huge",
+        ),
+        Case("synth3_rig", lambda: data.synth3_rig(1e308), ARG, r"^scale: got 1e\+308", "huge"),
+        Case(
+            "tof_confidence",
+            lambda: fusion.tof_confidence(disp, disp, read_noise=1e308),
+            ARG,
+            r"^read_noise: got 1e\+308, expected at most 1e\+100",
+            "huge noise",
+        ),
+        Case(
+            "class_legend",
+            lambda: viz.class_legend(["a"], [(1, 2, 300)], 100),
+            ARG,
+            r"^colors\[0\]: got \(1, 2, 300\), expected three integers 0\.\.255",
+            "colour range",
+        ),
+        Case(
+            "class_picture",
+            lambda: viz.class_picture(np.zeros((4, 4), int), None, [(1, 2, 3)], "t"),  # type: ignore[arg-type]
+            ARG,
+            r"^names: got NoneType, expected a list of str",
+            "names None",
+        ),
+        Case(
+            "ConfidenceEstimator",
+            lambda: rnn.ConfidenceEstimator(None, [1, 1, 1, 1]),  # type: ignore[arg-type]
+            ARG,
+            r"^net: got NoneType, expected a ConfidenceNet",
+            "net None",
+        ),
+        Case(
+            "ConfidenceNet.forward",
+            lambda: rnn.ConfidenceNet(4)(torch.zeros((1, 4, 16, 16), dtype=torch.int64)),
+            ARG,
+            r"^x: got dtype torch\.int64, expected torch\.float32",
+            "int tensor",
+        ),
+        Case(
+            "class_probabilities",
+            lambda: rnn.class_probabilities(torch.zeros((1, 4, 2, 2), dtype=torch.int64)),
+            ARG,
+            r"^logits: got dtype torch\.int64, expected floating point",
+            "int logits",
+        ),
+        Case(
+            "TrainConfig.from_dict",
+            lambda: rnn.TrainConfig.from_dict(None),  # type: ignore[arg-type]
+            ARG,
+            r"^config: got NoneType, expected a dict",
+            "None",
+        ),
+        Case(
+            "InputSpec.from_dict",
+            lambda: shapes.InputSpec.from_dict({"representations": None}),
+            ARG,
+            r"^spec: representations None, expected a list",
+            "None value",
+        ),
+        Case(
+            "load_checkpoint",
+            lambda: rnn.load_checkpoint(a_file, normalisation_keys=None),  # type: ignore[arg-type]
+            ARG,
+            r"^normalisation_keys: got None, expected a collection",
+            "keys None",
+        ),
+        Case(
+            "save_checkpoint",
+            lambda: rnn.save_checkpoint(
+                rnn.load_checkpoint(shipped_weights()["modelnet10"]),
+                tmp,
+            ),
+            ARG,
+            r"^path: got .*, a folder; expected a checkpoint file path",
+            "a folder",
+        ),
+        Case(
+            "fit_mask",
+            lambda: surface.fit_mask(np.zeros((4, 4, 3), np.float32), [[True], [True, False]]),
+            ARG,
+            r"^mask: got list that is not array-like",
+            "ragged",
+        ),
+        Case(
+            "Texture.image",
+            lambda: render.Texture.image([[1, 2], [3]], 1.0),
+            ARG,
+            r"^rgb: got list that is not array-like",
+            "ragged",
+        ),
+        Case(
+            "class_frequencies",
+            lambda: data.synth_indoor.class_frequencies(None),  # type: ignore[arg-type]
+            ARG,
+            r"^labels: got NoneType, expected an iterable of label images",
+            "None",
+        ),
+    ]
+
+
+def test_fresh_fuzz_classes(tmp_path: Path) -> None:
+    for case in _fuzz_cases(tmp_path):
+        check(case)

@@ -9,7 +9,9 @@ unaligned arrays are copied, never refused or misread).
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
@@ -127,6 +129,45 @@ def integer(name: str, value: object, *, minimum: int = 0, maximum: int | None =
         hi = "" if maximum is None else f" and <= {maximum}"
         raise InvalidArgumentError(f"{name}: got {v}, expected an integer >= {minimum}{hi}")
     return v
+
+
+def sign(name: str, value: object) -> int:
+    """Validate a direction: the integer +1 or -1 (not a bool, not a float)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value not in (1, -1):
+        raise InvalidArgumentError(f"{name}: got {_short(value)}, expected +1 or -1")
+    return int(value)
+
+
+def flag(name: str, value: object) -> bool:
+    """Validate a yes/no switch: a bool (numpy's included), nothing truthy in its place."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidArgumentError(f"{name}: got {_short(value)}, expected True or False")
+    return bool(value)
+
+
+def path(name: str, value: object) -> Path:
+    """Validate a file-system path: a non-empty str or os.PathLike without NUL characters."""
+    if isinstance(value, (str, os.PathLike)):
+        text = os.fspath(value)
+        if isinstance(text, str) and text and "\0" not in text:
+            return Path(text)
+    raise InvalidArgumentError(f"{name}: got {_short(value)}, expected a file or folder path")
+
+
+def out_folder(name: str, value: object) -> Path:
+    """Validate an output folder path: :func:`path`, and not an existing file."""
+    p = path(name, value)
+    if p.exists() and not p.is_dir():
+        raise InvalidArgumentError(f"{name}: got {p}, a file; expected a folder")
+    return p
+
+
+def _short(value: object) -> str:
+    """A value for a message: its repr, or its type and shape when that would be long."""
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape}"
+    text = repr(value)
+    return text if len(text) <= 80 else f"a {type(value).__name__}"
 
 
 def size(name: str, value: object) -> int:

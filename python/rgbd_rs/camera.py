@@ -254,6 +254,12 @@ class PinholeCamera:
         """
         sx = _validate.real("sx", sx, positive=True)
         sy = sx if sy is None else _validate.real("sy", sy, positive=True)
+        for name, s, side in (("sx", sx, self.width), ("sy", sy, self.height)):
+            if not side * s <= _validate.MAX_SIDE:
+                raise InvalidArgumentError(
+                    f"{name}: got {s}, which makes the image {side * s:.3g} px; expected at most "
+                    f"{_validate.MAX_SIDE} px"
+                )
         return replace(
             self,
             fx=self.fx * sx,
@@ -318,6 +324,7 @@ class PinholeCamera:
         ``normalized``. Points where the iteration does not reach ``tol`` within ``max_iter``
         steps give NaN.
         """
+        normalized = _validate.flag("normalized", normalized)
         px = _validate.array("pixels", pixels, shape=(None, 2), dtype=np.float64, allow_empty=True)
         max_iter = _validate.integer("max_iter", max_iter, minimum=1, maximum=1000)
         tol = _validate.real("tol", tol, positive=True)

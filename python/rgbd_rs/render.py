@@ -91,7 +91,7 @@ class Texture:
     @classmethod
     def image(cls, rgb: npt.ArrayLike, period: float) -> Texture:
         """An ``H x W x 3`` image (uint8 or float in [0, 1]) tiled every ``period`` metres."""
-        arr = np.asarray(rgb)
+        arr = _validate.asarray("rgb", rgb)
         img = _validate.array("rgb", arr, shape=(None, None, 3), finite=True)
         if arr.dtype == np.uint8:
             img = img / np.float32(255)
@@ -340,6 +340,7 @@ class RenderScene:
         shadows: bool = True,
     ) -> F32:
         """Linear RGB radiance (H x W x 3 float32) with ``supersample^2`` rays per pixel."""
+        shadows = _validate.flag("shadows", shadows)
         ss = _validate.integer("supersample", supersample, minimum=1, maximum=8)
         return self._native.color(_view(camera, pose), ss, bool(shadows))
 

@@ -286,10 +286,11 @@ def fit_mask(
     (:attr:`SurfaceFit.box`); ``crop=True`` returns them box-sized instead of ``H x W`` (a small
     segment of a large image then never allocates image-sized maps).
     """
+    with_dof = _validate.flag("with_dof", with_dof)
     p = _validate.array("points", points, shape=(None, None, 3))
     m = None
     if mask is not None:
-        raw_mask = np.asarray(mask)
+        raw_mask = _validate.asarray("mask", mask)
         if raw_mask.dtype != np.bool_:
             raise InvalidArgumentError(
                 f"mask: got dtype {raw_mask.dtype}, expected a boolean array"
@@ -332,6 +333,7 @@ def fit_grid(
     The shape pipeline (thesis §5.3.3) calls this on each rendered depth view. The maps are
     computed when first read (see :class:`SurfaceFit`).
     """
+    with_dof = _validate.flag("with_dof", with_dof)
     return fit_mask(points, None, spacing=spacing, degree=degree, lam=lam, with_dof=with_dof)
 
 
@@ -410,7 +412,7 @@ class SegmentFits:
         test_window: int | None = DEFAULT_TEST_WINDOW,
     ) -> None:
         p = _validate.array("points", points, shape=(None, None, 3))
-        raw = np.asarray(labels)
+        raw = _validate.asarray("labels", labels)
         if raw.dtype.kind not in "iu":
             raise InvalidArgumentError(f"labels: got dtype {raw.dtype}, expected an integer array")
         lab = _validate.array("labels", raw, shape=(p.shape[0], p.shape[1]), dtype=np.int64)

@@ -203,6 +203,7 @@ def grid(panels: Sequence[U8], columns: int) -> U8:
 def class_legend(names: Sequence[str], colors: Sequence[tuple[int, int, int]], width: int) -> U8:
     """A white strip of ``width`` pixels with one swatch (RGB ``colors``) and name per class,
     wrapped into as many rows as needed."""
+    names, colors = _names_colors(names, colors)
     if len(names) != len(colors) or not names:
         raise InvalidArgumentError(
             f"names/colors: got {len(names)} names and {len(colors)} colours, expected as many"
@@ -223,6 +224,35 @@ def class_legend(names: Sequence[str], colors: Sequence[tuple[int, int, int]], w
     return strip
 
 
+def _names_colors(names: object, colors: object) -> tuple[list[str], list[tuple[int, int, int]]]:
+    """Class names (str) and their RGB colours (three integers 0..255 each), checked."""
+    if isinstance(names, str) or not isinstance(names, Sequence):
+        raise InvalidArgumentError(f"names: got {type(names).__name__}, expected a list of str")
+    if not all(isinstance(n, str) for n in names):
+        raise InvalidArgumentError("names: got a name that is not a str, expected class names")
+    if isinstance(colors, (str, bytes)) or not isinstance(colors, (Sequence, np.ndarray)):
+        raise InvalidArgumentError(
+            f"colors: got {type(colors).__name__}, expected a list of (r, g, b) triples"
+        )
+    out: list[tuple[int, int, int]] = []
+    for i, c in enumerate(colors):
+        ok = isinstance(c, (Sequence, np.ndarray)) and not isinstance(c, str) and len(c) == 3
+        if not ok or not all(
+            isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= 255
+            for v in c
+        ):
+            raise InvalidArgumentError(
+                f"colors[{i}]: got {c!r}, expected three integers 0..255 (r, g, b)"
+            )
+        out.append((int(c[0]), int(c[1]), int(c[2])))
+    if len(names) != len(out) or not names:
+        raise InvalidArgumentError(
+            f"names/colors: got {len(names)} names and {len(out)} colours, expected as many "
+            "(at least one)"
+        )
+    return list(names), out
+
+
 def class_picture(
     labels: npt.ArrayLike,
     names: Sequence[str],
@@ -234,6 +264,7 @@ def class_picture(
     """A titled panel of a class-label image (``H x W`` ints indexing ``names`` / RGB
     ``colors``; negative = no data, in :data:`NO_DATA_BGR`) with a legend of the classes."""
     lab = _label_image("labels", labels)
+    names, colors = _names_colors(names, colors)
     if lab.size and int(lab.max()) >= len(names):
         raise InvalidArgumentError(
             f"labels: got label {int(lab.max())}, expected < {len(names)} (one name per class)"

@@ -80,7 +80,7 @@ _MAP_KEYS = ("tof_depth", "tof_amplitude", "tof_gt_depth", "gt_depth", "gt_dispa
 def synth3_rig(scale: float = 0.5) -> ToFStereoRig:
     """The SYNTH3 rig; ``scale`` sizes the stereo pair (0.5 -> 960x540), at most ``MAX_SCALE``."""
     s = _validate.real("scale", scale, positive=True)
-    w, h = round(FULL_WIDTH * s), round(FULL_HEIGHT * s)
+    w, h = (0, 0) if s > MAX_SCALE else (round(FULL_WIDTH * s), round(FULL_HEIGHT * s))
     if s > MAX_SCALE or min(w, h) < MIN_SIDE:
         raise InvalidArgumentError(
             f"scale: got {s}, expected {MIN_SIDE / FULL_HEIGHT:.4f} <= scale <= {MAX_SCALE} "
@@ -231,6 +231,10 @@ def write_dataset(
     completes the rest; other arguments on an existing dataset raise RgbdError.
     """
     from tqdm import tqdm
+
+    vary_tof = _validate.flag("vary_tof", vary_tof)
+    quiet = _validate.flag("quiet", quiet)
+    out = _validate.out_folder("out", out)
 
     if not isinstance(out, (str, Path)) or not str(out):
         raise InvalidArgumentError(f"out: got {out!r}, expected a folder path")

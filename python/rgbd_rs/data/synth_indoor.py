@@ -210,6 +210,8 @@ def generate_indoor(
 
     A folder made with another seed, size or generator version is refused rather than mixed.
     """
+    quiet = _validate.flag("quiet", quiet)
+    out = _validate.out_folder("out", out)
     if not isinstance(out, (str, Path)) or not str(out):
         raise InvalidArgumentError(f"out: got {out!r}, expected a folder path")
     folder = Path(out)
@@ -307,6 +309,10 @@ def write_indoor_preview(path: str | Path, frames: Sequence[IndoorFrame], width:
 
 def class_frequencies(labels: Iterable[npt.ArrayLike]) -> npt.NDArray[np.float64]:
     """Fraction of pixels of each class 0..13 over label images (sums to 1)."""
+    if isinstance(labels, (str, bytes)) or not isinstance(labels, Iterable):
+        raise InvalidArgumentError(
+            f"labels: got {type(labels).__name__}, expected an iterable of label images"
+        )
     counts = np.zeros(len(LABEL13_NAMES), np.float64)
     for k, lab in enumerate(labels):
         arr = _validate.asarray(f"labels[{k}]", lab)

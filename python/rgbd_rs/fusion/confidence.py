@@ -49,6 +49,10 @@ LV_TAU = 1.5
 COST_EPS = 1.0
 
 
+#: The largest noise-law term tof_confidence takes (its squares stay finite in float64).
+MAX_NOISE_TERM = 1e100
+
+
 def tof_confidence(
     disparity: npt.ArrayLike,
     amplitude: npt.ArrayLike,
@@ -73,6 +77,9 @@ def tof_confidence(
     read_noise = _validate.real("read_noise", read_noise, nonnegative=True)
     shot_noise = _validate.real("shot_noise", shot_noise, nonnegative=True)
     ambient = _validate.real("ambient", ambient, nonnegative=True)
+    for name, v in (("read_noise", read_noise), ("shot_noise", shot_noise), ("ambient", ambient)):
+        if v > MAX_NOISE_TERM:  # squared or multiplied by amplitudes below: keep it finite
+            raise InvalidArgumentError(f"{name}: got {v}, expected at most {MAX_NOISE_TERM:g}")
     if read_noise == 0 and shot_noise == 0:
         raise InvalidArgumentError(
             "read_noise/shot_noise: got 0 and 0, expected at least one positive noise term"

@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 
 from rgbd_rs import _validate
-from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32
 
 #: Agreement (px) between the two views' fused disparities. Chosen.
@@ -45,8 +44,7 @@ def _consistent(reference: F32, target: F32, sign: int, tol: float = CROSS_CHECK
     """``reference`` with NaN where the target view's disparity at ``x + s d`` disagrees."""
     reference = _validate.array("reference", reference, shape=(None, None))
     target = _validate.array("target", target, shape=reference.shape)
-    if sign not in (-1, 1) or isinstance(sign, bool):
-        raise InvalidArgumentError(f"sign: got {sign!r}, expected -1 or 1")
+    sign = _validate.sign("sign", sign)
     tol = _validate.real("tol", tol, nonnegative=True)
     h, w = reference.shape
     ys, xs = np.nonzero(np.isfinite(reference))

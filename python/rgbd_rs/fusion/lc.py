@@ -58,6 +58,7 @@ class LcParams:
 
     def native(self, width: int, target_sign: int) -> _rgbd_rs.LcConfig:
         """The validated native parameter object for an image ``width`` pixels wide."""
+        target_sign = _validate.sign("target_sign", target_sign)
         radius, gamma_s = self.resolved(width)  # both validated there
         return _rgbd_rs.LcConfig(
             radius,
@@ -121,8 +122,7 @@ def lc_fuse(
         raise InvalidArgumentError(
             "disparities: got only NaN, expected at least one valid disparity to fuse"
         )
-    if isinstance(target_sign, bool) or target_sign not in (1, -1):
-        raise InvalidArgumentError(f"target_sign: got {target_sign!r}, expected +1 or -1")
+    target_sign = _validate.sign("target_sign", target_sign)
     p = LcParams() if params is None else params
     if not isinstance(p, LcParams):
         raise InvalidArgumentError(f"params: got {type(p).__name__}, expected LcParams")

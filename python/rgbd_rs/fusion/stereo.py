@@ -291,8 +291,7 @@ def cost_curve_stats(
     tgt = rgb8("target_image", target_image, (ref.shape[1], ref.shape[0]))
     h, w = ref.shape[:2]
     disp = np.asarray(_validate.array("disparity", disparity, shape=(h, w)), np.float32)
-    if isinstance(target_sign, bool) or target_sign not in (1, -1):
-        raise InvalidArgumentError(f"target_sign: got {target_sign!r}, expected +1 or -1")
+    target_sign = _validate.sign("target_sign", target_sign)
     dmax = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
     bs = _validate.integer("block_size", block_size, minimum=1, maximum=31)
     r_grey = np.asarray(cv2.cvtColor(ref, cv2.COLOR_RGB2GRAY), np.uint8)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from rgbd_rs import _validate
 from rgbd_rs._reasons import reason
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
@@ -186,6 +187,9 @@ class Checkpoint:
     def load_weights(self, model: torch.nn.Module) -> None:
         """``model.load_state_dict(self.model_state)``; a mismatch raises :class:`RgbdError`
         naming the file (e.g. a checkpoint of the same arch built with another width)."""
+        if not isinstance(model, torch.nn.Module):
+            got = type(model).__name__
+            raise InvalidArgumentError(f"model: got {got}, expected a torch nn.Module")
         try:
             model.load_state_dict(self.model_state)
         except RuntimeError as exc:
@@ -257,7 +261,9 @@ def save_checkpoint(checkpoint: Checkpoint, path: str | os.PathLike[str]) -> Pat
         raise InvalidArgumentError(
             f"checkpoint: got {type(checkpoint).__name__}, expected a Checkpoint"
         )
-    path = Path(path)
+    path = _validate.path("path", path)
+    if path.is_dir():
+        raise InvalidArgumentError(f"path: got {path}, a folder; expected a checkpoint file path")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -293,6 +299,10 @@ def load_checkpoint(
     """
     if not isinstance(path, (str, os.PathLike)) or not str(path):
         raise InvalidArgumentError(f"path: got {path!r}, expected a checkpoint file path")
+    if isinstance(normalisation_keys, str) or not isinstance(normalisation_keys, Collection):
+        raise InvalidArgumentError(
+            f"normalisation_keys: got {normalisation_keys!r}, expected a collection of names"
+        )
     path = Path(path)
     if not path.is_file():
         raise RgbdError(f"{path}: checkpoint file not found")

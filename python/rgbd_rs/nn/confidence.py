@@ -20,7 +20,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from rgbd_rs import _validate
-from rgbd_rs.errors import RgbdError, ShapeMismatchError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 
 #: Name stored in checkpoints; a checkpoint of another architecture is refused.
 ARCH = "confidence-convnet/1"
@@ -42,6 +42,8 @@ def _check_input(x: object, min_side: int) -> None:
         raise ShapeMismatchError(
             f"x: got shape {shape}, expected (N, {IN_CHANNELS}, H, W) with H, W >= {min_side}"
         )
+    if x.dtype != torch.float32:
+        raise InvalidArgumentError(f"x: got dtype {x.dtype}, expected torch.float32 clues")
 
 
 class ConfidenceNet(nn.Module):
@@ -86,6 +88,8 @@ def predict(
     Runs in tiles of ``tile`` x ``tile`` output pixels with a 7-pixel halo (the receptive field's
     radius), so memory stays bounded on large images and the result equals a whole-image pass.
     """
+    if not isinstance(net, ConfidenceNet):
+        raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ConfidenceNet")
     x = _validate.array("inputs", inputs, shape=(IN_CHANNELS, None, None), finite=True)
     t = _validate.integer("tile", tile, minimum=16, maximum=8192)
     h, w = x.shape[1:]
@@ -144,6 +148,8 @@ class ConfidenceEstimator:
         stereo_power: float = 1.0,
         matcher: str = "opencv",
     ) -> None:
+        if not isinstance(net, ConfidenceNet):
+            raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ConfidenceNet")
         # Channels-last weights to match predict()'s channels-last inputs.
         self.net = net.to(memory_format=torch.channels_last)
         self.sigmas = _validate.array("sigmas", sigmas, shape=(IN_CHANNELS,), finite=True)
@@ -165,7 +171,7 @@ class ConfidenceEstimator:
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
         _validate.device("device", device)
-        file = WEIGHTS if path is None else Path(path)
+        file = WEIGHTS if path is None else _validate.path("path", path)
         ckpt = load_checkpoint(file, arch=ARCH, normalisation_keys=("sigmas",))
         width = ckpt.arch_config.get("width")
         if not isinstance(width, int) or isinstance(width, bool):

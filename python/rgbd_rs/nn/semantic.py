@@ -239,6 +239,8 @@ class SemanticNet(nn.Module):
         if not isinstance(x, torch.Tensor) or x.ndim != 4 or x.shape[1] != N_CUES:
             got = tuple(x.shape) if isinstance(x, torch.Tensor) else type(x).__name__
             raise ShapeMismatchError(f"x: got {got}, expected (N, {N_CUES}, H, W) cues")
+        if x.dtype != torch.float32:
+            raise InvalidArgumentError(f"x: got dtype {x.dtype}, expected torch.float32 cues")
         if min(x.shape[-2:]) < MIN_SIDE:
             raise ShapeMismatchError(
                 f"x: got {x.shape[-2]} x {x.shape[-1]} pixels, expected sides >= {MIN_SIDE}"
@@ -260,6 +262,8 @@ def class_probabilities(
     if not isinstance(logits, torch.Tensor) or logits.ndim != 4:
         got = tuple(logits.shape) if isinstance(logits, torch.Tensor) else type(logits).__name__
         raise ShapeMismatchError(f"logits: got {got}, expected (N, C, h, w)")
+    if not logits.is_floating_point():
+        raise InvalidArgumentError(f"logits: got dtype {logits.dtype}, expected floating point")
     c = int(logits.shape[1])
     if ignore_index is not None:
         ignore_index = _validate.integer("ignore_index", ignore_index, maximum=c - 1)
@@ -272,6 +276,8 @@ def class_probabilities(
         logits = logits + mask.view(1, c, 1, 1)
     p = torch.softmax(logits, dim=1)
     if size is not None:
+        if not isinstance(size, (tuple, list)) or len(size) != 2:
+            raise InvalidArgumentError(f"size: got {size!r}, expected (height, width)")
         h = _validate.integer("size[0]", size[0], minimum=1, maximum=_validate.MAX_SIDE)
         w = _validate.integer("size[1]", size[1], minimum=1, maximum=_validate.MAX_SIDE)
         if (h, w) != tuple(p.shape[-2:]):  # channels-last: the H x W x C view is contiguous

@@ -299,7 +299,15 @@ def pack(
                 f"inputs: got representations {sorted(inputs)}, expected {list(shapes)}"
             )
         v = inputs[name]
-        t = torch.as_tensor(np.asarray(v) if not isinstance(v, torch.Tensor) else v)
+        if not isinstance(v, torch.Tensor):
+            v = _validate.asarray(f"inputs[{name!r}]", v)
+            if v.dtype.kind not in "iuf":
+                raise InvalidArgumentError(
+                    f"inputs[{name!r}]: got dtype {v.dtype}, expected real numbers"
+                )
+        elif v.is_complex() or v.dtype == torch.bool:
+            raise InvalidArgumentError(f"inputs[{name!r}]: got dtype {v.dtype}, expected real")
+        t = torch.as_tensor(v)
         if tuple(t.shape) == tuple(shape):
             t = t[None]
         if tuple(t.shape[1:]) != tuple(shape):

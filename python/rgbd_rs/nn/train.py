@@ -153,6 +153,10 @@ class TrainConfig:
     def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
         """Inverse of :meth:`to_dict`; unknown keys raise naming them."""
         known = {f.name for f in dataclasses.fields(cls)}
+        if not isinstance(data, Mapping) or not all(isinstance(k, str) for k in data):
+            raise InvalidArgumentError(
+                f"config: got {type(data).__name__}, expected a dict of TrainConfig fields"
+            )
         unknown = sorted(set(data) - known)
         if unknown:
             raise InvalidArgumentError(f"config: got unknown fields {unknown}, expected {known}")
@@ -305,6 +309,9 @@ def train(
     process calls this; only rank 0 writes files and shows the progress bar (also hidden when
     ``quiet`` or stderr is not a terminal). See the module docstring for the calling convention.
     """
+    quiet = _validate.flag("quiet", quiet)
+    resume = _validate.flag("resume", resume)
+    out_dir = _validate.out_folder("out_dir", out_dir)
     if not isinstance(model, nn.Module):
         raise InvalidArgumentError(f"model: got {type(model).__name__}, expected a torch nn.Module")
     if _length("train_set", train_set) == 0:

@@ -166,6 +166,8 @@ def segment(
     PDFs: ``"mean"`` (argmax of the mean PDF) or ``"majority"`` (most common per-pixel class);
     see :mod:`rgbd_rs.segmentation.refine`. Deterministic given ``seed``.
     """
+    touching = _validate.flag("touching", touching)
+    quiet = _validate.flag("quiet", quiet)
     if not isinstance(camera, PinholeCamera):
         raise InvalidArgumentError(
             f"camera: got {type(camera).__name__}, expected a rgbd_rs.PinholeCamera"

@@ -116,7 +116,7 @@ class NyuFrames(Sequence[LabeledFrame]):
     def __init__(self, split: str = "all", folder: str | os.PathLike[str] | None = None) -> None:
         from rgbd_rs.data.nyuv2 import nyuv2_frames
 
-        self.folder = None if folder is None else Path(folder)
+        self.folder = None if folder is None else _validate.path("folder", folder)
         self.split = split
         self.indices = tuple(nyuv2_frames(split, self.folder))
         self.names = tuple(f"{i:04d}" for i in self.indices)
@@ -222,7 +222,7 @@ class SyntheticFrames:
     def __init__(self, folder: str | os.PathLike[str]) -> None:
         from rgbd_rs.data.synth_indoor import IndoorFrames
 
-        self.frames = IndoorFrames(Path(folder))
+        self.frames = IndoorFrames(_validate.path("folder", folder))
         self.folder = self.frames.folder
         if len(self.frames) == 0:
             raise RgbdError(f"{self.folder}: no complete synthetic frame")
@@ -455,6 +455,10 @@ def build_semantic_cache(
     A frame whose cues cannot be computed is marked failed (a warning names it) and skipped by
     the datasets. Progress bar on stderr unless ``quiet``."""
     from tqdm import tqdm
+
+    out = _validate.out_folder("out", out)
+
+    quiet = _validate.flag("quiet", quiet)
 
     if isinstance(frames, (str, bytes)) or not (
         hasattr(frames, "__len__") and hasattr(frames, "__getitem__")

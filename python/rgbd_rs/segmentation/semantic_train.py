@@ -169,6 +169,10 @@ def train_semantic(
     :func:`rgbd_rs.nn.train.train`)."""
     from rgbd_rs.nn.train import TrainConfig, seed_everything, split, train
 
+    quiet = _validate.flag("quiet", quiet)
+    resume = _validate.flag("resume", resume)
+    out = _validate.out_folder("out", out)
+
     c = _cache(cache)
     r = recipe if recipe is not None else SemanticRecipe()
     if not isinstance(r, SemanticRecipe):

@@ -117,10 +117,17 @@ class ShapeClassifier:
             raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ShapeNet")
         if not isinstance(spec, InputSpec):
             raise InvalidArgumentError(f"spec: got {type(spec).__name__}, expected an InputSpec")
-        if len(classes) != net.n_classes or not all(isinstance(c, str) for c in classes):
-            raise InvalidArgumentError(
-                f"classes: got {len(classes)} names, expected {net.n_classes} (str)"
+        if (
+            not isinstance(classes, (tuple, list))
+            or len(classes) != net.n_classes
+            or not all(isinstance(c, str) for c in classes)
+        ):
+            got = (
+                f"{len(classes)} names"
+                if isinstance(classes, (tuple, list))
+                else type(classes).__name__
             )
+            raise InvalidArgumentError(f"classes: got {got}, expected {net.n_classes} names (str)")
         if spec.representations != net.representations:
             raise InvalidArgumentError(
                 f"spec: representations {list(spec.representations)}, expected the network's "
@@ -277,8 +284,8 @@ def classify(
     The networks were trained on ModelNet's aligned shapes, **z up**: give ``up="y"`` (or
     ``"x"``) for a shape whose up axis is y (many PLY / OBJ files): it is rotated first. A
     shape lying on its side is classified as something else, without any error."""
-    if checkpoint is not None and not isinstance(checkpoint, (str, os.PathLike)):
-        raise InvalidArgumentError(f"checkpoint: got {checkpoint!r}, expected a file path")
+    if checkpoint is not None:
+        checkpoint = _validate.path("checkpoint", checkpoint)
     if dataset is not None:
         _validate.choice("dataset", dataset, tuple(WEIGHT_FILES))
     key = None if checkpoint is None else str(Path(checkpoint).resolve())

@@ -327,7 +327,7 @@ class PointCloudSet(ShapeSource):
     kind = "points"
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
-        self.path = Path(path)
+        self.path = _validate.path("path", path)
         d = read_npz(self.path, ["points", "label", "split", "classes", "name"])
         pts = d["points"]
         n = len(pts)
@@ -354,7 +354,7 @@ class OffTree(ShapeSource):
     kind = "mesh"
 
     def __init__(self, root: str | os.PathLike[str]) -> None:
-        self.path = Path(root)
+        self.path = _validate.path("root", root)
         if not self.path.is_dir():
             raise RgbdError(f"{self.path}: not a folder, expected a ModelNet OFF tree")
         classes = sorted(
@@ -565,7 +565,12 @@ class InputSpec:
             raise InvalidArgumentError(f"spec: got {got}, expected keys among {sorted(known)}")
         args: dict[str, Any] = dict(data)
         if "representations" in args:
-            args["representations"] = tuple(args["representations"])
+            reps = args["representations"]
+            if isinstance(reps, str) or not isinstance(reps, (list, tuple)):
+                raise InvalidArgumentError(
+                    f"spec: representations {reps!r}, expected a list of representation names"
+                )
+            args["representations"] = tuple(reps)
         return cls(**args)
 
 
@@ -707,6 +712,9 @@ def build_cache(
     A shape whose inputs cannot be computed is marked failed (warning naming it) and skipped by
     the datasets. Progress bar on stderr unless ``quiet``."""
     from tqdm import tqdm
+
+    quiet = _validate.flag("quiet", quiet)
+    out = _validate.out_folder("out", out)
 
     src = source if isinstance(source, ShapeSource) else open_shapes(source)
     s = InputSpec() if spec is None else spec

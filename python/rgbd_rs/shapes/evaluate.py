@@ -192,9 +192,7 @@ class ShapeEvaluation:
         """``stem.md`` (:meth:`markdown`) and ``stem_confusion.png`` (:meth:`heatmap`)."""
         from rgbd_rs.io import write_png
 
-        if not isinstance(folder, (str, os.PathLike)) or not str(folder):
-            raise InvalidArgumentError(f"folder: got {folder!r}, expected a folder path")
-        out = Path(folder)
+        out = _validate.path("folder", folder)
         if out.exists() and not out.is_dir():
             raise RgbdError(f"{out}: is a file, expected a folder for the report")
         out.mkdir(parents=True, exist_ok=True)

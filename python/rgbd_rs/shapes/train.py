@@ -142,6 +142,10 @@ def train_shapes(
     resumes from ``out/last.pt`` (see :func:`rgbd_rs.nn.train.train`)."""
     from rgbd_rs.nn.train import TrainConfig, seed_everything, train
 
+    quiet = _validate.flag("quiet", quiet)
+    resume = _validate.flag("resume", resume)
+    out = _validate.out_folder("out", out)
+
     c = _cache(cache)
     r = recipe if recipe is not None else ShapeRecipe()
     if not isinstance(r, ShapeRecipe):
