@@ -234,7 +234,7 @@ CASES: list[Case] = [
             load_azure_kinect_calibration(_kinect_calibration(TMP / "ok")),
         ),
         SHAPE,
-        r"^depth: got shape \(3, 8\)",
+        r"^amplitude: got shape \(6, 8\), expected \(3, 8\)",
     ),
     Case(
         "reproject_to_color",

@@ -28,9 +28,22 @@ def _describe_shape(shape: Sequence[int | None]) -> str:
 
 
 def asarray(name: str, value: object) -> np.ndarray:
-    """``np.asarray(value)``; ragged or non-array input raises naming ``name``."""
+    """``np.asarray(value)``; ragged or non-array input raises naming ``name``. A masked array
+    is refused (its mask would be dropped), an ``np.matrix`` read as the plain array it holds,
+    and an array of more than :data:`MAX_ELEMENTS` refused before anything copies it."""
+    if isinstance(value, np.ma.MaskedArray):
+        raise InvalidArgumentError(
+            f"{name}: got a masked array, expected a plain numpy array (mark missing values "
+            "with NaN, or pass .filled(...))"
+        )
     if isinstance(value, np.ndarray):
-        return value
+        arr = value if type(value) is np.ndarray else value.view(np.ndarray)
+        if arr.size > MAX_ELEMENTS:
+            raise ShapeMismatchError(
+                f"{name}: got {arr.size} elements (shape {tuple(arr.shape)}), expected at most "
+                f"{MAX_ELEMENTS} (2**31)"
+            )
+        return arr
     try:
         return np.asarray(value)
     except (TypeError, ValueError) as exc:  # ragged lists and the like
@@ -72,7 +85,7 @@ def array(
     if value.size > MAX_ELEMENTS:
         raise ShapeMismatchError(
             f"{name}: got {value.size} elements (shape {tuple(value.shape)}), expected at most "
-            f"{MAX_ELEMENTS} (2**32)"
+            f"{MAX_ELEMENTS} (2**31)"
         )
     # np.ascontiguousarray keeps an unaligned buffer as it is; the kernels need aligned memory.
     try:
@@ -89,8 +102,16 @@ def array(
     return out
 
 
-def real(name: str, value: object, *, positive: bool = False, nonnegative: bool = False) -> float:
-    """Validate a finite real scalar (optionally > 0 or >= 0)."""
+def real(
+    name: str,
+    value: object,
+    *,
+    positive: bool = False,
+    nonnegative: bool = False,
+    f32: bool = False,
+) -> float:
+    """Validate a finite real scalar (optionally > 0 or >= 0; ``f32``: one a float32 kernel
+    receives, so it must survive float32 without overflowing or flushing to 0)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise InvalidArgumentError(f"{name}: got {value!r}, expected a real number")
     try:
@@ -103,12 +124,21 @@ def real(name: str, value: object, *, positive: bool = False, nonnegative: bool 
         raise InvalidArgumentError(f"{name}: got {v}, expected a number > 0")
     if nonnegative and v < 0:
         raise InvalidArgumentError(f"{name}: got {v}, expected a number >= 0")
+    if f32 and v != 0 and not (F32_TINY <= abs(v) <= F32_MAX):
+        raise InvalidArgumentError(
+            f"{name}: got {v}, expected a magnitude within float32's range "
+            f"[{F32_TINY:.3g}, {F32_MAX:.3g}] (the kernel computes in float32)"
+        )
     return v
 
 
-#: The most elements an array argument may hold (16 GiB of float32): a larger one, e.g. a
+#: The range of magnitudes a float32 kernel parameter keeps (normal float32 numbers).
+F32_TINY = float(np.finfo(np.float32).tiny)
+F32_MAX = float(np.finfo(np.float32).max)
+
+#: The most elements an array argument may hold (8 GiB of float32): a larger one, e.g. a
 #: zero-stride view of a huge shape, is refused before a copy is attempted.
-MAX_ELEMENTS = 2**32
+MAX_ELEMENTS = 2**31
 
 #: The largest integer a parameter takes unless it says otherwise (counts, sizes, strides,
 #: indices: what Rust's i32/u32 and numpy's shapes hold); seeds pass ``maximum=MAX_SEED``.

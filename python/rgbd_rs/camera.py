@@ -200,12 +200,16 @@ class PinholeCamera:
     distortion: Distortion = field(default_factory=Distortion)
 
     def __post_init__(self) -> None:
-        _validate.real("fx", self.fx, positive=True)
-        _validate.real("fy", self.fy, positive=True)
-        _validate.real("cx", self.cx)
-        _validate.real("cy", self.cy)
-        _validate.size("width", self.width)
-        _validate.size("height", self.height)
+        # Stored as Python numbers (a numpy scalar would not survive save_camera's JSON).
+        for name, v in (
+            ("fx", _validate.real("fx", self.fx, positive=True)),
+            ("fy", _validate.real("fy", self.fy, positive=True)),
+            ("cx", _validate.real("cx", self.cx)),
+            ("cy", _validate.real("cy", self.cy)),
+            ("width", _validate.size("width", self.width)),
+            ("height", _validate.size("height", self.height)),
+        ):
+            object.__setattr__(self, name, v)
         if not isinstance(self.distortion, Distortion):
             raise InvalidArgumentError(
                 f"distortion: got {type(self.distortion).__name__}, expected a Distortion"

@@ -72,21 +72,24 @@ class Texture:
     @classmethod
     def checker(cls, period: float) -> Texture:
         """Squares of side ``period`` metres."""
-        return cls("checker", (_validate.real("period", period, positive=True),))
+        return cls("checker", (_validate.real("period", period, positive=True, f32=True),))
 
     @classmethod
     def stripes(cls, period: float, angle: float = 0.0) -> Texture:
         """Sinusoidal stripes (repetitive, ambiguous for stereo): ``period`` m, ``angle`` rad."""
         return cls(
             "stripes",
-            (_validate.real("period", period, positive=True), _validate.real("angle", angle)),
+            (
+                _validate.real("period", period, positive=True, f32=True),
+                _validate.real("angle", angle),
+            ),
         )
 
     @classmethod
     def noise(cls, scale: float, seed: int = 0) -> Texture:
         """Multi-octave value noise with features of about ``scale`` metres."""
         s = _validate.integer("seed", seed, maximum=2**63 - 1)
-        return cls("noise", (_validate.real("scale", scale, positive=True),), s)
+        return cls("noise", (_validate.real("scale", scale, positive=True, f32=True),), s)
 
     @classmethod
     def image(cls, rgb: npt.ArrayLike, period: float) -> Texture:
@@ -95,7 +98,7 @@ class Texture:
         img = _validate.array("rgb", arr, shape=(None, None, 3), finite=True)
         if arr.dtype == np.uint8:
             img = img / np.float32(255)
-        return cls("image", (_validate.real("period", period, positive=True),), 0, img)
+        return cls("image", (_validate.real("period", period, positive=True, f32=True),), 0, img)
 
     def __post_init__(self) -> None:
         _validate.choice("texture", self.kind, _TEXTURE_KINDS)
@@ -104,6 +107,13 @@ class Texture:
         for i, v in enumerate(self.params):
             _validate.real(f"params[{i}]", v)
         _validate.integer("seed", self.seed, maximum=2**63 - 1)
+        if (self.kind == "image") != (self.image_rgb is not None) or (
+            self.image_rgb is not None and not isinstance(self.image_rgb, np.ndarray)
+        ):
+            raise InvalidArgumentError(
+                f"image_rgb: got {type(self.image_rgb).__name__} for texture {self.kind!r}, "
+                "expected an image array exactly for 'image' (use Texture.image)"
+            )
 
     def _native(self) -> tuple[str, list[float], int, F32 | None]:
         return self.kind, [float(p) for p in self.params], int(self.seed), self.image_rgb
@@ -163,6 +173,9 @@ class OrthographicCamera:
         _validate.real("scale", self.scale, positive=True)
         _validate.size("width", self.width)
         _validate.size("height", self.height)
+        for name in ("cx", "cy"):
+            if getattr(self, name) is not None:
+                _validate.real(name, getattr(self, name))
 
 
 @dataclass(frozen=True)
@@ -187,6 +200,17 @@ class ToFModel:
     ambient: float = 10.0
     amplitude_threshold: float = 20.0
     wrap_phase: bool = False
+
+    def __post_init__(self) -> None:
+        # Checked when the model is made, not when a frame is rendered with it.
+        _validate.real("frequency_hz", self.frequency_hz, positive=True)
+        _validate.integer("subsamples", self.subsamples, minimum=1, maximum=8)
+        _validate.integer("multipath_rays", self.multipath_rays, maximum=256)
+        _validate.flag("noise", self.noise)
+        _validate.real("power", self.power, positive=True)
+        for name in ("read_noise", "shot_noise", "ambient", "amplitude_threshold"):
+            _validate.real(name, getattr(self, name), nonnegative=True)
+        _validate.flag("wrap_phase", self.wrap_phase)
 
     @classmethod
     def ideal(cls) -> ToFModel:
@@ -280,6 +304,10 @@ class Scene:
 
     def build(self) -> RenderScene:
         """Build the BVH over all triangles (object index = position in :attr:`objects`)."""
+        for name in ("objects", "lights"):
+            if not isinstance(getattr(self, name), (list, tuple)):
+                got = type(getattr(self, name)).__name__
+                raise InvalidArgumentError(f"{name}: got {got}, expected a list")
         verts, tris, obj = [], [], []
         offset = 0
         for k, item in enumerate(self.objects):
@@ -363,15 +391,15 @@ class RenderScene:
         return ToFFrame(
             *self._native.tof(
                 _view(camera, pose),
-                _validate.real("frequency_hz", m.frequency_hz, positive=True),
-                _validate.integer("subsamples", m.subsamples, minimum=1, maximum=8),
-                _validate.integer("multipath_rays", m.multipath_rays, maximum=256),
+                float(m.frequency_hz),  # the fields were validated by ToFModel itself
+                int(m.subsamples),
+                int(m.multipath_rays),
                 bool(m.noise),
-                _validate.real("power", m.power, positive=True),
-                _validate.real("read_noise", m.read_noise, nonnegative=True),
-                _validate.real("shot_noise", m.shot_noise, nonnegative=True),
-                _validate.real("ambient", m.ambient, nonnegative=True),
-                _validate.real("amplitude_threshold", m.amplitude_threshold, nonnegative=True),
+                float(m.power),
+                float(m.read_noise),
+                float(m.shot_noise),
+                float(m.ambient),
+                float(m.amplitude_threshold),
                 bool(m.wrap_phase),
                 _validate.integer("seed", seed, maximum=2**63 - 1),
             )

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs import _validate
 from rgbd_rs._reasons import reason
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose
 from rgbd_rs.errors import InvalidArgumentError
@@ -61,6 +62,17 @@ class AzureKinectFrame:
     depth: npt.NDArray[np.float32]
     amplitude: npt.NDArray[np.float32]
     color: npt.NDArray[np.uint8]
+
+    def __post_init__(self) -> None:
+        depth = _validate.array("depth", self.depth, shape=(None, None))
+        amplitude = _validate.array("amplitude", self.amplitude, shape=depth.shape)
+        color = _validate.asarray("color", self.color)
+        if color.dtype != np.uint8 or color.ndim != 3 or color.shape[2] != 3:
+            raise InvalidArgumentError(
+                f"color: got {color.dtype} of shape {color.shape}, expected H x W x 3 uint8 RGB"
+            )
+        object.__setattr__(self, "depth", depth)
+        object.__setattr__(self, "amplitude", amplitude)
 
 
 def _mode_camera(

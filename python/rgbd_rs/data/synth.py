@@ -324,6 +324,7 @@ class SynthDataset:
         if not isinstance(root, (str, Path)) or not str(root):
             raise InvalidArgumentError(f"root: got {root!r}, expected a dataset folder path")
         self.root = Path(root)
+        allow_partial = _validate.flag("allow_partial", allow_partial)
         self.split = _validate.choice("split", split, ("train", "test"))
         manifest = read_manifest(self.root / "manifest.json")
         p = manifest["params"]

@@ -46,6 +46,17 @@ class LcParams:
     stride: int = _DEFAULTS.stride
     cross_check: bool = False
 
+    def __post_init__(self) -> None:
+        # Every field checked when the parameters are made (native() checks them again).
+        if self.radius is not None:
+            _validate.integer("radius", self.radius, minimum=1, maximum=MAX_RADIUS)
+        if self.gamma_s is not None:
+            _validate.real("gamma_s", self.gamma_s, positive=True)
+        for name in ("gamma_c", "gamma_t", "truncation", "bin_width"):
+            _validate.real(name, getattr(self, name), positive=True)
+        _validate.integer("stride", self.stride, minimum=1)
+        _validate.flag("cross_check", self.cross_check)
+
     def resolved(self, width: int) -> tuple[int, float]:
         """``(radius, gamma_s)`` for an image ``width`` pixels wide."""
         if self.radius is None:

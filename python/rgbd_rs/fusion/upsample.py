@@ -78,9 +78,9 @@ def _upsample(
         lab = _validate.array("labels", labels, shape=(h, w), dtype=np.int32)
     config = _rgbd_rs.UpsampleConfig(
         _validate.integer("radius", radius, minimum=1, maximum=MAX_RADIUS),
-        _validate.real("sigma_spatial", sigma_spatial, positive=True),
-        _validate.real("sigma_color", sigma_color, positive=True),
-        _validate.real("sigma_range", sigma_range, positive=True),
+        _validate.real("sigma_spatial", sigma_spatial, positive=True, f32=True),
+        _validate.real("sigma_color", sigma_color, positive=True, f32=True),
+        _validate.real("sigma_range", sigma_range, positive=True, f32=True),
     )
     return _rgbd_rs.upsample_depth(s, ch, img, lab, config)
 

@@ -299,7 +299,11 @@ def load_checkpoint(
     """
     if not isinstance(path, (str, os.PathLike)) or not str(path):
         raise InvalidArgumentError(f"path: got {path!r}, expected a checkpoint file path")
-    if isinstance(normalisation_keys, str) or not isinstance(normalisation_keys, Collection):
+    if (
+        isinstance(normalisation_keys, str)
+        or not isinstance(normalisation_keys, Collection)
+        or not all(isinstance(k, str) for k in normalisation_keys)
+    ):
         raise InvalidArgumentError(
             f"normalisation_keys: got {normalisation_keys!r}, expected a collection of names"
         )

@@ -94,6 +94,19 @@ class ShapeEvaluation:
                 "expected non-negative whole numbers"
             )
         object.__setattr__(self, "confusion", m.astype(np.int64))
+        if not isinstance(self.representations, tuple) or not all(
+            isinstance(r, str) for r in self.representations
+        ):
+            raise InvalidArgumentError(
+                f"representations: got {self.representations!r}, expected a tuple of names"
+            )
+        for name in ("checkpoint", "dataset", "split"):
+            if not isinstance(getattr(self, name), str):
+                raise InvalidArgumentError(
+                    f"{name}: got {type(getattr(self, name)).__name__}, expected a str"
+                )
+        for name in ("turns", "mirror"):
+            _validate.flag(name, getattr(self, name))
 
     @property
     def count(self) -> int:
@@ -193,6 +206,10 @@ class ShapeEvaluation:
         from rgbd_rs.io import write_png
 
         out = _validate.path("folder", folder)
+        if not isinstance(stem, str) or not stem or Path(stem).name != stem or stem in (".", ".."):
+            raise InvalidArgumentError(
+                f"stem: got {stem!r}, expected a plain file name (no folders) for the report"
+            )
         if out.exists() and not out.is_dir():
             raise RgbdError(f"{out}: is a file, expected a folder for the report")
         out.mkdir(parents=True, exist_ok=True)
