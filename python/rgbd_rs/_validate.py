@@ -117,7 +117,10 @@ def real(
     try:
         v = float(value)
     except OverflowError:  # an int beyond the float range, e.g. 2**1100
-        raise InvalidArgumentError(f"{name}: got {value!r}, expected a finite number") from None
+        digits = len(str(abs(int(value))))
+        raise InvalidArgumentError(
+            f"{name}: got an integer of {digits} digits (beyond float64), expected a finite number"
+        ) from None
     if not math.isfinite(v):
         raise InvalidArgumentError(f"{name}: got {v}, expected a finite number")
     if positive and v <= 0:
