@@ -599,6 +599,14 @@ def _fuzz_cases_2(tmp: Path) -> list[Case]:
 def test_fresh_fuzz_classes_second_pass(tmp_path: Path) -> None:
     for case in _fuzz_cases_2(tmp_path):
         check(case)
+    from rgbd_rs.metrics import pixel_accuracy
+    from rgbd_rs.shapes import build_cache
+
+    labels = np.zeros((4, 4), int)
+    with pytest.raises(InvalidArgumentError, match=r"^ignore: got 18446744073709551616"):
+        pixel_accuracy(labels, labels, ignore=2**64)  # matched nothing: read as accuracy 0.0
+    with pytest.raises(InvalidArgumentError, match=r"^source: got NoneType"):
+        build_cache(None, tmp_path / "cache")  # type: ignore[arg-type]
     # np.matrix is read as the array it holds (it broke metrics' norms).
     from rgbd_rs import metrics
 

@@ -185,7 +185,8 @@ def _ignore(ignore: object) -> int | None:
         return None
     if isinstance(ignore, bool) or not isinstance(ignore, (int, np.integer)):
         raise InvalidArgumentError(f"ignore: got {ignore!r}, expected an integer label or None")
-    return int(ignore)
+    # Labels are compared as int64: a value outside it would silently match nothing.
+    return _validate.integer("ignore", ignore, minimum=-(2**63), maximum=2**63 - 1)
 
 
 def _pair(

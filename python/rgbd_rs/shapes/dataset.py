@@ -716,6 +716,11 @@ def build_cache(
     quiet = _validate.flag("quiet", quiet)
     out = _validate.out_folder("out", out)
 
+    if not isinstance(source, (ShapeSource, str, os.PathLike)):
+        raise InvalidArgumentError(
+            f"source: got {type(source).__name__}, expected a ShapeSource, a dataset name "
+            "(modelnet10, modelnet40) or a path"
+        )
     src = source if isinstance(source, ShapeSource) else open_shapes(source)
     s = InputSpec() if spec is None else spec
     if not isinstance(s, InputSpec):
