@@ -619,3 +619,25 @@ def test_fresh_fuzz_classes_second_pass(tmp_path: Path) -> None:
     cam = PinholeCamera(np.float32(20.0), 20.0, 3.5, 2.5, 8, 6)  # type: ignore[arg-type]
     assert type(cam.fx) is float
     assert load_camera(save_camera(tmp_path / "cam.json", cam)) == cam
+
+
+def test_fresh_fuzz_classes_third_batch(tmp_path: Path) -> None:
+    """Checkpoint fields checked before writing; map_location and init named; extreme cues."""
+    import dataclasses
+
+    from rgbd_rs.nn import load_checkpoint, save_checkpoint
+    from rgbd_rs.nn.semantic import SemanticNet
+    from rgbd_rs.segmentation.labeling import SemanticLabeler
+    from rgbd_rs.shapes.classify import shipped_weights
+
+    good = load_checkpoint(shipped_weights()["modelnet10"])
+    with pytest.raises(InvalidArgumentError, match=r"^checkpoint\.arch_config: got NoneType"):
+        save_checkpoint(dataclasses.replace(good, arch_config=None), tmp_path / "x.pt")  # type: ignore[arg-type]
+    assert not (tmp_path / "x.pt").exists()
+    with pytest.raises(InvalidArgumentError, match=r"^map_location: got 'bogus'"):
+        load_checkpoint(good.path, map_location="bogus")
+    torch.manual_seed(0)
+    net = SemanticNet(width=8).eval()
+    labeler = SemanticLabeler(net, (16, 12), tuple(f"c{i}" for i in range(net.n_classes)))
+    huge = np.full((9, 12, 16), 3e38, np.float32)
+    assert np.isfinite(labeler.pdfs_of_cues(huge)).all()  # clipped like the cache, not NaN

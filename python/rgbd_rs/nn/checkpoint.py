@@ -255,12 +255,34 @@ def _to_file(ckpt: Checkpoint) -> dict[str, Any]:
     return data
 
 
+def _check_fields(c: Checkpoint) -> None:
+    """The fields save_checkpoint writes have the types load_checkpoint will expect."""
+    if not isinstance(c.arch, str) or not c.arch:
+        raise InvalidArgumentError(f"checkpoint.arch: got {c.arch!r}, expected a name")
+    for name in ("arch_config", "normalisation", "model_state", "config"):
+        if not isinstance(getattr(c, name), Mapping):
+            got = type(getattr(c, name)).__name__
+            raise InvalidArgumentError(f"checkpoint.{name}: got {got}, expected a dict")
+    bad = [k for k, v in c.model_state.items() if not isinstance(v, torch.Tensor)]
+    if bad:
+        raise InvalidArgumentError(
+            f"checkpoint.model_state: {bad[:3]} are not tensors, expected a module's state_dict"
+        )
+    for name in ("epoch", "step"):
+        _validate.integer(f"checkpoint.{name}", getattr(c, name))
+    _validate.integer("checkpoint.world_size", c.world_size, minimum=1)
+    if not isinstance(c.history, list):
+        got = type(c.history).__name__
+        raise InvalidArgumentError(f"checkpoint.history: got {got}, expected a list")
+
+
 def save_checkpoint(checkpoint: Checkpoint, path: str | os.PathLike[str]) -> Path:
     """Write ``checkpoint`` to ``path`` atomically (mode 0644); return the path written."""
     if not isinstance(checkpoint, Checkpoint):
         raise InvalidArgumentError(
             f"checkpoint: got {type(checkpoint).__name__}, expected a Checkpoint"
         )
+    _check_fields(checkpoint)
     path = _validate.path("path", path)
     if path.is_dir():
         raise InvalidArgumentError(f"path: got {path}, a folder; expected a checkpoint file path")
@@ -308,6 +330,17 @@ def load_checkpoint(
             f"normalisation_keys: got {normalisation_keys!r}, expected a collection of names"
         )
     path = Path(path)
+    if not isinstance(map_location, (str, torch.device)):
+        raise InvalidArgumentError(
+            f"map_location: got {type(map_location).__name__}, expected 'cpu', 'cuda[:N]' or a "
+            "torch.device"
+        )
+    try:
+        torch.device(map_location)
+    except (RuntimeError, ValueError):
+        raise InvalidArgumentError(
+            f"map_location: got {map_location!r}, expected 'cpu', 'cuda[:N]' or a torch.device"
+        ) from None
     if not path.is_file():
         raise RgbdError(f"{path}: checkpoint file not found")
     try:

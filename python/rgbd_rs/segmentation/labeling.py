@@ -42,6 +42,10 @@ def _weights_path() -> Path:
     return _WEIGHTS_DIR / WEIGHT_FILE
 
 
+#: The largest cue magnitude the network sees (float16's, the training cache's dtype).
+_F16_MAX = float(np.finfo(np.float16).max)
+
+
 class SemanticLabeler:
     """A trained :class:`~rgbd_rs.nn.semantic.SemanticNet` with its input size (w, h), class
     names and ignored class (None: every class is a real one)."""
@@ -164,8 +168,10 @@ class SemanticLabeler:
         out_size = (h, w) if size is None else size
         device = next(self.net.parameters()).device
         with torch.inference_mode():
-            # Missing cues (NaN, and inf as everywhere) count as 0, as in the cache.
+            # Missing cues (NaN, and inf as everywhere) count as 0 and the rest is clipped into
+            # float16's range, as in the training cache (3e38 overflowed the LCN into NaN PDFs).
             x = torch.nan_to_num(x.to(device, torch.float32), nan=0.0, posinf=0.0, neginf=0.0)
+            x = x.clamp(-_F16_MAX, _F16_MAX)
             logits = self.net(x)
             p = class_probabilities(logits, out_size, ignore_index=self.ignore_index)
         arr = np.ascontiguousarray(p.permute(0, 2, 3, 1).cpu().numpy(), dtype=np.float32)

@@ -206,7 +206,7 @@ def train_semantic(
     model = SemanticNet(n_classes, width=r.width, lcn_window=window)
     norm = normalisation_of(c, r.ignore_index)
     if init is not None:
-        _load_init(init, model, norm)
+        _load_init(_validate.path("init", init), model, norm)
     result = train(
         model,
         train_set,

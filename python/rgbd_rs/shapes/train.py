@@ -174,7 +174,7 @@ def train_shapes(
     if init is not None:
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
-        load_checkpoint(init, arch=ARCH).load_weights(model)
+        load_checkpoint(_validate.path("init", init), arch=ARCH).load_weights(model)
     result = train(
         model,
         train_set,
