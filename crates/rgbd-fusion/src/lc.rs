@@ -305,7 +305,10 @@ fn fuse_with(
             ),
         ));
     }
-    let nbins = bins_f as usize + 1;
+    // The count from the very f32 arithmetic `prepare` bins each disparity with (monotonic, so
+    // dmax's bin is the largest): the f64 quotient can floor one lower than the f32 one, and
+    // dmax's bin then indexed past the histogram (found by proptest: w 68, bin width 0.25).
+    let nbins = ((dmax - dmin) / params.bin_width) as usize + 1;
     let kernel = force.unwrap_or_else(|| Kernel::select(nbins));
     let plan = Plan::new(
         reference, target, width, height, sources, dmin, nbins, params, kernel,

@@ -583,6 +583,19 @@ mod tests {
     }
 
     #[test]
+    fn a_narrow_ramp_with_fine_bins_does_not_index_past_its_histogram() {
+        // proptest's minimal failing input (index 26 of a 26-bin histogram, in CI).
+        let p = LcParams {
+            radius: 1,
+            stride: 1,
+            bin_width: 0.25,
+            target_sign: -1,
+            ..LcParams::default()
+        };
+        same_bits(68, 3, 625, &p, false, 8);
+    }
+
+    #[test]
     fn defaults_at_the_fuse_window_are_bit_identical() {
         for stride in [1, 2] {
             let p = LcParams {
