@@ -37,20 +37,24 @@ def asarray(name: str, value: object) -> np.ndarray:
             "with NaN, or pass .filled(...))"
         )
     if isinstance(value, np.ndarray):
-        arr = value if type(value) is np.ndarray else value.view(np.ndarray)
-        if arr.size > MAX_ELEMENTS:
-            raise ShapeMismatchError(
-                f"{name}: got {arr.size} elements (shape {tuple(arr.shape)}), expected at most "
-                f"{MAX_ELEMENTS} (2**31)"
-            )
-        return arr
+        return _bounded(name, value if type(value) is np.ndarray else value.view(np.ndarray))
     try:
-        return np.asarray(value)
+        return _bounded(name, np.asarray(value))
     except (TypeError, ValueError) as exc:  # ragged lists and the like
         raise InvalidArgumentError(
             f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
             "expected a numpy array"
         ) from None
+
+
+def _bounded(name: str, arr: np.ndarray) -> np.ndarray:
+    """``arr``, refused when it holds more than :data:`MAX_ELEMENTS` (before anything copies)."""
+    if arr.size > MAX_ELEMENTS:
+        raise ShapeMismatchError(
+            f"{name}: got {arr.size} elements (shape {tuple(arr.shape)}), expected at most "
+            f"{MAX_ELEMENTS} (2**31)"
+        )
+    return arr
 
 
 def array(
@@ -81,11 +85,6 @@ def array(
         raise ShapeMismatchError(
             f"{name}: got an empty array of shape {tuple(value.shape)}, "
             "expected at least one element"
-        )
-    if value.size > MAX_ELEMENTS:
-        raise ShapeMismatchError(
-            f"{name}: got {value.size} elements (shape {tuple(value.shape)}), expected at most "
-            f"{MAX_ELEMENTS} (2**31)"
         )
     # np.ascontiguousarray keeps an unaligned buffer as it is; the kernels need aligned memory.
     try:
@@ -182,7 +181,11 @@ def path(name: str, value: object) -> Path:
     """Validate a file-system path: a non-empty str or os.PathLike without NUL characters."""
     if isinstance(value, (str, os.PathLike)):
         text = os.fspath(value)
-        if isinstance(text, str) and text and "\0" not in text:
+        if isinstance(text, str) and "\0" in text:
+            raise InvalidArgumentError(
+                f"{name}: got {text!r}, which holds a NUL character; expected a file path"
+            )
+        if isinstance(text, str) and text:
             return Path(text)
     raise InvalidArgumentError(f"{name}: got {_short(value)}, expected a file or folder path")
 

@@ -46,11 +46,7 @@ _PNG_CHANNELS = (1, 3, 4)
 
 def _path(value: object, name: str = "path") -> Path:
     if isinstance(value, (str, os.PathLike)) and str(value):
-        if "\0" in str(value):
-            raise InvalidArgumentError(
-                f"{name}: got {str(value)!r}, which holds a NUL character; expected a file path"
-            )
-        return Path(value)
+        return _validate.path(name, value)  # refuses NUL characters, and bytes paths
     raise InvalidArgumentError(f"{name}: got {value!r}, expected a file path (str or Path)")
 
 
