@@ -76,6 +76,31 @@ def test_ablation_cli(pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[
     assert "| volume |" in table and "92.2%" in table
 
 
+def test_train_regularised_recipe_flags(
+    pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rgbd_rs.nn.checkpoint import load_checkpoint
+
+    cache = tmp_path / "cache"
+    argv = ["shapes", "cache", "--data", str(pack), "--out", str(cache), "--quiet"]
+    assert main([*argv, "--representations", "volume", "--normalisation", "standardize"]) == 0
+    run = tmp_path / "run"
+    train = ["train", "shapes", "--cache", str(cache), "--out", str(run), "--width", "4"]
+    train += ["--epochs", "2", "--batch-size", "6", "--quiet", "--device", "cpu"]
+    train += ["--schedule", "cosine", "--optimizer", "adamw", "--lr", "0.003", "--batch-norm"]
+    train += ["--dropout", "0.3", "--label-smoothing", "0.1", "--val-fraction", "0.25"]
+    assert main(train) == 0
+    capsys.readouterr()
+    last = load_checkpoint(run / "last.pt")
+    assert last.config["schedule"] == "cosine" and last.config["lr_step"] == 0
+    assert last.config["optimizer"] == "adamw"
+    assert last.arch_config["batch_norm"] is True and last.arch_config["dropout"] == 0.3
+    assert all(h["val_metric"] is not None for h in last.history)
+    with pytest.raises(SystemExit) as exit_:
+        main([*train[:2], "--cache", str(cache), "--dropout", "1.5"])
+    assert exit_.value.code == 2 and "--dropout: got 1.5" in capsys.readouterr().err
+
+
 def test_bad_runs_end_in_one_line(
     pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -277,3 +277,61 @@ def test_mirror_trains_on_mirror_images_and_evaluates_both(tiny_cache: Path) -> 
         evaluate(best, tiny_cache / "cache", mirror="yes")  # type: ignore[arg-type]
     with pytest.raises(InvalidArgumentError, match="mirror"):
         ShapeRecipe(mirror=1)  # type: ignore[arg-type]
+
+
+def test_batch_norm_and_dropout_rebuild_and_old_configs_still_load() -> None:
+    plain = ShapeNet(4, representations=("volume",), volume_resolution=16, width=4)
+    assert set(plain.arch_config()) == {
+        "n_classes", "representations", "view_resolution", "volume_resolution", "width",
+    }  # fmt: skip  # what checkpoints stored before batch_norm / dropout existed
+    net = ShapeNet(
+        4, representations=("volume",), volume_resolution=16, width=4, batch_norm=True,
+        dropout=0.25,
+    )  # fmt: skip
+    assert net.arch_config()["batch_norm"] is True and net.arch_config()["dropout"] == 0.25
+    assert any(isinstance(m, torch.nn.BatchNorm2d) for m in net.modules())
+    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in plain.modules())
+    again = ShapeNet.from_config(net.arch_config())
+    again.load_state_dict(net.state_dict())
+    x = _inputs(net, 3)
+    net.eval()
+    again.eval()
+    assert torch.equal(net(x), again(x))  # eval mode: dropout off, running statistics
+    net.train()
+    torch.manual_seed(0)
+    assert not torch.equal(net(x), again(x))  # dropout (and batch statistics) in training
+    with pytest.raises(InvalidArgumentError, match=r"dropout: got 1\.0"):
+        ShapeNet(4, representations=("volume",), volume_resolution=16, dropout=1.0)
+    with pytest.raises(InvalidArgumentError, match="batch_norm"):
+        ShapeNet(4, representations=("volume",), volume_resolution=16, batch_norm=1)  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgumentError, match="optionally"):
+        ShapeNet.from_config(plain.arch_config() | {"depth": 3})
+
+
+def test_regularised_recipe_records_accuracy_chooses_by_it_and_ships(tiny_cache: Path) -> None:
+    from rgbd_rs.shapes.evaluate import evaluate
+
+    out = tiny_cache / "regularised"
+    recipe = ShapeRecipe(width=8, val_fraction=0.25, batch_norm=True, dropout=0.2,
+                         label_smoothing=0.1)  # fmt: skip
+    best = train_shapes(
+        tiny_cache / "cache", out, recipe=recipe,
+        config=_config(epochs=6, lr_step=0, schedule="cosine", optimizer="adamw", lr=0.01),
+        quiet=True,
+    )  # fmt: skip
+    last = load_checkpoint(out / "last.pt")
+    accs = [h["val_metric"] for h in last.history]
+    assert all(0 <= a <= 1 for a in accs) and all("train_metric" in h for h in last.history)
+    chosen = load_checkpoint(best)
+    assert chosen.history[-1]["val_metric"] == max(accs)
+    assert chosen.arch_config["batch_norm"] is True
+    shipped = ship(best, tiny_cache / "regularised.pt")
+    light = load_checkpoint(shipped)
+    assert all(
+        v.dtype == torch.float16 for k, v in light.model_state.items() if "num_batches" not in k
+    )
+    full = evaluate(best, tiny_cache / "cache", split="train").accuracy
+    half = evaluate(shipped, tiny_cache / "cache", split="train").accuracy
+    assert full >= 0.6 and abs(full - half) <= 1 / 16, (full, half)  # chance is 1/3
+    with pytest.raises(InvalidArgumentError, match="label_smoothing: got 1"):
+        ShapeRecipe(label_smoothing=1)

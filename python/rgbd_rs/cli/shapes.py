@@ -243,8 +243,19 @@ def _train(commands: Commands) -> None:
     p.add_argument(
         "--batch-size", type=integer(1), default=32, metavar="N", help="shapes per step (32)"
     )
+    p.add_argument("--lr", type=real(0, 10), default=0.01, metavar="X", help="learning rate (0.01)")
     p.add_argument(
-        "--lr", type=real(0, 10), default=0.01, metavar="X", help="SGD learning rate (0.01)"
+        "--optimizer",
+        choices=("sgd", "adamw"),
+        default="sgd",
+        help="SGD with momentum (the thesis) or AdamW (sgd)",
+    )
+    p.add_argument(
+        "--schedule",
+        choices=("step", "cosine"),
+        default="step",
+        help="step: halve the lr every --lr-step epochs; cosine: anneal it to 0 over --epochs, "
+        "per step (--lr-step is then unused) (step)",
     )
     p.add_argument(
         "--momentum", type=real(0, 0.999, low_open=False), default=0.9, metavar="X", help="(0.9)"
@@ -273,6 +284,25 @@ def _train(commands: Commands) -> None:
         action="store_true",
         help="replace each training shape by its mirror image (x -> -x) with probability 1/2",
     )
+    p.add_argument(
+        "--batch-norm",
+        action="store_true",
+        help="batch normalisation after every convolution (not in the thesis)",
+    )
+    p.add_argument(
+        "--dropout",
+        type=real(0, 0.99, low_open=False),
+        default=0.0,
+        metavar="X",
+        help="dropout of the descriptor before the classifier (0; not in the thesis)",
+    )
+    p.add_argument(
+        "--label-smoothing",
+        type=real(0, 0.99, low_open=False),
+        default=0.0,
+        metavar="X",
+        help="mass of the cross-entropy target spread over the classes (0; not in the thesis)",
+    )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     training_run_options(p)
 
@@ -286,11 +316,12 @@ def run_train(args: argparse.Namespace) -> int:
     config = TrainConfig(
         epochs=args.epochs,
         batch_size=args.batch_size,
-        optimizer="sgd",
+        optimizer=args.optimizer,
         lr=args.lr,
         momentum=args.momentum,
         weight_decay=args.weight_decay,
-        lr_step=args.lr_step,
+        lr_step=0 if args.schedule == "cosine" else args.lr_step,
+        schedule=args.schedule,
         lr_gamma=0.5,
         seed=args.seed,
         num_workers=args.workers,
@@ -303,6 +334,9 @@ def run_train(args: argparse.Namespace) -> int:
         val_fraction=args.val_fraction,
         rotate=args.rotate,
         mirror=args.mirror,
+        batch_norm=args.batch_norm,
+        dropout=args.dropout,
+        label_smoothing=args.label_smoothing,
     )
     t0 = time.perf_counter()
     if args.ablation:

@@ -138,11 +138,16 @@ def _input_shapes(
     return {name: full[name] for name in reps}
 
 
-def _branch(in_channels: int, filters: Sequence[int], pools: Sequence[int]) -> nn.Sequential:
+def _branch(
+    in_channels: int, filters: Sequence[int], pools: Sequence[int], batch_norm: bool = False
+) -> nn.Sequential:
     layers: list[nn.Module] = []
     c = in_channels
     for f, p in zip(filters, pools, strict=True):
-        layers += [nn.Conv2d(c, f, 3, padding=1), nn.ReLU(inplace=True), nn.MaxPool2d(p)]
+        layers.append(nn.Conv2d(c, f, 3, padding=1))
+        if batch_norm:
+            layers.append(nn.BatchNorm2d(f))
+        layers += [nn.ReLU(inplace=True), nn.MaxPool2d(p)]
         c = f
     return nn.Sequential(*layers)
 
@@ -158,6 +163,11 @@ class ShapeNet(nn.Module):
     ``width`` is the number of filters of the 128-filter layers (the first layer scales with it:
     48 at 128), so each branch's descriptor has ``width`` elements. Inputs: see the module
     docstring. Output: ``N x n_classes`` class scores (logits).
+
+    Not in the thesis, both off by default (the architecture of Table 5.1): ``batch_norm`` puts
+    a batch normalisation between every convolution and its ReLU (its statistics shared where
+    the branch's weights are), and ``dropout`` drops that fraction of the concatenated
+    descriptor's elements before the classifier in training.
     """
 
     def __init__(
@@ -168,8 +178,14 @@ class ShapeNet(nn.Module):
         view_resolution: int = THESIS_VIEW_RESOLUTION,
         volume_resolution: int = THESIS_VOLUME_RESOLUTION,
         width: int = THESIS_WIDTH,
+        batch_norm: bool = False,
+        dropout: float = 0.0,
     ) -> None:
         super().__init__()
+        self.batch_norm = _validate.flag("batch_norm", batch_norm)
+        self.dropout = _validate.real("dropout", dropout, nonnegative=True)
+        if self.dropout >= 1:
+            raise InvalidArgumentError(f"dropout: got {dropout}, expected 0 <= dropout < 1")
         self.n_classes = _validate.integer("n_classes", n_classes, minimum=2, maximum=100_000)
         self.representations = _parse_representations(representations)
         self.view_resolution = _validate.integer(
@@ -190,14 +206,16 @@ class ShapeNet(nn.Module):
         for name in self.representations:
             if name == "volume":
                 for axis in "xyz":  # independent weights per axis (§5.4)
-                    self.branches[f"volume_{axis}"] = _branch(1, pf, pp)
+                    self.branches[f"volume_{axis}"] = _branch(1, pf, pp, self.batch_norm)
                 n_branches += N_PROFILES
             else:
                 c = 1 if name == "depth" else CURVATURE_CHANNELS
-                self.branches[f"{name}_side"] = _branch(c, vf, vp)  # shared by the 4 side views
-                self.branches[f"{name}_caps"] = _branch(c, vf, vp)  # shared by bottom and top
+                bn = self.batch_norm
+                self.branches[f"{name}_side"] = _branch(c, vf, vp, bn)  # shared by 4 side views
+                self.branches[f"{name}_caps"] = _branch(c, vf, vp, bn)  # shared by bottom and top
                 n_branches += N_VIEWS
         self.n_features = n_branches * self.width
+        self.drop = nn.Dropout(self.dropout)  # no weights: old checkpoints load unchanged
         self.classifier = nn.Linear(self.n_features, self.n_classes, bias=False)
         for m in self.branches.modules():
             if isinstance(m, nn.Conv2d):  # He initialisation for ReLU stacks (not in the thesis)
@@ -206,28 +224,41 @@ class ShapeNet(nn.Module):
                 nn.init.zeros_(m.bias)
 
     def arch_config(self) -> dict[str, Any]:
-        """The constructor arguments (what checkpoints store to rebuild the network)."""
-        return {
+        """The constructor arguments (what checkpoints store to rebuild the network);
+        ``batch_norm`` and ``dropout`` only when on, so a Table 5.1 network's config is the
+        one checkpoints stored before they existed."""
+        out: dict[str, Any] = {
             "n_classes": self.n_classes,
             "representations": list(self.representations),
             "view_resolution": self.view_resolution,
             "volume_resolution": self.volume_resolution,
             "width": self.width,
         }
+        if self.batch_norm:
+            out["batch_norm"] = True
+        if self.dropout:
+            out["dropout"] = self.dropout
+        return out
 
     @classmethod
     def from_config(cls, config: Mapping[str, Any]) -> ShapeNet:
         """Inverse of :meth:`arch_config`; missing or unknown keys raise naming them."""
         keys = {"n_classes", "representations", "view_resolution", "volume_resolution", "width"}
-        if not isinstance(config, Mapping) or set(config) != keys:
+        optional = {"batch_norm", "dropout"}
+        if not isinstance(config, Mapping) or not keys <= set(config) <= keys | optional:
             got = sorted(config) if isinstance(config, Mapping) else type(config).__name__
-            raise InvalidArgumentError(f"arch_config: got {got}, expected keys {sorted(keys)}")
+            raise InvalidArgumentError(
+                f"arch_config: got {got}, expected keys {sorted(keys)} (and optionally "
+                f"{sorted(optional)})"
+            )
         return cls(
             config["n_classes"],
             representations=config["representations"],
             view_resolution=config["view_resolution"],
             volume_resolution=config["volume_resolution"],
             width=config["width"],
+            batch_norm=config.get("batch_norm", False),
+            dropout=config.get("dropout", 0.0),
         )
 
     def features(self, x: torch.Tensor | Mapping[str, torch.Tensor]) -> torch.Tensor:
@@ -255,7 +286,7 @@ class ShapeNet(nn.Module):
 
     def forward(self, x: torch.Tensor | Mapping[str, torch.Tensor]) -> torch.Tensor:
         """Class scores ``N x n_classes`` (logits) of packed or dict inputs."""
-        return self.classifier(self.features(x))  # type: ignore[no-any-return]
+        return self.classifier(self.drop(self.features(x)))  # type: ignore[no-any-return]
 
     def _checked(self, x: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         if not isinstance(x, Mapping):

@@ -63,7 +63,10 @@ __all__ = [
     "train",
 ]
 
-OPTIMIZERS = ("sgd", "adam")
+OPTIMIZERS = ("sgd", "adam", "adamw")
+#: Learning-rate schedules: StepLR / ReduceLROnPlateau ("step", see ``lr_step`` and
+#: ``lr_plateau``) or cosine annealing from ``lr`` to 0 over ``epochs`` ("cosine").
+SCHEDULES = ("step", "cosine")
 #: File names inside ``out_dir``.
 LAST, BEST = "last.pt", "best.pt"
 #: TrainConfig fields that may differ when resuming: they do not change the weights' trajectory
@@ -72,6 +75,8 @@ RESUMABLE_CHANGES = frozenset({"epochs", "num_workers", "checkpoint_steps", "dev
 
 Batch = tuple[Any, ...]
 LossFn = Callable[[Any, Batch], torch.Tensor]
+#: A score of a batch, higher is better (e.g. accuracy): a scalar tensor, the MEAN over the batch.
+MetricFn = Callable[[Any, Batch], torch.Tensor]
 
 
 @dataclass(frozen=True)
@@ -87,6 +92,9 @@ class TrainConfig:
     within an epoch, so an interrupted epoch loses at most that many steps. ``grad_clip`` clips
     the gradients' global L2 norm.
     ``device``: ``"auto"`` (CUDA when available, else CPU), ``"cpu"``, ``"cuda"``, ``"cuda:N"``.
+    ``optimizer``: ``"sgd"``, ``"adam"`` or ``"adamw"`` (decoupled weight decay).
+    ``schedule="cosine"`` anneals the lr from ``lr`` to 0 over ``epochs``, once per step (the
+    ``lr_*`` fields must then be 0); a cosine run cannot be resumed with another ``epochs``.
     """
 
     epochs: int = 10
@@ -103,6 +111,7 @@ class TrainConfig:
     checkpoint_steps: int = 0
     grad_clip: float | None = None
     device: str = "auto"
+    schedule: str = "step"
 
     def __post_init__(self) -> None:
         _validate.integer("epochs", self.epochs, minimum=1)
@@ -129,6 +138,12 @@ class TrainConfig:
             raise InvalidArgumentError(
                 f"lr_gamma: got {self.lr_gamma} with lr_plateau, expected 0 < lr_gamma < 1"
             )
+        _validate.choice("schedule", self.schedule, SCHEDULES)
+        if self.schedule == "cosine" and (self.lr_step or self.lr_plateau):
+            raise InvalidArgumentError(
+                f"schedule: got 'cosine' with lr_step {self.lr_step} and lr_plateau "
+                f"{self.lr_plateau}, expected both 0 (one schedule)"
+            )
         _validate.integer("seed", self.seed, maximum=2**32 - 1)  # numpy's seed range
         _validate.integer("num_workers", self.num_workers)
         _validate.integer("checkpoint_steps", self.checkpoint_steps)
@@ -143,10 +158,13 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """The fields as a plain dict (what checkpoints store). ``lr_plateau`` is left out at
-        its default 0, so checkpoints written before it existed still resume."""
+        its default 0 and ``schedule`` at its default "step", so checkpoints written before they
+        existed still resume."""
         out = dataclasses.asdict(self)
         if not out["lr_plateau"]:
             del out["lr_plateau"]
+        if out["schedule"] == "step":
+            del out["schedule"]
         return out
 
     @classmethod
@@ -165,23 +183,29 @@ class TrainConfig:
 
 @dataclass(frozen=True)
 class EpochStats:
-    """One completed epoch: 1-based number, mean train loss, mean validation loss, its LR."""
+    """One completed epoch: 1-based number, mean train loss, mean validation loss, its LR (at the
+    epoch's start), and with a ``metric_fn`` the metric's means over the epoch's training batches
+    (in train mode, as they were drawn) and over the validation set."""
 
     epoch: int
     train_loss: float
     val_loss: float | None
     lr: float
+    train_metric: float | None = None
+    val_metric: float | None = None
 
 
 @dataclass(frozen=True)
 class TrainResult:
-    """What :func:`train` did. ``best_*`` are None when there was no validation set."""
+    """What :func:`train` did. ``best_*`` are None when there was no validation set;
+    ``best_val_metric`` also without a ``metric_fn``."""
 
     history: tuple[EpochStats, ...]
     best_epoch: int | None
     best_val_loss: float | None
     last_checkpoint: Path
     best_checkpoint: Path | None
+    best_val_metric: float | None = None
 
 
 def seed_everything(seed: int) -> None:
@@ -265,21 +289,61 @@ def _mean_loss(loss: torch.Tensor, where: str) -> float:
     return value
 
 
+def _mean_metric(value: Any) -> float:
+    if not isinstance(value, torch.Tensor) or value.numel() != 1:
+        raise RgbdError(f"metric_fn: returned {type(value).__name__}, expected a scalar tensor")
+    out = float(value.item())
+    if not math.isfinite(out):
+        raise RgbdError(f"metric_fn: returned {out}, expected a finite score")
+    return out
+
+
 def _evaluate(
-    model: nn.Module, data: Dataset[Any], loss_fn: LossFn, cfg: TrainConfig, g: _Group
-) -> float:
+    model: nn.Module,
+    data: Dataset[Any],
+    loss_fn: LossFn,
+    metric_fn: MetricFn | None,
+    cfg: TrainConfig,
+    g: _Group,
+) -> tuple[float, float | None]:
+    """(mean loss, mean metric or None) over ``data``."""
     model.eval()
-    total = count = 0.0
+    total = score = count = 0.0
     with torch.no_grad():
         indices = list(range(g.rank, _length("val_set", data), g.world))  # no padding: exact mean
         for raw in _loader(data, indices, cfg, g, [1]):
             batch = _to_device(raw, g.device)
             n = _count(batch[0])
-            total += _mean_loss(loss_fn(model(batch[0]), batch), "validation") * n
+            output = model(batch[0])
+            total += _mean_loss(loss_fn(output, batch), "validation") * n
+            if metric_fn is not None:
+                score += _mean_metric(metric_fn(output, batch)) * n
             count += n
     model.train()
-    total, count = g.sum([total, count])
-    return total / count
+    total, score, count = g.sum([total, score, count])
+    return total / count, (score / count if metric_fn is not None else None)
+
+
+def _better(
+    val: float | None, metric: float | None, best_val: float | None, best_metric: float | None
+) -> bool:
+    """Is this epoch the new best: the higher metric (ties: the lower loss), else the lower loss."""
+    if val is None:
+        return False
+    if best_val is None:
+        return True
+    if metric is not None and best_metric is not None:
+        return metric > best_metric or (metric == best_metric and val < best_val)
+    return val < best_val
+
+
+def _cosine(total_steps: int) -> Callable[[int], float]:
+    """LambdaLR factor of a cosine from 1 at step 0 to 0 at ``total_steps``."""
+
+    def factor(step: int) -> float:
+        return 0.5 * (1.0 + math.cos(math.pi * min(step, total_steps) / total_steps))
+
+    return factor
 
 
 def train(
@@ -295,6 +359,7 @@ def train(
     normalisation: Mapping[str, Any],
     quiet: bool = False,
     resume: bool = True,
+    metric_fn: MetricFn | None = None,
 ) -> TrainResult:
     """Train ``model`` in place; write ``out_dir/last.pt`` and (with validation) ``best.pt``.
 
@@ -308,6 +373,10 @@ def train(
     ``resume=False`` starts afresh and overwrites ``out_dir``'s checkpoints. Under torchrun every
     process calls this; only rank 0 writes files and shows the progress bar (also hidden when
     ``quiet`` or stderr is not a terminal). See the module docstring for the calling convention.
+    ``metric_fn(output, batch)`` (a score, higher is better, e.g. accuracy) is recorded per
+    epoch on the training batches and the validation set, and then chooses ``best.pt``: the
+    epoch of the highest validation metric (ties: the lower validation loss), instead of the
+    lowest validation loss.
     """
     quiet = _validate.flag("quiet", quiet)
     resume = _validate.flag("resume", resume)
@@ -320,6 +389,10 @@ def train(
         raise InvalidArgumentError("val_set: got an empty dataset, expected at least one item")
     if not callable(loss_fn):
         raise InvalidArgumentError(f"loss_fn: got {type(loss_fn).__name__}, expected a callable")
+    if metric_fn is not None and not callable(metric_fn):
+        raise InvalidArgumentError(
+            f"metric_fn: got {type(metric_fn).__name__}, expected a callable or None"
+        )
     if not isinstance(config, TrainConfig):
         raise InvalidArgumentError(f"config: got {type(config).__name__}, expected TrainConfig")
     if not isinstance(arch, str) or not arch:
@@ -337,8 +410,9 @@ def train(
     now["world_size"] = g.world
     try:
         return _run(
-            model, train_set, val_set, loss_fn, config, Path(out_dir), now, g, quiet, resume
-        )
+            model, train_set, val_set, loss_fn, metric_fn, config, Path(out_dir), now, g, quiet,
+            resume,
+        )  # fmt: skip
     finally:
         g.close()
 
@@ -348,6 +422,7 @@ def _run(
     train_set: Dataset[Any],
     val_set: Dataset[Any] | None,
     loss_fn: LossFn,
+    metric_fn: MetricFn | None,
     cfg: TrainConfig,
     out: Path,
     now: dict[str, Any],
@@ -362,10 +437,16 @@ def _run(
     opt: torch.optim.Optimizer
     if cfg.optimizer == "sgd":
         opt = torch.optim.SGD(params, cfg.lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
+    elif cfg.optimizer == "adamw":
+        opt = torch.optim.AdamW(params, cfg.lr, weight_decay=cfg.weight_decay)
     else:
         opt = torch.optim.Adam(params, cfg.lr, weight_decay=cfg.weight_decay)
+    per_rank = math.ceil(_length("train_set", train_set) / g.world)  # DistributedSampler pads
+    steps = math.ceil(per_rank / cfg.batch_size)
     sched: Any
-    if cfg.lr_plateau:  # reduce after lr_plateau bad epochs in a row (torch counts patience + 1)
+    if cfg.schedule == "cosine":  # stepped once per optimizer step
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, _cosine(cfg.epochs * steps))
+    elif cfg.lr_plateau:  # reduce after lr_plateau bad epochs in a row (torch counts patience + 1)
         sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
             opt, "min", factor=cfg.lr_gamma, patience=cfg.lr_plateau - 1, threshold=0.0
         )
@@ -374,9 +455,10 @@ def _run(
         sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_step or 1, gamma=gamma)
     history: list[dict[str, Any]] = []
     best_val: float | None = None
+    best_metric: float | None = None
     best_epoch: int | None = None
     start_epoch = start_step = 0
-    partial = {"loss_sum": 0.0, "samples": 0.0}
+    partial = {"loss_sum": 0.0, "samples": 0.0, "metric_sum": 0.0}
     # Rank 0 reads last.pt (after its own previous writes: no race, no shared disk needed) and
     # sends it to the others; an unreadable file fails every rank alike instead of hanging.
     found: Checkpoint | str | None = None
@@ -390,7 +472,8 @@ def _run(
         raise RgbdError(found)
     if found is not None:
         ckpt = found
-        diffs = _resume_differences(ckpt, **now, may_change=RESUMABLE_CHANGES)
+        may_change = RESUMABLE_CHANGES - ({"epochs"} if cfg.schedule == "cosine" else set())
+        diffs = _resume_differences(ckpt, **now, may_change=may_change)
         if diffs:
             raise RgbdError(
                 f"{last_path}: cannot resume: " + "; ".join(diffs) + ". Pass resume=False "
@@ -401,6 +484,8 @@ def _run(
         sched.load_state_dict(ckpt.scheduler_state)
         _restore_rng(ckpt.rng_state["ranks"][g.rank])  # type: ignore[index]
         history, best_val, best_epoch = list(ckpt.history), ckpt.best_val_loss, ckpt.best_epoch
+        if best_epoch is not None and 0 < best_epoch <= len(history):
+            best_metric = history[best_epoch - 1].get("val_metric")
         start_epoch, start_step = ckpt.epoch, ckpt.step
         if main and ckpt.partial:
             partial = dict(ckpt.partial)  # the other ranks' shares are already summed in
@@ -439,9 +524,12 @@ def _run(
         )
         sampler.set_epoch(epoch)
         order = list(sampler)
-        steps = math.ceil(len(order) / cfg.batch_size)
         skip = start_step if epoch == start_epoch else 0
         loss_sum, samples = (partial["loss_sum"], partial["samples"]) if skip else (0.0, 0.0)
+        metric_sum = float(partial.get("metric_sum", 0.0)) if skip else 0.0
+        lr = float(opt.param_groups[0]["lr"])  # at the epoch's start (also when resumed within)
+        if cfg.schedule == "cosine":
+            lr = cfg.lr * _cosine(cfg.epochs * steps)(epoch * steps)
         loader = _loader(train_set, order[skip * cfg.batch_size :], cfg, g, [0, epoch])
         bar = tqdm(
             total=steps, initial=skip, desc=f"epoch {epoch + 1}/{cfg.epochs}", unit="step",
@@ -451,33 +539,44 @@ def _run(
             for step, raw in enumerate(loader, start=skip + 1):
                 batch = _to_device(raw, g.device)
                 opt.zero_grad(set_to_none=True)
-                loss = loss_fn(net(batch[0]), batch)
+                output = net(batch[0])
+                loss = loss_fn(output, batch)
                 value = _mean_loss(loss, f"epoch {epoch + 1} step {step}")
                 loss.backward()  # type: ignore[no-untyped-call]
                 if cfg.grad_clip is not None:
                     nn.utils.clip_grad_norm_(params, cfg.grad_clip)
                 opt.step()
+                if cfg.schedule == "cosine":
+                    sched.step()
                 n = _count(batch[0])
                 loss_sum, samples = loss_sum + value * n, samples + n
+                if metric_fn is not None:
+                    with torch.no_grad():
+                        metric_sum += _mean_metric(metric_fn(output, batch)) * n
                 bar.update()
                 bar.set_postfix(loss=f"{loss_sum / samples:.4g}")
                 if cfg.checkpoint_steps and step % cfg.checkpoint_steps == 0 and step < steps:
-                    total = g.sum([loss_sum, samples])
-                    save(epoch, step, {"loss_sum": total[0], "samples": total[1]}, [last_path])
-            loss_sum, samples = g.sum([loss_sum, samples])
-            lr = float(opt.param_groups[0]["lr"])
-            val = _evaluate(model, val_set, loss_fn, cfg, g) if val_set is not None else None
+                    total = g.sum([loss_sum, samples, metric_sum])
+                    sums = {"loss_sum": total[0], "samples": total[1], "metric_sum": total[2]}
+                    save(epoch, step, sums, [last_path])
+            loss_sum, samples, metric_sum = g.sum([loss_sum, samples, metric_sum])
+            val, val_metric = (None, None)
+            if val_set is not None:
+                val, val_metric = _evaluate(model, val_set, loss_fn, metric_fn, cfg, g)
             train_loss = loss_sum / samples
             if cfg.lr_plateau:
                 sched.step(val if val is not None else train_loss)
-            else:
+            elif cfg.schedule != "cosine":
                 sched.step()
-            history.append(
-                {"epoch": epoch + 1, "train_loss": train_loss, "val_loss": val, "lr": lr}
-            )
-            improved = val is not None and (best_val is None or val < best_val)
+            entry: dict[str, Any] = {
+                "epoch": epoch + 1, "train_loss": train_loss, "val_loss": val, "lr": lr,
+            }  # fmt: skip
+            if metric_fn is not None:
+                entry |= {"train_metric": metric_sum / samples, "val_metric": val_metric}
+            history.append(entry)
+            improved = _better(val, val_metric, best_val, best_metric)
             if improved:
-                best_val, best_epoch = val, epoch + 1
+                best_val, best_metric, best_epoch = val, val_metric, epoch + 1
             save(epoch + 1, 0, {}, [last_path, best_path] if improved else [last_path])
             shown = {"loss": f"{train_loss:.4g}"} | ({} if val is None else {"val": f"{val:.4g}"})
             bar.set_postfix(shown)
@@ -488,4 +587,5 @@ def _run(
         best_val_loss=best_val,
         last_checkpoint=last_path,
         best_checkpoint=best_path if best_epoch is not None else None,
+        best_val_metric=best_metric,
     )

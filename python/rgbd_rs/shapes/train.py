@@ -16,6 +16,7 @@ all combined) into ``OUT/<row>/``. The best checkpoint (lowest validation loss) 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +37,7 @@ from rgbd_rs.shapes.scaling import original_rows
 __all__ = [
     "ShapeRecipe",
     "ablation_rows",
+    "accuracy",
     "cross_entropy",
     "default_config",
     "ship",
@@ -57,13 +59,19 @@ class ShapeRecipe:
     default: on ModelNet, whose shapes are aligned, it cost accuracy (90.3 % -> 84.9 % on
     ModelNet10); turn it on for shapes in arbitrary orientation about z. ``mirror``: replace each
     training shape by its mirror image (x -> -x) with probability 1/2 at every step (exact on the
-    cached inputs; not in the thesis; keeps an aligned shape's front where it was)."""
+    cached inputs; not in the thesis; keeps an aligned shape's front where it was).
+    ``batch_norm`` and ``dropout``: see :class:`~rgbd_rs.nn.shapes.ShapeNet` (not in the thesis;
+    off by default). ``label_smoothing``: the cross-entropy's target puts that mass uniformly
+    over the classes (0: none, the thesis' loss)."""
 
     representations: tuple[str, ...] | None = None
     width: int = THESIS_WIDTH
     val_fraction: float = 0.1
     rotate: bool = False
     mirror: bool = False
+    batch_norm: bool = False
+    dropout: float = 0.0
+    label_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
         if self.representations is not None:
@@ -79,10 +87,17 @@ class ShapeRecipe:
                 f"val_fraction: got {self.val_fraction}, expected 0 <= val_fraction < 1"
             )
         object.__setattr__(self, "val_fraction", f)
-        for name in ("rotate", "mirror"):
+        for name in ("rotate", "mirror", "batch_norm"):
             flag = getattr(self, name)
             if not isinstance(flag, bool):
                 raise InvalidArgumentError(f"{name}: got {flag!r}, expected True or False")
+        for name in ("dropout", "label_smoothing"):
+            v = _validate.real(name, getattr(self, name), nonnegative=True)
+            if v >= 1:
+                raise InvalidArgumentError(
+                    f"{name}: got {getattr(self, name)}, expected 0 <= {name} < 1"
+                )
+            object.__setattr__(self, name, v)
 
 
 def default_config(**overrides: Any) -> Any:
@@ -105,9 +120,20 @@ def default_config(**overrides: Any) -> Any:
     return TrainConfig(**(base | overrides))
 
 
-def cross_entropy(output: torch.Tensor, batch: tuple[Any, ...]) -> torch.Tensor:
-    """The trainer's loss: mean cross-entropy of the logits against ``batch[1]``."""
-    return F.cross_entropy(output, batch[1])
+def cross_entropy(
+    output: torch.Tensor, batch: tuple[Any, ...], label_smoothing: float = 0.0
+) -> torch.Tensor:
+    """The trainer's loss: mean cross-entropy of the logits against ``batch[1]`` (with
+    ``label_smoothing`` of the targets)."""
+    loss: torch.Tensor = F.cross_entropy(output, batch[1], label_smoothing=label_smoothing)
+    return loss
+
+
+def accuracy(output: torch.Tensor, batch: tuple[Any, ...]) -> torch.Tensor:
+    """The trainer's metric: the fraction of the batch whose highest score is its label (what
+    chooses ``best.pt``)."""
+    labels: torch.Tensor = batch[1]
+    return (output.argmax(1) == labels).to(torch.float64).mean()
 
 
 def _cache(cache: ShapeCache | str | os.PathLike[str]) -> ShapeCache:
@@ -137,8 +163,9 @@ def train_shapes(
     resume: bool = True,
     quiet: bool = False,
 ) -> Path:
-    """Train on ``cache``'s training split; return the best checkpoint's path (the last one
-    without validation). ``init`` starts from a checkpoint's weights (fine-tuning). Re-running
+    """Train on ``cache``'s training split; return the best checkpoint's path: the epoch of the
+    highest validation accuracy (ties: the lower validation loss); the last one without
+    validation. ``init`` starts from a checkpoint's weights (fine-tuning). Re-running
     resumes from ``out/last.pt`` (see :func:`rgbd_rs.nn.train.train`)."""
     from rgbd_rs.nn.train import TrainConfig, seed_everything, train
 
@@ -170,6 +197,8 @@ def train_shapes(
         view_resolution=c.spec.view_resolution,
         volume_resolution=c.spec.volume_resolution,
         width=r.width,
+        batch_norm=r.batch_norm,
+        dropout=r.dropout,
     )
     if init is not None:
         from rgbd_rs.nn.checkpoint import load_checkpoint
@@ -179,7 +208,7 @@ def train_shapes(
         model,
         train_set,
         val_set,
-        cross_entropy,
+        functools.partial(cross_entropy, label_smoothing=r.label_smoothing),
         cfg,
         out,
         arch=ARCH,
@@ -187,6 +216,7 @@ def train_shapes(
         normalisation=normalisation_of(c, reps),
         quiet=quiet,
         resume=resume,
+        metric_fn=accuracy,
     )
     return Path(result.best_checkpoint or result.last_checkpoint)
 
@@ -247,7 +277,7 @@ def train_ablation(
     out_dir = Path(out)
     best: dict[str, Path] = {}
     for row, reps in ablation_rows(r.representations or c.spec.representations).items():
-        row_recipe = ShapeRecipe(representations=reps, width=r.width, val_fraction=r.val_fraction)
+        row_recipe = dataclasses.replace(r, representations=reps)
         best[row] = train_shapes(
             c, out_dir / row, recipe=row_recipe, config=config, resume=resume, quiet=quiet
         )

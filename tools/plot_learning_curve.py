@@ -1,0 +1,102 @@
+"""The learning curve of a `rgbd train shapes` run as a PNG: loss (left) and accuracy (right) per
+epoch, on the training batches (augmented, in train mode, as drawn) and the validation shapes,
+the chosen epoch marked. Reads the history stored in the run's last.pt.
+
+    python tools/plot_learning_curve.py --checkpoint RUN/last.pt --out curve.png [--title T]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from rgbd_rs.nn.checkpoint import load_checkpoint
+
+W, H, M = 520, 340, 56  # panel size and margin, pixels
+TRAIN, VAL, BEST = (200, 120, 40), (40, 90, 220), (60, 160, 60)  # BGR
+FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+def _ticks(lo: float, hi: float, n: int = 5) -> list[float]:
+    step = (hi - lo) / n
+    mag = 10 ** np.floor(np.log10(step))
+    step = min((m * mag for m in (1, 2, 2.5, 5, 10) if m * mag >= step), default=step)
+    return [float(v) for v in np.arange(np.ceil(lo / step) * step, hi + 1e-12, step)]
+
+
+def panel(
+    title: str,
+    epochs: list[int],
+    series: list[tuple[str, list[float | None], tuple[int, ...]]],
+    best: int | None,
+    percent: bool,
+) -> np.ndarray:
+    img = np.full((H, W, 3), 255, np.uint8)
+    values = [v for _, ys, _ in series for v in ys if v is not None]
+    lo, hi = min(values), max(values)
+    pad = 0.05 * (hi - lo or 1.0)
+    lo, hi = lo - pad, hi + pad
+    x0, x1, y0, y1 = M, W - 16, H - 40, 30
+
+    def px(e: float, v: float) -> tuple[int, int]:
+        ex = (e - epochs[0]) / max(epochs[-1] - epochs[0], 1)
+        return int(x0 + ex * (x1 - x0)), int(y0 + (v - lo) / (hi - lo) * (y1 - y0))
+
+    for t in _ticks(lo, hi):
+        _, y = px(epochs[0], t)
+        cv2.line(img, (x0, y), (x1, y), (225, 225, 225), 1)
+        label = f"{100 * t:.0f}" if percent else f"{t:.2g}"
+        cv2.putText(img, label, (4, y + 4), FONT, 0.4, (60, 60, 60), 1, cv2.LINE_AA)
+    for e in epochs:
+        x, _ = px(e, lo)
+        cv2.putText(img, str(e), (x - 4, y0 + 16), FONT, 0.4, (60, 60, 60), 1, cv2.LINE_AA)
+    cv2.rectangle(img, (x0, y1), (x1, y0), (0, 0, 0), 1)
+    if best is not None:
+        x, _ = px(best, lo)
+        cv2.line(img, (x, y1), (x, y0), BEST, 1)
+    for k, (name, ys, color) in enumerate(series):
+        pts = [px(e, v) for e, v in zip(epochs, ys, strict=True) if v is not None]
+        if len(pts) > 1:
+            cv2.polylines(img, [np.array(pts, np.int32)], False, color, 2, cv2.LINE_AA)
+        for p in pts:
+            cv2.circle(img, p, 3, color, -1, cv2.LINE_AA)
+        cv2.putText(img, name, (x1 - 150, y1 + 18 + 16 * k), FONT, 0.45, color, 1, cv2.LINE_AA)
+    unit = " (%)" if percent else ""
+    cv2.putText(img, title + unit, (x0, 20), FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(img, "epoch", (W // 2 - 20, H - 6), FONT, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    return img
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--checkpoint", type=Path, required=True, help="the run's last.pt")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--title", default="")
+    a = p.parse_args()
+    ckpt = load_checkpoint(a.checkpoint)
+    h = ckpt.history
+    if not h:
+        raise SystemExit(f"{a.checkpoint}: no completed epoch")
+    epochs = [int(e["epoch"]) for e in h]
+    loss = panel(
+        f"{a.title} loss".strip(), epochs,
+        [("train", [e["train_loss"] for e in h], TRAIN),
+         ("validation", [e["val_loss"] for e in h], VAL)],
+        ckpt.best_epoch, percent=False,
+    )  # fmt: skip
+    acc = panel(
+        f"{a.title} accuracy".strip(), epochs,
+        [("train", [e.get("train_metric") for e in h], TRAIN),
+         ("validation", [e.get("val_metric") for e in h], VAL)],
+        ckpt.best_epoch, percent=True,
+    )  # fmt: skip
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(a.out), np.hstack([loss, acc]))
+    print(f"wrote {a.out} (best epoch {ckpt.best_epoch} marked)")
+
+
+if __name__ == "__main__":
+    main()
