@@ -1,6 +1,6 @@
 """The learning curve of a `rgbd train shapes` run as a PNG: loss (left) and accuracy (right) per
 epoch, on the training batches (augmented, in train mode, as drawn) and the validation shapes,
-the chosen epoch marked. Reads the history stored in the run's last.pt.
+the chosen epoch (best.pt) marked. Reads the history stored in the run's last.pt.
 
     python tools/plot_learning_curve.py --checkpoint RUN/last.pt --out curve.png [--title T]
 """
@@ -57,13 +57,16 @@ def panel(
     if best is not None:
         x, _ = px(best, lo)
         cv2.line(img, (x, y1), (x, y0), BEST, 1)
+        cv2.putText(img, "chosen", (x - 54, y0 - 6), FONT, 0.4, BEST, 1, cv2.LINE_AA)
     for k, (name, ys, color) in enumerate(series):
         pts = [px(e, v) for e, v in zip(epochs, ys, strict=True) if v is not None]
         if len(pts) > 1:
             cv2.polylines(img, [np.array(pts, np.int32)], False, color, 2, cv2.LINE_AA)
         for p in pts:
             cv2.circle(img, p, 3, color, -1, cv2.LINE_AA)
-        cv2.putText(img, name, (x1 - 150, y1 + 18 + 16 * k), FONT, 0.45, color, 1, cv2.LINE_AA)
+        lx = x1 - 250 + 90 * k  # legend in the title row, clear of the curves
+        cv2.line(img, (lx, 16), (lx + 16, 16), color, 2, cv2.LINE_AA)
+        cv2.putText(img, name, (lx + 20, 20), FONT, 0.45, color, 1, cv2.LINE_AA)
     unit = " (%)" if percent else ""
     cv2.putText(img, title + unit, (x0, 20), FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(img, "epoch", (W // 2 - 20, H - 6), FONT, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
