@@ -289,20 +289,14 @@ def _train(commands: Commands) -> None:
         action="store_true",
         help="batch normalisation after every convolution (not in the thesis)",
     )
-    p.add_argument(
-        "--dropout",
-        type=real(0, 0.99, low_open=False),
-        default=0.0,
-        metavar="X",
-        help="dropout of the descriptor before the classifier (0; not in the thesis)",
-    )
-    p.add_argument(
-        "--label-smoothing",
-        type=real(0, 0.99, low_open=False),
-        default=0.0,
-        metavar="X",
-        help="mass of the cross-entropy target spread over the classes (0; not in the thesis)",
-    )
+    for flag, what in (
+        ("--dropout", "dropout of the descriptor before the classifier"),
+        ("--label-smoothing", "mass of the cross-entropy target spread over the classes"),
+    ):
+        fraction = real(0, 0.99, low_open=False)
+        p.add_argument(
+            flag, type=fraction, default=0.0, metavar="X", help=f"{what} (0; not in the thesis)"
+        )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     training_run_options(p)
 
