@@ -180,12 +180,28 @@ def _pose_arg(name: str, value: object, *, default_identity: bool = False) -> Po
     return value
 
 
+#: The focal lengths a camera may have, in pixels: far beyond any lens (a 1 m telephoto on 1 um
+#: pixels is 1e6 px), and inside them the projection's products and squares stay within float32
+#: (at 1e30 px a normal's cross product overflows; at 1e-40 px the inverse does).
+FOCAL_RANGE = (1e-3, 1e8)
+
+
+def _focal(name: str, value: object) -> float:
+    f = _validate.real(name, value, positive=True)
+    lo, hi = FOCAL_RANGE
+    if not lo <= f <= hi:
+        raise InvalidArgumentError(
+            f"{name}: got {f:.3g} px, expected a focal length in [{lo:g}, {hi:g}] px"
+        )
+    return f
+
+
 @dataclass(frozen=True)
 class PinholeCamera:
     """Pinhole intrinsics (eq. 2.5-2.6) of a ``width x height`` image, with lens distortion.
 
     Args:
-        fx, fy: focal lengths in pixels (> 0).
+        fx, fy: focal lengths in pixels (within :data:`FOCAL_RANGE`).
         cx, cy: principal point in pixels (pixel centres are integers).
         width, height: image size in pixels.
         distortion: the lens model; default none.
@@ -202,8 +218,8 @@ class PinholeCamera:
     def __post_init__(self) -> None:
         # Stored as Python numbers (a numpy scalar would not survive save_camera's JSON).
         for name, v in (
-            ("fx", _validate.real("fx", self.fx, positive=True)),
-            ("fy", _validate.real("fy", self.fy, positive=True)),
+            ("fx", _focal("fx", self.fx)),
+            ("fy", _focal("fy", self.fy)),
             ("cx", _validate.real("cx", self.cx)),
             ("cy", _validate.real("cy", self.cy)),
             ("width", _validate.size("width", self.width)),
@@ -259,6 +275,11 @@ class PinholeCamera:
         sx = _validate.real("sx", sx, positive=True)
         sy = sx if sy is None else _validate.real("sy", sy, positive=True)
         for name, s, side in (("sx", sx, self.width), ("sy", sy, self.height)):
+            if side * s < 0.5:
+                raise InvalidArgumentError(
+                    f"{name}: got {s}, which makes the {side} px side {side * s:.3g} px; expected "
+                    "a factor that leaves at least one pixel"
+                )
             if not side * s <= _validate.MAX_SIDE:
                 raise InvalidArgumentError(
                     f"{name}: got {s}, which makes the image {side * s:.3g} px; expected at most "

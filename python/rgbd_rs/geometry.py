@@ -46,18 +46,34 @@ def depth_to_disparity(depth: npt.ArrayLike, baseline: float, focal: float) -> F
         baseline: stereo baseline in metres (> 0).
         focal: horizontal focal length in pixels (> 0).
     """
-    d = _as_map("depth", depth)
-    return _rgbd_rs.depth_disparity(
-        d, _validate.real("baseline", baseline), _validate.real("focal", focal)
-    )
+    return _reciprocal("depth", depth, baseline, focal, "disparities")
 
 
 def disparity_to_depth(disparity: npt.ArrayLike, baseline: float, focal: float) -> F32:
     """Depth ``z = baseline * focal / d`` (eq. 2.15); non-positive or NaN disparity gives NaN."""
-    d = _as_map("disparity", disparity)
-    return _rgbd_rs.depth_disparity(
-        d, _validate.real("baseline", baseline), _validate.real("focal", focal)
-    )
+    return _reciprocal("disparity", disparity, baseline, focal, "depths")
+
+
+def _reciprocal(name: str, values: npt.ArrayLike, baseline: float, focal: float, out: str) -> F32:
+    """``baseline * focal / values`` (eq. 2.15), refusing input whose result overflows float32
+    (a subnormal depth, or a baseline x focal beyond float32) instead of returning inf."""
+    d = _as_map(name, values)
+    b, f = _validate.real("baseline", baseline), _validate.real("focal", focal)
+    if abs(b * f) > _validate.F32_MAX:
+        raise InvalidArgumentError(
+            f"focal: got {f:.3g} with baseline {b:.3g}: baseline x focal = {b * f:.3g} is "
+            f"beyond float32's range; expected a product <= {_validate.F32_MAX:.3g}"
+        )
+    result: F32 = _rgbd_rs.depth_disparity(d, b, f)
+    if np.isinf(result).any():  # the kernel gives NaN for invalid input: inf is an overflow
+        with np.errstate(invalid="ignore"):
+            smallest = float(np.min(d[np.isfinite(d) & (d > 0)]))
+        raise InvalidArgumentError(
+            f"{name}: got values down to {smallest:.3g} with baseline x focal = {b * f:.3g}, "
+            f"which give {out} beyond float32's range; expected values >= "
+            f"{b * f / _validate.F32_MAX:.3g}"
+        )
+    return result
 
 
 def _as_map(name: str, value: npt.ArrayLike) -> F32:

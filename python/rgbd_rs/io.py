@@ -76,7 +76,14 @@ def write_text(path: str | Path, text: str) -> Path:
     """Write UTF-8 ``text`` to ``path`` atomically (creating parent folders)."""
     if not isinstance(text, str):
         raise InvalidArgumentError(f"text: got {type(text).__name__}, expected str")
-    return _atomic_bytes(_path(path), text.encode())
+    try:
+        data = text.encode()
+    except UnicodeEncodeError as exc:  # a lone surrogate has no UTF-8 form
+        raise InvalidArgumentError(
+            f"text: got a lone surrogate {text[exc.start]!r} at position {exc.start}, expected "
+            "text UTF-8 can encode"
+        ) from None
+    return _atomic_bytes(_path(path), data)
 
 
 def write_npz(path: str | Path, arrays: Mapping[str, npt.ArrayLike]) -> Path:
@@ -218,23 +225,29 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
 
 
 def write_json(path: str | Path, obj: Any) -> Path:
-    """Write JSON (sorted keys, indented) atomically."""
+    """Write JSON (sorted keys, indented) atomically; NaN and infinities are refused (JSON has
+    no such numbers)."""
     out = _path(path)
     try:
-        text = json.dumps(obj, indent=1, sort_keys=True)
+        text = json.dumps(obj, indent=1, sort_keys=True, allow_nan=False)
     except (TypeError, ValueError) as exc:
         raise InvalidArgumentError(f"obj: got a value JSON cannot hold ({exc})") from None
     return _atomic_bytes(out, (text + "\n").encode())
 
 
 def read_json(path: str | Path) -> Any:
-    """Read JSON; a missing or malformed file raises RgbdError naming it."""
+    """Read JSON; a missing or malformed file (NaN and Infinity included: JSON has no such
+    numbers) raises RgbdError naming it."""
     path = _path(path)
     data = _read_bytes(path)
     try:
-        return json.loads(data.decode())
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        return json.loads(data.decode(), parse_constant=_no_constant)
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError, ValueError) as exc:
         raise RgbdError(f"{path}: malformed JSON ({reason(exc)})") from exc
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
 
 
 def sha256(path: str | Path) -> str:

@@ -268,6 +268,31 @@ def _read_off(path: Path) -> Mesh:
     return Mesh(v.astype(np.float32), np.asarray(tris, np.uint32).reshape(-1, 3))
 
 
+def _ply_vertex_count(path: Path) -> int | None:
+    """The vertex count a PLY header declares (``element vertex N``), None if it has none."""
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    for raw in head.split(b"end_header")[0].splitlines():
+        words = raw.split()
+        if len(words) == 3 and words[0] == b"element" and words[1] == b"vertex":
+            try:
+                return int(words[2])
+            except ValueError:
+                return None
+    return None
+
+
+def _check_ply_vertices(path: Path, found: int) -> None:
+    """Refuses a PLY whose body holds fewer vertices than its header declares (a truncated
+    ASCII file that the parser reads short without a word)."""
+    declared = _ply_vertex_count(path)
+    if declared is not None and found != declared:
+        raise RgbdError(
+            f"{path}: not a valid PLY file (the header says {declared} vertices, found {found}: "
+            "truncated file?)"
+        )
+
+
 def _read_ply(path: Path) -> Mesh:
     import trimesh
 
@@ -278,6 +303,7 @@ def _read_ply(path: Path) -> Mesh:
         raise RgbdError(f"{path}: not a valid PLY mesh ({reason(exc)})") from exc
     if len(v) == 0 or len(f) == 0:
         raise RgbdError(f"{path}: PLY mesh has no vertices or faces")
+    _check_ply_vertices(path, len(v))
     if f.ndim != 2 or f.shape[1] != 3 or f.min() < 0 or f.max() >= len(v):
         raise RgbdError(f"{path}: PLY faces are not triangles indexing its {len(v)} vertices")
     if not _fits_float32(v):

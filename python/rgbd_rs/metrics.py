@@ -5,6 +5,7 @@ computed from a contingency table of paired labels so they are fast on 640x480 f
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -39,7 +40,8 @@ def rms_error(
     """Root-mean-square of ``estimate - truth`` over the pixels where both are finite (and
     ``mask`` is true): the RMS disparity error of thesis Table 3.2 for disparity maps.
 
-    Computed in the inputs' float32, so equal inputs give equal figures everywhere. No pixel to
+    Computed in the inputs' float32, so equal inputs give equal figures everywhere (in float64
+    where the squares would overflow float32). No pixel to
     compare raises :class:`~rgbd_rs.InvalidArgumentError`.
     """
     try:
@@ -61,7 +63,12 @@ def rms_error(
             "mask: got no pixel where estimate and truth are both finite, expected at least one"
         )
     diff = e[keep] - t[keep]
-    return float(np.sqrt(np.mean(diff**2)))
+    with np.errstate(over="ignore"):
+        rms = float(np.sqrt(np.mean(diff**2)))
+    if not math.isfinite(rms):  # squares beyond float32 (errors > 1.8e19): float64 holds them
+        wide = e[keep].astype(np.float64) - t[keep].astype(np.float64)
+        rms = float(np.sqrt(np.mean(wide**2)))
+    return rms
 
 
 def bad_pixel_rate(

@@ -47,6 +47,15 @@ def _range(finite: np.ndarray, vmin: float | None, vmax: float | None) -> tuple[
     return lo, hi
 
 
+def _given_range(vmin: object, vmax: object) -> tuple[float | None, float | None]:
+    """The validated ``vmin`` / ``vmax`` (None = from the data); refuses ``vmin > vmax``."""
+    lo = None if vmin is None else _validate.real("vmin", vmin)
+    hi = None if vmax is None else _validate.real("vmax", vmax)
+    if lo is not None and hi is not None and lo > hi:
+        raise InvalidArgumentError(f"vmax: got {hi}, expected a value >= vmin ({lo})")
+    return lo, hi
+
+
 def colorize(
     values: npt.ArrayLike,
     vmin: float | None = None,
@@ -56,8 +65,7 @@ def colorize(
     """Map an ``H x W`` float map to a BGR image (NaN -> black). Range defaults to the 1st-99th
     percentile of the finite values."""
     v = _validate.array("values", values, shape=(None, None))
-    vmin = None if vmin is None else _validate.real("vmin", vmin)
-    vmax = None if vmax is None else _validate.real("vmax", vmax)
+    vmin, vmax = _given_range(vmin, vmax)
     colormap = _validate.integer("colormap", colormap, maximum=COLORMAP_LAST)
     finite = np.isfinite(v)
     if not finite.any():
@@ -86,8 +94,7 @@ def colorize_with_bar(
     and middle labelled in ``unit``, and a grey swatch labelled "no data"; ``title`` (if any)
     is written in a strip above the map."""
     v = np.asarray(_validate.array("values", values, shape=(None, None)), np.float32)
-    vmin = None if vmin is None else _validate.real("vmin", vmin)
-    vmax = None if vmax is None else _validate.real("vmax", vmax)
+    vmin, vmax = _given_range(vmin, vmax)
     for name, text in (("unit", unit), ("title", title)):
         if not isinstance(text, str):
             raise InvalidArgumentError(f"{name}: got {type(text).__name__}, expected str")

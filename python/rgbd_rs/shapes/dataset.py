@@ -45,7 +45,7 @@ from torch.utils.data import Dataset
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.io import _bytes_writer, _create_once, _npy_bytes, _npy_writer, read_npy, read_npz
-from rgbd_rs.meshes import Mesh
+from rgbd_rs.meshes import Mesh, _check_ply_vertices
 from rgbd_rs.nn.shapes import (
     DEFAULT_REPRESENTATIONS,
     MAX_RESOLUTION,
@@ -172,6 +172,8 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
     f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))))
     if len(v) == 0:
         raise RgbdError(f"{p}: no vertices or points, expected a mesh or point cloud")
+    if suffix == ".ply":
+        _check_ply_vertices(p, len(v))
     if not np.isfinite(v).all():
         raise RgbdError(f"{p}: non-finite vertex coordinates")
     if np.abs(v).max() > np.finfo(np.float32).max:
