@@ -105,6 +105,12 @@ CASES = [
         r"^focal: got 1e\+30 with baseline 1e\+30: baseline x focal = 1e\+60",
         "product",
     ),
+    Case(
+        "ToFModel",
+        lambda: __import__("rgbd_rs.render", fromlist=["ToFModel"]).ToFModel(read_noise=1e30),
+        ARG,
+        r"^read_noise: got 1e\+30, expected at most 1e\+15",
+    ),
     Case("colorize", lambda: _colorize(5.0, 1.0), ARG, r"^vmax: got 1\.0, expected a value >= "),
     Case("colorize_with_bar", lambda: _colorize_bar(2.0, -1.0), ARG, r"^vmax: got -1\.0"),
 ]
@@ -163,3 +169,14 @@ def test_rms_error_beyond_float32_squares() -> None:
     e = np.array([1.0, 2.0, 3.0], np.float32)
     want = float(np.sqrt(np.mean((e - 0) ** 2, dtype=np.float32)))
     assert rms_error(e, np.zeros(3, np.float32)) == want
+
+
+def test_tof_confidence_of_huge_disparities_is_finite() -> None:
+    from rgbd_rs.fusion import tof_confidence
+
+    amp = np.full((6, 6), 100.0, np.float32)
+    for d in (1e30, 10.0):  # equal disparities: no local variation, full confidence
+        c = tof_confidence(np.full((6, 6), d, np.float32), amp)
+        assert np.isfinite(c).all() and (c == 1).all(), (d, c)
+    ramp = np.tile(np.array([1e30, 2e30], np.float32), (6, 3))
+    assert (tof_confidence(ramp, amp) == 0).all()  # a huge local spread: no confidence

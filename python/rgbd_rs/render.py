@@ -178,6 +178,11 @@ class OrthographicCamera:
                 _validate.real(name, getattr(self, name))
 
 
+#: Largest amplitude-unit term of a :class:`ToFModel`: the simulator squares the noise terms and
+#: multiplies amplitudes in float32, which holds 1e15 squared with room to spare.
+MAX_TOF_TERM = 1e15
+
+
 @dataclass(frozen=True)
 class ToFModel:
     """Parameters of the ToF simulator (every effect can be switched off).
@@ -210,6 +215,12 @@ class ToFModel:
         _validate.real("power", self.power, positive=True)
         for name in ("read_noise", "shot_noise", "ambient", "amplitude_threshold"):
             _validate.real(name, getattr(self, name), nonnegative=True)
+        for name in ("power", "read_noise", "shot_noise", "ambient", "amplitude_threshold"):
+            if getattr(self, name) > MAX_TOF_TERM:
+                raise InvalidArgumentError(
+                    f"{name}: got {getattr(self, name):g}, expected at most {MAX_TOF_TERM:g} "
+                    "(the simulator squares it in float32)"
+                )
         _validate.flag("wrap_phase", self.wrap_phase)
 
     @classmethod

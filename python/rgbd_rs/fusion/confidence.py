@@ -100,12 +100,19 @@ def tof_confidence(
     return np.where(ok, p_ai * p_lv, 0).astype(np.float32)
 
 
+#: Largest magnitude whose square (times a window's count) stays well inside float32.
+_SQUARE_SAFE = 1e15
+
+
 def _local_std(d: F32, window: int) -> F32:
-    """Standard deviation over a ``window`` box of the finite values (NaN-aware)."""
-    ok = np.isfinite(d).astype(np.float32)
-    v = np.where(ok > 0, d, 0).astype(np.float32)
+    """Standard deviation over a ``window`` box of the finite values (NaN-aware); in float64
+    where the squares would overflow float32 (disparities beyond ~1e19)."""
+    ok = np.isfinite(d)
+    wide = bool(ok.any()) and float(np.max(np.abs(d[ok]))) > _SQUARE_SAFE
+    dtype = np.float64 if wide else np.float32
+    v = np.where(ok, d, 0).astype(dtype)
     k = (window, window)
-    n = cv2.boxFilter(ok, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
+    n = cv2.boxFilter(ok.astype(dtype), -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
     s1 = cv2.boxFilter(v, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
     s2 = cv2.boxFilter(v * v, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
     n = np.maximum(n, 1)
