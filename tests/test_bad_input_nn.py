@@ -101,6 +101,12 @@ CASES: list[Case] = [
         r"^stereo_power: got -2",
     ),
     Case(
+        "ConfidenceEstimator.with_precision",
+        lambda: ConfidenceEstimator(NET, [1.0] * 4).with_precision("float16"),  # type: ignore[arg-type]
+        ARG,
+        r"^precision: got 'float16'",
+    ),
+    Case(
         "ConfidenceEstimator.load",
         lambda: ConfidenceEstimator.load(TMP / "garbage.pt"),
         RgbdError,

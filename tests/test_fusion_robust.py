@@ -26,6 +26,7 @@ from rgbd_rs.fusion.stereo import (
     search_range,
 )
 from rgbd_rs.fusion.upsample import _reproject_tof
+from rgbd_rs.nn.confidence import ConfidenceEstimator
 
 RIG = synth3_rig(0.25)  # 480 x 270
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -51,12 +52,27 @@ def _one_warning(record: list[warnings.WarningMessage], needle: str) -> str:
 # -- 1. the amplitude's unit ---------------------------------------------------------------------
 
 
+@pytest.fixture(scope="module")
+def float32_net() -> ConfidenceEstimator:
+    return ConfidenceEstimator.load(precision="float32")
+
+
+@pytest.fixture(scope="module")
+def fused32(scene: SynthSample, float32_net: ConfidenceEstimator) -> FusionResult:
+    return fuse(
+        scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, confidence=float32_net
+    )
+
+
 @pytest.mark.parametrize("scale", [1e-4, 1e4])
 def test_fuse_ignores_the_amplitude_unit(
-    scene: SynthSample, fused: FusionResult, scale: float
+    scene: SynthSample, fused32: FusionResult, float32_net: ConfidenceEstimator, scale: float
 ) -> None:
+    # In float32 the network sees the same clues to rounding; in bfloat16 (the default where
+    # the CPU has it) a clue's last bit may round either way: see the test below.
+    fused = fused32
     amp = (scene.tof_amplitude * scale).astype(np.float32)
-    out = fuse(scene.left, scene.right, scene.tof_depth, amp, RIG)
+    out = fuse(scene.left, scene.right, scene.tof_depth, amp, RIG, confidence=float32_net)
     assert out.tof_confidence is not None and fused.tof_confidence is not None
     # Not all zero (the simulator-unit noise law gave 0 on every pixel at 1e-4).
     assert np.mean(out.tof_confidence > 0.5) > 0.5
@@ -64,6 +80,20 @@ def test_fuse_ignores_the_amplitude_unit(
     np.testing.assert_array_equal(np.isnan(out.disparity), np.isnan(fused.disparity))
     np.testing.assert_allclose(out.disparity, fused.disparity, atol=1e-3)
     assert out.max_disparity == fused.max_disparity
+
+
+def test_bfloat16_fusion_is_the_float32_one_within_its_rounding(
+    scene: SynthSample, fused32: FusionResult, float32_net: ConfidenceEstimator
+) -> None:
+    amp = (scene.tof_amplitude * 1e4).astype(np.float32)
+    half = float32_net.with_precision("bfloat16")
+    out = fuse(scene.left, scene.right, scene.tof_depth, amp, RIG, confidence=half)
+    assert out.tof_confidence is not None and fused32.tof_confidence is not None
+    assert np.abs(out.tof_confidence - fused32.tof_confidence).max() < 0.03
+    np.testing.assert_array_equal(np.isnan(out.disparity), np.isnan(fused32.disparity))
+    both = np.isfinite(out.disparity)
+    diff = np.abs(out.disparity - fused32.disparity)[both]
+    assert np.median(diff) < 1e-3 and np.mean(diff > 0.25) < 0.002, (np.median(diff), diff.max())
 
 
 def test_tof_confidence_over_eight_orders_of_magnitude(scene: SynthSample) -> None:

@@ -80,18 +80,49 @@ class ConfidenceNet(nn.Module):
         return y
 
 
+#: :func:`predict`'s arithmetic: ``"float32"``; ``"bfloat16"`` (convolutions in bfloat16 with
+#: float32 accumulation, ~2x faster where the CPU has native bfloat16 instructions; the
+#: confidences move by < 0.01); ``"auto"``: bfloat16 where the CPU has them, else float32.
+PRECISIONS = ("auto", "float32", "bfloat16")
+#: What :class:`ConfidenceEstimator` (and so :func:`~rgbd_rs.fusion.fuse`) uses by default.
+DEFAULT_PRECISION: Literal["auto", "float32", "bfloat16"] = "auto"
+
+
+def _native_bfloat16() -> bool:
+    """Whether this CPU runs bfloat16 convolutions natively (AVX-512 BF16 or AMX)."""
+    try:
+        return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
+    except (AttributeError, RuntimeError):  # a torch build without oneDNN
+        return False
+
+
+def _resolve_precision(precision: str) -> Literal["float32", "bfloat16"]:
+    """``precision`` validated, ``"auto"`` resolved for this CPU (see :data:`PRECISIONS`)."""
+    p = _validate.choice("precision", precision, PRECISIONS)
+    if p == "auto":
+        return "bfloat16" if _native_bfloat16() else "float32"
+    return cast(Literal["float32", "bfloat16"], p)
+
+
 def predict(
-    net: ConfidenceNet, inputs: npt.ArrayLike, *, tile: int = 256
+    net: ConfidenceNet,
+    inputs: npt.ArrayLike,
+    *,
+    tile: int = 256,
+    precision: Literal["auto", "float32", "bfloat16"] = "float32",
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """``(P_T, P_S)`` in [0, 1] for a ``4 x H x W`` normalised clue image.
 
     Runs in tiles of ``tile`` x ``tile`` output pixels with a 7-pixel halo (the receptive field's
     radius), so memory stays bounded on large images and the result equals a whole-image pass.
+    ``precision``: see :data:`PRECISIONS` (the result is the same for any thread count either
+    way).
     """
     if not isinstance(net, ConfidenceNet):
         raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ConfidenceNet")
     x = _validate.array("inputs", inputs, shape=(IN_CHANNELS, None, None), finite=True)
     t = _validate.integer("tile", tile, minimum=16, maximum=8192)
+    half = _resolve_precision(precision) == "bfloat16"
     h, w = x.shape[1:]
     device = next(net.parameters()).device
     out = np.empty((OUT_CHANNELS, h, w), np.float32)
@@ -108,7 +139,9 @@ def predict(
                 # Channels-last: oneDNN's direct convolution path, ~15 % less CPU than NCHW
                 # (same sums in another order: outputs differ by ~1e-6).
                 inp = inp.contiguous(memory_format=torch.channels_last)
-                out[:, y0:y1, x0:x1] = net.body(inp)[0].clamp(0, 1).cpu().numpy()
+                with torch.autocast(device.type, dtype=torch.bfloat16, enabled=half):
+                    y = net.body(inp)
+                out[:, y0:y1, x0:x1] = y[0].float().clamp(0, 1).cpu().numpy()
     return out[0], out[1]
 
 
@@ -137,6 +170,9 @@ class ConfidenceEstimator:
     ``matcher`` is the stereo matcher whose disparities the network was trained on (its clues
     come from them; :func:`~rgbd_rs.fusion.fuse` runs that matcher with this estimator),
     normalisation key :data:`MATCHER_KEY`.
+
+    ``precision`` is the arithmetic of the network's convolutions (:data:`PRECISIONS`; default
+    :data:`DEFAULT_PRECISION`).
     """
 
     def __init__(
@@ -147,6 +183,7 @@ class ConfidenceEstimator:
         *,
         stereo_power: float = 1.0,
         matcher: str = "opencv",
+        precision: Literal["auto", "float32", "bfloat16"] = DEFAULT_PRECISION,
     ) -> None:
         if not isinstance(net, ConfidenceNet):
             raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ConfidenceNet")
@@ -158,16 +195,43 @@ class ConfidenceEstimator:
         self.matcher: Literal["census", "opencv"] = cast(
             Literal["census", "opencv"], _validate.choice("matcher", matcher, MATCHERS)
         )
+        _resolve_precision(precision)
+        self.precision: Literal["auto", "float32", "bfloat16"] = precision
 
     def with_stereo_power(self, power: float) -> ConfidenceEstimator:
         """The same network and normalisation with another stereo calibration power."""
         return ConfidenceEstimator(
-            self.net, self.sigmas, self.source, stereo_power=power, matcher=self.matcher
+            self.net,
+            self.sigmas,
+            self.source,
+            stereo_power=power,
+            matcher=self.matcher,
+            precision=self.precision,
+        )
+
+    def with_precision(
+        self, precision: Literal["auto", "float32", "bfloat16"]
+    ) -> ConfidenceEstimator:
+        """The same estimator computing in another precision (:data:`PRECISIONS`)."""
+        return ConfidenceEstimator(
+            self.net,
+            self.sigmas,
+            self.source,
+            stereo_power=self.stereo_power,
+            matcher=self.matcher,
+            precision=precision,
         )
 
     @classmethod
-    def load(cls, path: str | Path | None = None, *, device: str = "cpu") -> ConfidenceEstimator:
-        """The shipped weights (``path=None``) or the checkpoint at ``path``."""
+    def load(
+        cls,
+        path: str | Path | None = None,
+        *,
+        device: str = "cpu",
+        precision: Literal["auto", "float32", "bfloat16"] = DEFAULT_PRECISION,
+    ) -> ConfidenceEstimator:
+        """The shipped weights (``path=None``) or the checkpoint at ``path``, computing in
+        ``precision`` (:data:`PRECISIONS`)."""
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
         _validate.device("device", device)
@@ -195,6 +259,7 @@ class ConfidenceEstimator:
             str(file),
             stereo_power=float(power),
             matcher=str(matcher),
+            precision=precision,
         )
 
     def __call__(
@@ -219,7 +284,7 @@ class ConfidenceEstimator:
             stereo_disparity,
             reference=reference,
         )
-        p_t, p_s = predict(self.net, _normalise(clues, self.sigmas))
+        p_t, p_s = predict(self.net, _normalise(clues, self.sigmas), precision=self.precision)
         p_t = np.where(np.isfinite(clues.maps[1]), p_t, 0).astype(np.float32)
         weighted = np.where(np.isfinite(clues.maps[2]), p_s, 0) ** self.stereo_power
         return p_t, weighted.astype(np.float32)
