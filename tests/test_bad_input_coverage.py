@@ -96,6 +96,7 @@ EXEMPT: dict[str, str] = {
     "ShapeEvaluation.summary": "no arguments",
     "InputSpec.to_dict": "no arguments",
     "ShapeNet.arch_config": "no arguments",
+    "ShapeEnsemble.arch_config": "no arguments",
     "available_representations": "no arguments",
     "Synth3Sample": "result container built by Synth3Dataset",
     "MiddleburyPair": "result container built by load_middlebury",

@@ -20,6 +20,7 @@ from bad_input import Case, check, params, public_cases
 from rgbd_rs import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh, box
 from rgbd_rs.nn.checkpoint import Checkpoint, save_checkpoint
+from rgbd_rs.nn.shape_ensemble import ShapeEnsemble
 from rgbd_rs.nn.shapes import (
     ARCH,
     ShapeNet,
@@ -155,6 +156,19 @@ ALL_CASES: list[Case] = [
     Case(
         "ShapeNet.from_config",
         lambda: ShapeNet.from_config({"width": 2}),
+        ARG,
+        r"^arch_config: got \['width'\]",
+    ),
+    Case("ShapeEnsemble", lambda: ShapeEnsemble([NET]), ARG, r"^members: got '1 members'"),
+    Case(
+        "ShapeEnsemble.forward",
+        lambda: ShapeEnsemble([NET, NET])(torch.zeros(2, 100)),
+        SHAPE,
+        r"^x: got shape \(2, 100\), expected \(N, 3072\)",
+    ),
+    Case(
+        "ShapeEnsemble.from_config",
+        lambda: ShapeEnsemble.from_config({"members": 2, "member": {"width": 2}}),
         ARG,
         r"^arch_config: got \['width'\]",
     ),

@@ -21,6 +21,8 @@ formulas could not be read, so every formula and threshold here is our approxima
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 import numpy.typing as npt
@@ -109,8 +111,8 @@ def _local_std(d: F32, window: int) -> F32:
     where the squares would overflow float32 (disparities beyond ~1e19)."""
     ok = np.isfinite(d)
     wide = bool(ok.any()) and float(np.max(np.abs(d[ok]))) > _SQUARE_SAFE
-    dtype = np.float64 if wide else np.float32
-    v = np.where(ok, d, 0).astype(dtype)
+    dtype: type[np.floating[Any]] = np.float64 if wide else np.float32
+    v: npt.NDArray[np.floating[Any]] = np.where(ok, d, 0).astype(dtype)
     k = (window, window)
     n = cv2.boxFilter(ok.astype(dtype), -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
     s1 = cv2.boxFilter(v, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)

@@ -23,6 +23,7 @@ import torch
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.meshes import Mesh
+from rgbd_rs.nn.shape_ensemble import ShapeEnsemble, _shape_network
 from rgbd_rs.nn.shapes import ARCH, ShapeNet, pack
 from rgbd_rs.shapes.dataset import (
     InputSpec,
@@ -96,7 +97,9 @@ def shipped_weights() -> dict[str, Path]:
 
 
 class ShapeClassifier:
-    """A trained :class:`~rgbd_rs.nn.shapes.ShapeNet` with its input spec and class names.
+    """A trained :class:`~rgbd_rs.nn.shapes.ShapeNet` (or a
+    :class:`~rgbd_rs.nn.shape_ensemble.ShapeEnsemble` of several, whose class probabilities are
+    averaged) with its input spec and class names.
 
     ``ShapeClassifier.load()`` reads the shipped weights (ModelNet40 when present, else
     ModelNet10; ``dataset=`` picks one), ``load(path)`` any ``rgbd train shapes`` checkpoint. A
@@ -105,7 +108,7 @@ class ShapeClassifier:
 
     def __init__(
         self,
-        net: ShapeNet,
+        net: ShapeNet | ShapeEnsemble,
         spec: InputSpec,
         classes: tuple[str, ...],
         *,
@@ -113,8 +116,10 @@ class ShapeClassifier:
         points_per_shape: int | None = None,
         source: str = "",
     ) -> None:
-        if not isinstance(net, ShapeNet):
-            raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ShapeNet")
+        if not isinstance(net, (ShapeNet, ShapeEnsemble)):
+            raise InvalidArgumentError(
+                f"net: got {type(net).__name__}, expected a ShapeNet or a ShapeEnsemble"
+            )
         if not isinstance(spec, InputSpec):
             raise InvalidArgumentError(f"spec: got {type(spec).__name__}, expected an InputSpec")
         if (
@@ -167,7 +172,7 @@ class ShapeClassifier:
         ckpt = load_checkpoint(file, arch=ARCH, normalisation_keys=("spec", "classes"))
         norm = ckpt.normalisation
         try:
-            net = ShapeNet.from_config(ckpt.arch_config)
+            net = _shape_network(ckpt.arch_config)
             spec = InputSpec.from_dict(norm["spec"])
             classes = tuple(str(c) for c in norm["classes"])
             out = cls(

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,6 +42,7 @@ __all__ = [
     "cross_entropy",
     "default_config",
     "ship",
+    "ship_ensemble",
     "train_ablation",
     "train_shapes",
 ]
@@ -302,3 +304,48 @@ def ship(checkpoint: str | os.PathLike[str], dest: str | os.PathLike[str] | None
             )
         dest = _weights_path(f"modelnet{n}")
     return save_checkpoint(light, dest)
+
+
+def ship_ensemble(
+    checkpoints: Sequence[str | os.PathLike[str]], dest: str | os.PathLike[str]
+) -> Path:
+    """Write one inference-only, float16 checkpoint holding the networks of ``checkpoints``
+    (2 or more ``rgbd train shapes`` runs of one architecture, input spec and class list) as a
+    :class:`~rgbd_rs.nn.shape_ensemble.ShapeEnsemble`: ``ShapeClassifier.load(dest)``,
+    ``classify(..., checkpoint=dest)`` and ``rgbd classify / eval shapes --checkpoint dest``
+    average their class probabilities. The first checkpoint's metadata (spec, classes, history)
+    is kept."""
+    from rgbd_rs.nn.checkpoint import load_checkpoint, save_checkpoint
+    from rgbd_rs.nn.shape_ensemble import MAX_MEMBERS
+
+    if isinstance(checkpoints, (str, os.PathLike)) or not isinstance(checkpoints, Sequence):
+        raise InvalidArgumentError(
+            f"checkpoints: got {type(checkpoints).__name__}, expected a list of checkpoint paths"
+        )
+    if not 2 <= len(checkpoints) <= MAX_MEMBERS:
+        raise InvalidArgumentError(
+            f"checkpoints: got {len(checkpoints)}, expected 2 to {MAX_MEMBERS} checkpoints"
+        )
+    ckpts = [
+        load_checkpoint(p, arch=ARCH, normalisation_keys=("spec", "classes")) for p in checkpoints
+    ]
+    first = ckpts[0]
+    for c in ckpts[1:]:
+        if "members" in c.arch_config or c.arch_config != first.arch_config:
+            raise InvalidArgumentError(
+                f"checkpoints: {c.path} has arch_config {c.arch_config}, expected "
+                f"{first.path}'s {first.arch_config} (one architecture, no nested ensembles)"
+            )
+        for key in ("spec", "classes"):
+            if c.normalisation[key] != first.normalisation[key]:
+                raise InvalidArgumentError(
+                    f"checkpoints: {c.path} has another {key!r} than {first.path}"
+                )
+    state = {
+        f"members.{i}.{k}": v.half() if v.is_floating_point() else v
+        for i, c in enumerate(ckpts)
+        for k, v in c.model_state.items()
+    }
+    config = {"members": len(ckpts), "member": first.arch_config}
+    light = dataclasses.replace(first.stripped(), model_state=state, arch_config=config)
+    return save_checkpoint(light, _validate.path("dest", dest))
