@@ -111,6 +111,18 @@ CASES = [
         ARG,
         r"^read_noise: got 1e\+30, expected at most 1e\+15",
     ),
+    Case(
+        "box",
+        lambda: __import__("rgbd_rs.meshes", fromlist=["box"]).box((1, 1, 1), (1e30, 0, 0)),
+        ARG,
+        r"^center: got \[1e\+30, 0\.0, 0\.0\], where float32 .* cannot hold a primitive 1 across",
+    ),
+    Case(
+        "sphere",
+        lambda: __import__("rgbd_rs.meshes", fromlist=["sphere"]).sphere(1.0, (1e9, 0, 0)),
+        ARG,
+        r"^center: got \[1000000000\.0",
+    ),
     Case("colorize", lambda: _colorize(5.0, 1.0), ARG, r"^vmax: got 1\.0, expected a value >= "),
     Case("colorize_with_bar", lambda: _colorize_bar(2.0, -1.0), ARG, r"^vmax: got -1\.0"),
 ]
@@ -180,3 +192,11 @@ def test_tof_confidence_of_huge_disparities_is_finite() -> None:
         assert np.isfinite(c).all() and (c == 1).all(), (d, c)
     ramp = np.tile(np.array([1e30, 2e30], np.float32), (6, 3))
     assert (tof_confidence(ramp, amp) == 0).all()  # a huge local spread: no confidence
+
+
+def test_primitives_far_out_but_resolved_keep_their_size() -> None:
+    from rgbd_rs.meshes import box, cylinder
+
+    lo, hi = box((1, 2, 3), (1e3, 0, 0)).bounds()
+    np.testing.assert_allclose(hi - lo, (1, 2, 3), rtol=1e-4)
+    assert cylinder(0.5, 2.0, (0, 0, 50)).vertices.shape[1] == 3

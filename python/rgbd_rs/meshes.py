@@ -132,6 +132,21 @@ def quad(corners: npt.ArrayLike) -> Mesh:
     return Mesh(c, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
 
 
+def _float32(local: npt.NDArray[np.float64], center: npt.NDArray[np.float64]) -> F32:
+    """A primitive's vertices (``local``, about the origin) moved to ``center`` as the Mesh stores
+    them (float32), refusing a ``center`` so far out that float32 cannot resolve the primitive's
+    size there (it would collapse or distort)."""
+    v32 = (local + center).astype(np.float32)
+    want = np.ptp(local, axis=0)
+    got = np.ptp(v32.astype(np.float64), axis=0)
+    if not (np.isfinite(v32).all() and np.all(np.abs(got - want) <= 1e-3 * want.max())):
+        raise InvalidArgumentError(
+            f"center: got {center.tolist()}, where float32 (the mesh's vertex type) cannot hold "
+            f"a primitive {want.max():.3g} across; expected a centre nearer the origin"
+        )
+    return v32
+
+
 def box(size: Sequence[float], center: Sequence[float] = (0.0, 0.0, 0.0)) -> Mesh:
     """Closed axis-aligned box of ``size`` (x, y, z) centred at ``center``."""
     s = _vec3("size", size) / 2
@@ -141,7 +156,7 @@ def box(size: Sequence[float], center: Sequence[float] = (0.0, 0.0, 0.0)) -> Mes
     v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
     faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
     tris = [[f[0], f[1], f[2]] for f in faces] + [[f[0], f[2], f[3]] for f in faces]
-    return Mesh((v * s + c).astype(np.float32), np.array(tris, np.uint32))
+    return Mesh(_float32(v * s, c), np.array(tris, np.uint32))
 
 
 def cylinder(
@@ -169,7 +184,7 @@ def cylinder(
         [np.stack([i, np.full(n, 2 * n), j], 1), np.stack([i + n, j + n, np.full(n, 2 * n + 1)], 1)]
     )
     v = np.roll(v, axis - 1, axis=1)  # the cylinder axis lands on `axis`
-    return Mesh((v + c).astype(np.float32), np.concatenate([side, caps]).astype(np.uint32))
+    return Mesh(_float32(v, c), np.concatenate([side, caps]).astype(np.uint32))
 
 
 def sphere(
@@ -189,7 +204,7 @@ def sphere(
     a = (r * ns + s).ravel()
     b = (r * ns + (s + 1) % ns).ravel()
     tris = np.concatenate([np.stack([a, b, a + ns], 1), np.stack([b, b + ns, a + ns], 1)])
-    return Mesh((v * radius + c).astype(np.float32), tris.astype(np.uint32))
+    return Mesh(_float32(v * radius, c), tris.astype(np.uint32))
 
 
 def load_mesh(path: str | Path) -> Mesh:
