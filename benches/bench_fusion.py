@@ -248,6 +248,7 @@ def main() -> None:
     import rgbd_rs.fusion.upsample as up_mod
     from rgbd_rs.fusion.fuse import FUSION_CENSUS, shipped_estimator
     from rgbd_rs.fusion.stereo import _cost_curve_stats_numpy, _whole_steps
+    from rgbd_rs.nn.confidence import _resolve_precision
 
     def old_segmentation(image, **_: object):  # type: ignore[no-untyped-def]
         filtered = cv2.pyrMeanShiftFiltering(image, 8, 16)
@@ -344,11 +345,14 @@ def main() -> None:
             None,
         ),
         (
-            "confidence ConvNet (default; shipped width)",
+            f"confidence ConvNet (default: shipped width, {_resolve_precision('auto')}; "
+            "old path: float32)",
             lambda: estimator(
                 s.right, s.left, tof.disparity, tof.amplitude, st_f, reference="right"
             ),
-            None,
+            lambda: estimator.with_precision("float32")(
+                s.right, s.left, tof.disparity, tof.amplitude, st_f, reference="right"
+            ),
         ),
         (
             "LC fusion (defaults, ConvNet confidences)",
