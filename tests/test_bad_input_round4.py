@@ -200,3 +200,20 @@ def test_primitives_far_out_but_resolved_keep_their_size() -> None:
     lo, hi = box((1, 2, 3), (1e3, 0, 0)).bounds()
     np.testing.assert_allclose(hi - lo, (1, 2, 3), rtol=1e-4)
     assert cylinder(0.5, 2.0, (0, 0, 50)).vertices.shape[1] == 3
+
+
+def test_upsampling_refuses_values_whose_window_sums_overflow() -> None:
+    from rgbd_rs.fusion import upsample_depth
+
+    img = np.zeros((24, 32, 3), np.uint8)
+    with pytest.raises(InvalidArgumentError, match=r"^sparse: got values up to 3e\+38, expected"):
+        upsample_depth(np.full((24, 32), 3e38, np.float32), img)
+    ok = upsample_depth(np.full((24, 32), 1e30, np.float32), img)  # large but summable
+    assert np.isfinite(ok).all() and np.allclose(ok, 1e30, rtol=1e-5)
+
+
+def test_cue_block_means_near_float32s_limit() -> None:
+    from rgbd_rs.segmentation import downsample_cues
+
+    out = downsample_cues(np.full((1, 24, 32), 3e38, np.float32), (8, 6))
+    assert np.isfinite(out).all() and np.allclose(out, 3e38, rtol=1e-6)

@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32, map2d, rgb8, rig_arg
 from rgbd_rs.geometry import depth_to_disparity, reproject_depth
 
@@ -59,6 +60,18 @@ def segment_mean_shift(
     return labels
 
 
+def _summable(name: str, values: F32, radius: int) -> None:
+    """Refuses values whose weighted sums over a window overflow float32 (the kernel's type)."""
+    with np.errstate(invalid="ignore"):
+        finite = np.abs(values[np.isfinite(values)])
+    limit = _validate.F32_MAX / (2 * radius + 1) ** 2
+    if finite.size and float(finite.max()) > limit:
+        raise InvalidArgumentError(
+            f"{name}: got values up to {float(finite.max()):.3g}, expected at most {limit:.3g} "
+            f"(the filter sums a {2 * radius + 1}x{2 * radius + 1} window in float32)"
+        )
+
+
 def _upsample(
     sparse: npt.ArrayLike,
     channel: npt.ArrayLike | None,
@@ -68,6 +81,7 @@ def _upsample(
     sigma_spatial: float,
     sigma_color: float,
     sigma_range: float,
+    names: tuple[str, str] = ("sparse", "channel"),
 ) -> tuple[F32, F32 | None]:
     img = rgb8("image", image)
     h, w = img.shape[:2]
@@ -76,8 +90,12 @@ def _upsample(
     lab = None
     if labels is not None:
         lab = _validate.array("labels", labels, shape=(h, w), dtype=np.int32)
+    r = _validate.integer("radius", radius, minimum=1, maximum=MAX_RADIUS)
+    for name, values in zip(names, (s, ch), strict=True):
+        if values is not None:
+            _summable(name, values, r)
     config = _rgbd_rs.UpsampleConfig(
-        _validate.integer("radius", radius, minimum=1, maximum=MAX_RADIUS),
+        r,
         _validate.real("sigma_spatial", sigma_spatial, positive=True, f32=True),
         _validate.real("sigma_color", sigma_color, positive=True, f32=True),
         _validate.real("sigma_range", sigma_range, positive=True, f32=True),
@@ -225,7 +243,15 @@ def _densify_tof(
     # One pass: the amplitude rides on the depth's weights (a second filter run on the amplitude
     # would apply the depth-relative range term to amplitude differences).
     dense, dense_amp = _upsample(
-        sparse.depth, sparse.amplitude, img, lab, radius, SIGMA_SPATIAL, SIGMA_COLOR, SIGMA_RANGE
+        sparse.depth,
+        sparse.amplitude,
+        img,
+        lab,
+        radius,
+        SIGMA_SPATIAL,
+        SIGMA_COLOR,
+        SIGMA_RANGE,
+        names=("tof_depth", "tof_amplitude"),
     )
     assert dense_amp is not None
     disp = depth_to_disparity(dense, r.stereo.baseline, r.stereo.focal)

@@ -336,8 +336,11 @@ def downsample_cues(cues: npt.ArrayLike, size: tuple[int, int]) -> npt.NDArray[n
     x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
     if x.shape[1:] == (h, w):
         return np.ascontiguousarray(x, dtype=np.float32)
-    t = F.adaptive_avg_pool2d(torch.from_numpy(x)[None], (h, w))[0]
-    return np.ascontiguousarray(t.numpy(), dtype=np.float32)
+    # Block sums of values near float32's limit overflow it: those are averaged in float64 (a
+    # mean never exceeds the largest value, so the result fits float32 again).
+    wide = x.size > 0 and float(np.abs(x).max()) > _validate.F32_MAX / x[0].size
+    t = F.adaptive_avg_pool2d(torch.from_numpy(x.astype(np.float64) if wide else x)[None], (h, w))
+    return np.ascontiguousarray(t[0].numpy(), dtype=np.float32)
 
 
 def downsample_labels(
