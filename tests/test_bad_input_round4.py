@@ -217,3 +217,19 @@ def test_cue_block_means_near_float32s_limit() -> None:
 
     out = downsample_cues(np.full((1, 24, 32), 3e38, np.float32), (8, 6))
     assert np.isfinite(out).all() and np.allclose(out, 3e38, rtol=1e-6)
+
+
+@pytest.mark.parametrize("scale", [2.0**70, 2.0**100, 2.0**-70, 2.0**-100])
+def test_normals_do_not_depend_on_the_unit(scale: float) -> None:
+    from rgbd_rs.geometry import normals_from_points
+
+    ys, xs = np.mgrid[0:24, 0:32].astype(np.float32)
+    depth = 1.0 + 0.02 * xs + 0.01 * ys  # a slanted surface
+    pts = CAM.depth_to_points(depth.astype(np.float32))
+    ref = normals_from_points(pts)
+    # A power of two scales exactly: the same normals, bit for bit (they overflowed to 0-length
+    # or underflowed to NaN before).
+    out = normals_from_points((pts * np.float32(scale)).astype(np.float32))
+    np.testing.assert_array_equal(out, ref)
+    unit = normals_from_points((pts * np.float32(1e19)).astype(np.float32))[1:-1, 1:-1]
+    np.testing.assert_allclose(np.linalg.norm(unit, axis=-1), 1.0, atol=1e-5)

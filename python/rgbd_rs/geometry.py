@@ -14,6 +14,7 @@ Example (ToF -> colour camera):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -188,7 +189,21 @@ def normals_from_points(points: npt.ArrayLike, *, max_depth_jump: float = float(
         jump = float("inf") if max_depth_jump > 0 else float("-inf")
     if not jump > 0:
         raise InvalidArgumentError(f"max_depth_jump: got {jump}, expected a value > 0 (inf = none)")
+    # Normals do not depend on the unit: coordinates whose cross products would overflow or
+    # underflow float32 are brought near 1 by a power of two (exact), the jump with them.
+    with np.errstate(invalid="ignore"):
+        finite = np.abs(p[np.isfinite(p)])
+    top = float(finite.max()) if finite.size else 0.0
+    if top > 0 and not _NORMAL_SCALE_RANGE[0] <= top <= _NORMAL_SCALE_RANGE[1]:
+        k = -int(np.floor(np.log2(top)))
+        p = np.ldexp(p, k).astype(np.float32)
+        jump = math.ldexp(jump, k) if math.isfinite(jump) else jump
     return _rgbd_rs.normals_from_points(p, jump)
+
+
+#: Coordinate magnitudes whose products stay well inside float32; outside, normals are computed
+#: on the points rescaled by a power of two.
+_NORMAL_SCALE_RANGE = (2.0**-40, 2.0**40)
 
 
 def normals_from_depth(
