@@ -87,3 +87,26 @@ def test_ship_ensemble_refuses_mismatched_runs(tiny_cache: Path) -> None:  # noq
         ship_ensemble(str(a), tiny_cache / "bad.pt")  # type: ignore[arg-type]
     with pytest.raises(RgbdError):
         ship_ensemble([a, tiny_cache / "missing.pt"], tiny_cache / "bad.pt")
+
+
+def test_split_seed_gives_runs_of_other_seeds_one_validation_split(
+    tiny_cache: Path,  # noqa: F811
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import rgbd_rs.shapes.train as train_mod
+
+    seen: list[int] = []
+    real = train_mod._split_by_shape
+
+    def spy(cache: object, data: object, fraction: float, seed: int) -> object:
+        seen.append(seed)
+        return real(cache, data, fraction, seed)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(train_mod, "_split_by_shape", spy)
+    cfg = TrainConfig(epochs=1, batch_size=8, optimizer="sgd", lr=0.05, seed=2, device="cpu")
+    for split_seed, out in ((1, "split_a"), (None, "split_b")):
+        recipe = ShapeRecipe(width=4, val_fraction=0.25, split_seed=split_seed)
+        train_shapes(tiny_cache / "cache", tiny_cache / out, recipe=recipe, config=cfg, quiet=True)
+    assert seen == [1, 2]
+    with pytest.raises(InvalidArgumentError, match=r"^split_seed: got -1"):
+        ShapeRecipe(split_seed=-1)

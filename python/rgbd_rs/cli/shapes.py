@@ -297,6 +297,14 @@ def _train(commands: Commands) -> None:
         p.add_argument(
             flag, type=fraction, default=0.0, metavar="X", help=f"{what} (0; not in the thesis)"
         )
+    p.add_argument(
+        "--split-seed",
+        type=integer(0, 2**32 - 1),
+        default=None,
+        metavar="N",
+        help="seed of the validation hold-out (default: --seed); give the members of an "
+        "ensemble one split",
+    )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     training_run_options(p)
 
@@ -331,6 +339,7 @@ def run_train(args: argparse.Namespace) -> int:
         batch_norm=args.batch_norm,
         dropout=args.dropout,
         label_smoothing=args.label_smoothing,
+        split_seed=args.split_seed,
     )
     t0 = time.perf_counter()
     if args.ablation:

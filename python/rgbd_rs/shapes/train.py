@@ -64,7 +64,9 @@ class ShapeRecipe:
     cached inputs; not in the thesis; keeps an aligned shape's front where it was).
     ``batch_norm`` and ``dropout``: see :class:`~rgbd_rs.nn.shapes.ShapeNet` (not in the thesis;
     off by default). ``label_smoothing``: the cross-entropy's target puts that mass uniformly
-    over the classes (0: none, the thesis' loss)."""
+    over the classes (0: none, the thesis' loss). ``split_seed``: the seed of the validation
+    hold-out (None: the run's seed), so runs of other seeds, e.g. the members of an ensemble,
+    can share one validation split that none of them trained on."""
 
     representations: tuple[str, ...] | None = None
     width: int = THESIS_WIDTH
@@ -74,8 +76,11 @@ class ShapeRecipe:
     batch_norm: bool = False
     dropout: float = 0.0
     label_smoothing: float = 0.0
+    split_seed: int | None = None
 
     def __post_init__(self) -> None:
+        if self.split_seed is not None:
+            _validate.integer("split_seed", self.split_seed, maximum=2**63 - 1)
         if self.representations is not None:
             object.__setattr__(
                 self, "representations", _parse_representations(self.representations)
@@ -189,7 +194,8 @@ def train_shapes(
     if r.val_fraction > 0:
         if len(data) < 2:
             raise RgbdError(f"{c.path}: {len(data)} training shape(s), too few to validate")
-        train_set, val_set = _split_by_shape(c, data, r.val_fraction, cfg.seed)
+        split_seed = cfg.seed if r.split_seed is None else r.split_seed
+        train_set, val_set = _split_by_shape(c, data, r.val_fraction, split_seed)
     if r.rotate or r.mirror:
         train_set = AugmentedShapes(train_set, data.shapes, turns=r.rotate, mirror=r.mirror)
     seed_everything(cfg.seed)  # the initial weights come from the seed too
