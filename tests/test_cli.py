@@ -221,6 +221,7 @@ def _assert_one_line_error(res: subprocess.CompletedProcess[str], *needles: str)
         "pickled .npz",
         "one-camera calibration",
         "--weights not a checkpoint",
+        "--precision with uniform",
     ],
 )
 def test_bad_fuse_runs_end_in_one_line(
@@ -298,6 +299,10 @@ def test_bad_fuse_runs_end_in_one_line(
         "--weights with heuristic": (
             {"confidence": Path("heuristic"), "weights": tmp_path / "w.pt"},
             ("--weights", "--confidence heuristic", "only with --confidence convnet"),
+        ),
+        "--precision with uniform": (
+            {"confidence": Path("uniform"), "precision": Path("float32")},
+            ("--precision", "--confidence uniform", "only with --confidence convnet"),
         ),
     }[case]
     res = run(*_fuse_argv(good, **replace))
@@ -533,3 +538,27 @@ def test_png_and_camera_errors_name_the_file(
         RgbdError, match=r"c\.json: invalid calibration \(camera .camera.: fx: got -5"
     ):
         load_camera(cam)
+
+
+def test_fuse_precision_float32_is_the_float32_estimators_result(
+    fuse_inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rgbd_rs.data import load_rig
+    from rgbd_rs.fusion import fuse
+    from rgbd_rs.io import read_png
+    from rgbd_rs.nn.confidence import ConfidenceEstimator
+
+    argv = [*_fuse_argv(fuse_inputs, out=tmp_path / "f32"), "--precision", "float32"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    saved = np.load(tmp_path / "f32" / "fused.npz")["disparity"]
+    g = fuse_inputs
+    want = fuse(
+        read_png(g["--left"]),
+        read_png(g["--right"]),
+        np.load(g["--tof-depth"]),
+        np.load(g["--tof-amplitude"]),
+        load_rig(g["--calib"]),
+        confidence=ConfidenceEstimator.load(precision="float32"),
+    )
+    np.testing.assert_array_equal(saved, want.disparity)
