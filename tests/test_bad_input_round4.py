@@ -123,6 +123,14 @@ CASES = [
         ARG,
         r"^center: got \[1000000000\.0",
     ),
+    Case(
+        "features",
+        lambda: __import__("rgbd_rs.segmentation", fromlist=["features"]).features(
+            np.zeros((24, 32, 3), np.uint8), np.full((24, 32), 1e-40, np.float32), CAM
+        ),
+        ARG,
+        r"^depth: got a median valid depth of 1e-40, expected metres",
+    ),
     Case("colorize", lambda: _colorize(5.0, 1.0), ARG, r"^vmax: got 1\.0, expected a value >= "),
     Case("colorize_with_bar", lambda: _colorize_bar(2.0, -1.0), ARG, r"^vmax: got -1\.0"),
 ]

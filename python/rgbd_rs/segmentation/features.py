@@ -92,6 +92,22 @@ def lab_colour(rgb: npt.ArrayLike) -> F32:
     )
 
 
+#: A median valid depth below this (metres) is refused as another unit: no RGB-D camera measures
+#: a scene whose median depth is under a millimetre (the 9-D vectors' per-frame scales then
+#: overflow float32).
+MIN_MEDIAN_DEPTH_M = 1e-3
+
+
+def _not_too_small(depth: npt.NDArray[np.float32]) -> None:
+    with np.errstate(invalid="ignore"):
+        valid = depth[np.isfinite(depth) & (depth > 0)]
+    if valid.size and float(np.median(valid)) < MIN_MEDIAN_DEPTH_M:
+        raise InvalidArgumentError(
+            f"depth: got a median valid depth of {float(np.median(valid)):.3g}, expected metres "
+            f"(median valid depth >= {MIN_MEDIAN_DEPTH_M:g})"
+        )
+
+
 def features(
     rgb: npt.ArrayLike,
     depth: npt.ArrayLike,
@@ -130,6 +146,7 @@ def features(
             f"rgb: got {img.shape[1]}x{img.shape[0]}, expected the depth's size "
             f"{d.shape[1]}x{d.shape[0]}"
         )
+    _not_too_small(d)
     cam = _camera(camera, d)
     if normals is None:
         r = _validate.integer("normal_radius", normal_radius, minimum=1, maximum=max(d.shape))
