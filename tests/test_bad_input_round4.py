@@ -241,3 +241,21 @@ def test_normals_do_not_depend_on_the_unit(scale: float) -> None:
     np.testing.assert_array_equal(out, ref)
     unit = normals_from_points((pts * np.float32(1e19)).astype(np.float32))[1:-1, 1:-1]
     np.testing.assert_allclose(np.linalg.norm(unit, axis=-1), 1.0, atol=1e-5)
+
+
+def test_a_textured_ply_keeps_its_vertices(tmp_path: Path) -> None:
+    """Per-face texture coordinates must not split shared vertices (the PLY loader would, and the
+    vertex-count check would then call a valid file truncated)."""
+    from rgbd_rs.meshes import load_mesh
+    from rgbd_rs.shapes import load_shape
+
+    path = tmp_path / "tex.ply"
+    path.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+        "property list uchar float texcoord\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+        "3 0 1 2 6 0 0 1 0 1 1\n3 0 2 3 6 0.5 0.5 1 1 0 1\n"
+    )
+    assert load_mesh(path).vertices.shape == (4, 3)
+    shape = load_shape(path)
+    assert getattr(shape, "vertices", shape).shape == (4, 3)

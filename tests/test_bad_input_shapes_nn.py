@@ -159,7 +159,7 @@ ALL_CASES: list[Case] = [
         ARG,
         r"^arch_config: got \['width'\]",
     ),
-    Case("ShapeEnsemble", lambda: ShapeEnsemble([NET]), ARG, r"^members: got '1 members'"),
+    Case("ShapeEnsemble", lambda: ShapeEnsemble([NET]), ARG, r"^members: got 1 members"),
     Case(
         "ShapeEnsemble.forward",
         lambda: ShapeEnsemble([NET, NET])(torch.zeros(2, 100)),

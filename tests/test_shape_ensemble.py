@@ -40,7 +40,7 @@ def test_forward_is_the_log_of_the_mean_probability() -> None:
 
 
 def test_bad_members_and_configs_are_refused() -> None:
-    with pytest.raises(InvalidArgumentError, match=r"^members: got '1 members'"):
+    with pytest.raises(InvalidArgumentError, match=r"^members: got 1 members"):
         ShapeEnsemble([_net(0)])
     with pytest.raises(InvalidArgumentError, match=r"^members\[1\]: got arch_config"):
         ShapeEnsemble([_net(0), _net(1, width=8)])
@@ -110,3 +110,19 @@ def test_split_seed_gives_runs_of_other_seeds_one_validation_split(
     assert seen == [1, 2]
     with pytest.raises(InvalidArgumentError, match=r"^split_seed: got -1"):
         ShapeRecipe(split_seed=-1)
+
+
+def test_an_ensemble_cannot_seed_training(tiny_cache: Path) -> None:  # noqa: F811
+    cache = tiny_cache / "cache"
+    runs = [_run(cache, tiny_cache / f"init{s}", s) for s in (1, 2)]
+    ens = ship_ensemble(runs, tiny_cache / "init_ens.pt")
+    cfg = TrainConfig(epochs=1, batch_size=8, optimizer="sgd", lr=0.05, seed=3, device="cpu")
+    with pytest.raises(InvalidArgumentError, match=r"^init: got .*init_ens\.pt, an ensemble of 2"):
+        train_shapes(
+            cache,
+            tiny_cache / "init_run",
+            recipe=ShapeRecipe(width=4, val_fraction=0),
+            config=cfg,
+            init=ens,
+            quiet=True,
+        )

@@ -2,9 +2,10 @@
 what chooses a recipe, an epoch or an ensemble without reading the test split.
 
 The validation split is the trainer's (``--val-fraction`` of the cache's original training shapes,
-seeded by ``--seed``; scaled copies of a validation shape are never trained on), so it must be
-given the seed and fraction of the runs compared. Prints each checkpoint's accuracy, with
-``--mirror`` also mirror-averaged, and that of the average of all the checkpoints' probabilities.
+seeded by their ``--split-seed``, else their ``--seed``; scaled copies of a validation shape are
+never trained on), so it must be given that seed and the fraction of the runs compared. Prints
+each checkpoint's accuracy, with ``--mirror`` also mirror-averaged, and that of the average of
+all the checkpoints' probabilities.
 
     python tools/eval_shapes_val.py --cache C --checkpoint A.pt [B.pt ...] [--seed 1]
         [--val-fraction 0.1] [--mirror]
@@ -43,7 +44,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--cache", type=Path, required=True)
     p.add_argument("--checkpoint", type=Path, nargs="+", required=True)
-    p.add_argument("--seed", type=int, default=1, help="the runs' --seed (1)")
+    p.add_argument(
+        "--seed", type=int, default=1, help="the runs' --split-seed, else their --seed (1)"
+    )
     p.add_argument("--val-fraction", type=float, default=0.1, help="the runs' (0.1)")
     p.add_argument("--mirror", action="store_true", help="also mirror-averaged")
     a = p.parse_args()

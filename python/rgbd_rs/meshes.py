@@ -301,7 +301,7 @@ def _check_ply_vertices(path: Path, found: int) -> None:
     """Refuses a PLY whose body holds fewer vertices than its header declares (a truncated
     ASCII file that the parser reads short without a word)."""
     declared = _ply_vertex_count(path)
-    if declared is not None and found != declared:
+    if declared is not None and found < declared:
         raise RgbdError(
             f"{path}: not a valid PLY file (the header says {declared} vertices, found {found}: "
             "truncated file?)"
@@ -312,7 +312,8 @@ def _read_ply(path: Path) -> Mesh:
     import trimesh
 
     try:
-        m = trimesh.load(path, file_type="ply", force="mesh", process=False)
+        # fix_texture=False: per-face texture coordinates would split shared vertices.
+        m = trimesh.load(path, file_type="ply", force="mesh", process=False, fix_texture=False)
         v, f = np.asarray(getattr(m, "vertices", [])), np.asarray(getattr(m, "faces", []))
     except Exception as exc:  # trimesh raises many types for corrupt files
         raise RgbdError(f"{path}: not a valid PLY mesh ({reason(exc)})") from exc

@@ -178,8 +178,10 @@ class OrthographicCamera:
                 _validate.real(name, getattr(self, name))
 
 
-#: Largest amplitude-unit term of a :class:`ToFModel`: the simulator squares the noise terms and
-#: multiplies amplitudes in float32, which holds 1e15 squared with room to spare.
+#: Largest amplitude-unit term of a :class:`ToFModel`: the simulator computes in float32 and
+#: squares the noise terms, which 1e15 squared (1e30) leaves finite. (A surface's amplitude also
+#: grows as ``power / z**2``, so a large ``power`` over a surface centimetres away can still
+#: overflow: the bound refuses absurd terms, it does not make every scene finite.)
 MAX_TOF_TERM = 1e15
 
 

@@ -115,7 +115,7 @@ def register(commands: Commands) -> None:
     fz.add_argument(
         "--precision",
         choices=("auto", "float32", "bfloat16"),
-        default="auto",
+        default=None,
         help="the ConvNet's arithmetic (default auto: bfloat16 where the CPU has native "
         "bfloat16, about 2x faster; float32 for the same result on every machine)",
     )
@@ -308,7 +308,7 @@ def run_fuse(args: argparse.Namespace) -> int:
             "expected one source of confidences (your maps replace the ConvNet)"
         )
     net_flags = [f for f, on in (("--weights", args.weights is not None),
-                                 ("--precision", args.precision != "auto")) if on]  # fmt: skip
+                                 ("--precision", args.precision is not None)) if on]  # fmt: skip
     if net_flags and (args.confidence != "convnet" or args.tof_confidence):
         given = "--tof-confidence" if args.tof_confidence else f"--confidence {args.confidence}"
         raise InvalidArgumentError(
@@ -319,8 +319,8 @@ def run_fuse(args: argparse.Namespace) -> int:
         from rgbd_rs.nn.confidence import ConfidenceEstimator
 
         conf = named(
-            "--weights",
-            lambda: ConfidenceEstimator.load(args.weights, precision=args.precision),
+            net_flags[0],
+            lambda: ConfidenceEstimator.load(args.weights, precision=args.precision or "auto"),
         )
     if args.tof_confidence is not None:
         conf = (

@@ -108,7 +108,7 @@ _SQUARE_SAFE = 1e15
 
 def _local_std(d: F32, window: int) -> F32:
     """Standard deviation over a ``window`` box of the finite values (NaN-aware); in float64
-    where the squares would overflow float32 (disparities beyond ~1e19)."""
+    where the squares would overflow float32 (disparities beyond :data:`_SQUARE_SAFE`)."""
     ok = np.isfinite(d)
     wide = bool(ok.any()) and float(np.max(np.abs(d[ok]))) > _SQUARE_SAFE
     dtype: type[np.floating[Any]] = np.float64 if wide else np.float32

@@ -90,17 +90,21 @@ DEFAULT_PRECISION: Literal["auto", "float32", "bfloat16"] = "auto"
 
 def _native_bfloat16() -> bool:
     """Whether this CPU runs bfloat16 convolutions natively (AVX-512 BF16 or AMX)."""
+    # Not torch.ops.mkldnn._is_mkldnn_bf16_supported(): that is true on every AVX-512 CPU, where
+    # oneDNN emulates bfloat16 (slower than float32) unless AVX512_BF16 or AMX is there.
+    checks = ("_is_avx512_bf16_supported", "_is_amx_tile_supported")
     try:
-        return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
-    except (AttributeError, RuntimeError):  # a torch build without oneDNN
+        return any(bool(getattr(torch.cpu, name, lambda: False)()) for name in checks)
+    except RuntimeError:
         return False
 
 
-def _resolve_precision(precision: str) -> Literal["float32", "bfloat16"]:
-    """``precision`` validated, ``"auto"`` resolved for this CPU (see :data:`PRECISIONS`)."""
+def _resolve_precision(precision: str, device: str = "cpu") -> Literal["float32", "bfloat16"]:
+    """``precision`` validated, ``"auto"`` resolved for this CPU (see :data:`PRECISIONS`; float32
+    on any other ``device``)."""
     p = _validate.choice("precision", precision, PRECISIONS)
     if p == "auto":
-        return "bfloat16" if _native_bfloat16() else "float32"
+        return "bfloat16" if device == "cpu" and _native_bfloat16() else "float32"
     return cast(Literal["float32", "bfloat16"], p)
 
 
@@ -122,7 +126,7 @@ def predict(
         raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ConfidenceNet")
     x = _validate.array("inputs", inputs, shape=(IN_CHANNELS, None, None), finite=True)
     t = _validate.integer("tile", tile, minimum=16, maximum=8192)
-    half = _resolve_precision(precision) == "bfloat16"
+    half = _resolve_precision(precision, next(net.parameters()).device.type) == "bfloat16"
     h, w = x.shape[1:]
     device = next(net.parameters()).device
     out = np.empty((OUT_CHANNELS, h, w), np.float32)

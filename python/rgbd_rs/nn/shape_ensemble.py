@@ -35,9 +35,13 @@ class ShapeEnsemble(nn.Module):
     def __init__(self, members: Sequence[ShapeNet]) -> None:
         super().__init__()
         if not isinstance(members, (list, tuple)) or not 2 <= len(members) <= MAX_MEMBERS:
-            got = f"{len(members)} members" if isinstance(members, (list, tuple)) else members
+            got = (
+                f"{len(members)} members"
+                if isinstance(members, (list, tuple))
+                else type(members).__name__
+            )
             raise InvalidArgumentError(
-                f"members: got {got!r}, expected a list of 2 to {MAX_MEMBERS} ShapeNets"
+                f"members: got {got}, expected a list of 2 to {MAX_MEMBERS} ShapeNets"
             )
         for i, m in enumerate(members):
             if not isinstance(m, ShapeNet):

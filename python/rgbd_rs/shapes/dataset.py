@@ -160,7 +160,9 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
 
     loaded: Any
     try:
-        loaded = trimesh.load(p, file_type=suffix[1:], process=False)
+        # fix_texture=False (PLY): per-face texture coordinates would split shared vertices.
+        extra = {"fix_texture": False} if suffix == ".ply" else {}
+        loaded = trimesh.load(p, file_type=suffix[1:], process=False, **extra)
     except Exception as exc:  # trimesh raises many types for corrupt files
         why = reason(exc)
         raise RgbdError(f"{p}: not a readable {suffix} mesh or point cloud ({why})") from None

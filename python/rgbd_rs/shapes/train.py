@@ -211,7 +211,13 @@ def train_shapes(
     if init is not None:
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
-        load_checkpoint(_validate.path("init", init), arch=ARCH).load_weights(model)
+        start = load_checkpoint(_validate.path("init", init), arch=ARCH)
+        if "members" in start.arch_config:
+            raise InvalidArgumentError(
+                f"init: got {start.path}, an ensemble of {start.arch_config['members']} "
+                "networks; expected one network's checkpoint (a member's own run)"
+            )
+        start.load_weights(model)
     result = train(
         model,
         train_set,
@@ -342,8 +348,8 @@ def ship_ensemble(
                 f"checkpoints: {c.path} has arch_config {c.arch_config}, expected "
                 f"{first.path}'s {first.arch_config} (one architecture, no nested ensembles)"
             )
-        for key in ("spec", "classes"):
-            if c.normalisation[key] != first.normalisation[key]:
+        for key in ("spec", "classes", "kind", "points_per_shape"):
+            if c.normalisation.get(key) != first.normalisation.get(key):
                 raise InvalidArgumentError(
                     f"checkpoints: {c.path} has another {key!r} than {first.path}"
                 )
