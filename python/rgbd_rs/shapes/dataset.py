@@ -161,7 +161,7 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
     loaded: Any
     try:
         # fix_texture=False (PLY): per-face texture coordinates would split shared vertices.
-        extra = {"fix_texture": False} if suffix == ".ply" else {}
+        extra: dict[str, Any] = {"fix_texture": False} if suffix == ".ply" else {}
         loaded = trimesh.load(p, file_type=suffix[1:], process=False, **extra)
     except Exception as exc:  # trimesh raises many types for corrupt files
         why = reason(exc)
