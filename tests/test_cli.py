@@ -562,3 +562,18 @@ def test_fuse_precision_float32_is_the_float32_estimators_result(
         confidence=ConfidenceEstimator.load(precision="float32"),
     )
     np.testing.assert_array_equal(saved, want.disparity)
+
+
+def test_fuse_precision_choices_are_the_libraries() -> None:
+    """The parser spells the choices out (building it must not import torch): they must stay
+    the ConvNet's PRECISIONS."""
+    from rgbd_rs.cli import build_parser
+    from rgbd_rs.nn.confidence import PRECISIONS
+
+    parser = build_parser()
+    fuse = next(
+        a
+        for a in parser._subparsers._group_actions[0].choices["fuse"]._actions  # type: ignore[union-attr]
+        if "--precision" in a.option_strings
+    )
+    assert tuple(fuse.choices or ()) == PRECISIONS
