@@ -11,7 +11,7 @@ confidence P_T, channel 1 the stereo confidence P_S; training regresses them wit
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal, cast
+from typing import Any, Literal, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -84,8 +84,9 @@ class ConfidenceNet(nn.Module):
 #: float32 accumulation, ~2x faster where the CPU has native bfloat16 instructions; the
 #: confidences move by < 0.01); ``"auto"``: bfloat16 where the CPU has them, else float32.
 PRECISIONS = ("auto", "float32", "bfloat16")
+Precision = Literal["auto", "float32", "bfloat16"]
 #: What :class:`ConfidenceEstimator` (and so :func:`~rgbd_rs.fusion.fuse`) uses by default.
-DEFAULT_PRECISION: Literal["auto", "float32", "bfloat16"] = "auto"
+DEFAULT_PRECISION: Precision = "auto"
 
 
 def _native_bfloat16() -> bool:
@@ -113,7 +114,7 @@ def predict(
     inputs: npt.ArrayLike,
     *,
     tile: int = 256,
-    precision: Literal["auto", "float32", "bfloat16"] = "float32",
+    precision: Precision = "float32",
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """``(P_T, P_S)`` in [0, 1] for a ``4 x H x W`` normalised clue image.
 
@@ -187,7 +188,7 @@ class ConfidenceEstimator:
         *,
         stereo_power: float = 1.0,
         matcher: str = "opencv",
-        precision: Literal["auto", "float32", "bfloat16"] = DEFAULT_PRECISION,
+        precision: Precision = DEFAULT_PRECISION,
     ) -> None:
         if not isinstance(net, ConfidenceNet):
             raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ConfidenceNet")
@@ -200,31 +201,24 @@ class ConfidenceEstimator:
             Literal["census", "opencv"], _validate.choice("matcher", matcher, MATCHERS)
         )
         _resolve_precision(precision)
-        self.precision: Literal["auto", "float32", "bfloat16"] = precision
+        self.precision: Precision = precision
+
+    def _with(self, **changes: Any) -> ConfidenceEstimator:
+        """This estimator with some keyword arguments of the constructor changed."""
+        kw: dict[str, Any] = {
+            "stereo_power": self.stereo_power,
+            "matcher": self.matcher,
+            "precision": self.precision,
+        }
+        return ConfidenceEstimator(self.net, self.sigmas, self.source, **(kw | changes))
 
     def with_stereo_power(self, power: float) -> ConfidenceEstimator:
         """The same network and normalisation with another stereo calibration power."""
-        return ConfidenceEstimator(
-            self.net,
-            self.sigmas,
-            self.source,
-            stereo_power=power,
-            matcher=self.matcher,
-            precision=self.precision,
-        )
+        return self._with(stereo_power=power)
 
-    def with_precision(
-        self, precision: Literal["auto", "float32", "bfloat16"]
-    ) -> ConfidenceEstimator:
+    def with_precision(self, precision: Precision) -> ConfidenceEstimator:
         """The same estimator computing in another precision (:data:`PRECISIONS`)."""
-        return ConfidenceEstimator(
-            self.net,
-            self.sigmas,
-            self.source,
-            stereo_power=self.stereo_power,
-            matcher=self.matcher,
-            precision=precision,
-        )
+        return self._with(precision=precision)
 
     @classmethod
     def load(
@@ -232,7 +226,7 @@ class ConfidenceEstimator:
         path: str | Path | None = None,
         *,
         device: str = "cpu",
-        precision: Literal["auto", "float32", "bfloat16"] = DEFAULT_PRECISION,
+        precision: Precision = DEFAULT_PRECISION,
     ) -> ConfidenceEstimator:
         """The shipped weights (``path=None``) or the checkpoint at ``path``, computing in
         ``precision`` (:data:`PRECISIONS`)."""
