@@ -306,7 +306,7 @@ def upsample_depth(
     image: _U8,
     labels: _I32 | None,
     config: UpsampleConfig,
-) -> tuple[_F32, _F32 | None]: ...
+) -> tuple[_F32, _F32 | None, _F32]: ...
 
 @final
 class LcConfig:

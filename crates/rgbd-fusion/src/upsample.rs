@@ -110,6 +110,10 @@ pub struct Upsampled {
     /// The carried channel interpolated with the very weights the depth got (NaN where the
     /// depth is NaN or no weighted sample carried a value); empty when no channel was given.
     pub channel: Vec<f32>,
+    /// The smallest mean absolute colour difference (0-255 levels) between each pixel and a
+    /// sample within the radius, NaN where there is none: a large gap means the depth came from
+    /// samples of other surfaces only (across an edge), which the image cannot confirm.
+    pub color_gap: Vec<f32>,
 }
 
 /// Upsamples `sparse` (H x W depth, NaN/<=0 = no sample) guided by `image` (H x W x 3) and, when
@@ -149,6 +153,7 @@ pub fn upsample_depth(
     let gc = gauss_table(params.sigma_c);
     let inv_2r2 = 1.0 / (2.0 * params.sigma_r * params.sigma_r);
     let mut out = vec![f32::NAN; n];
+    let mut gap = vec![f32::NAN; n];
     let mut carried = vec![f32::NAN; if channel.is_some() { n } else { 0 }];
     // Without a channel the carried rows are empty and zip stops nothing: chunk them by width
     // only when present.
@@ -171,15 +176,16 @@ pub fn upsample_depth(
         inv_2r2,
     };
     out.par_chunks_mut(width)
+        .zip(gap.par_chunks_mut(width))
         .zip(carried_rows.par_iter_mut())
         .enumerate()
-        .try_for_each(|(y, (out_row, a_row))| {
+        .try_for_each(|(y, ((out_row, gap_row), a_row))| {
             check_interrupt()?;
             // Monomorphised: without a channel the inner loop does no channel work at all.
             if channel.is_some() {
-                ctx.row::<true>(y, out_row, a_row);
+                ctx.row::<true>(y, out_row, gap_row, a_row);
             } else {
-                ctx.row::<false>(y, out_row, a_row);
+                ctx.row::<false>(y, out_row, gap_row, a_row);
             }
             Ok(())
         })?;
@@ -187,6 +193,7 @@ pub fn upsample_depth(
     Ok(Upsampled {
         depth: out,
         channel: carried,
+        color_gap: gap,
     })
 }
 
@@ -206,8 +213,15 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Filters output row `y` (and its carried channel when `CARRY`).
-    fn row<const CARRY: bool>(&self, y: usize, out_row: &mut [f32], a_row: &mut [f32]) {
+    /// Filters output row `y` (and its carried channel when `CARRY`); `gap_row` gets each
+    /// pixel's smallest colour difference to a sample ([`Upsampled::color_gap`]).
+    fn row<const CARRY: bool>(
+        &self,
+        y: usize,
+        out_row: &mut [f32],
+        gap_row: &mut [f32],
+        a_row: &mut [f32],
+    ) {
         let (r, side, width) = (self.r, self.side, self.width);
         let y0 = (y as i64 - r).max(0) as usize;
         let y1 = (y as i64 + r).min(self.height as i64 - 1) as usize;
@@ -221,6 +235,7 @@ impl Ctx<'_> {
             others.clear();
             let mut same = Sums::<CARRY>::default();
             let mut all = Sums::<CARRY>::default();
+            let mut closest = usize::MAX;
             let lo = (x as i64 - r).max(0) as u32;
             let hi = (x as i64 + r) as u32;
             for (k, yq) in (y0..=y1).enumerate() {
@@ -236,9 +251,11 @@ impl Ctx<'_> {
                     let ws = self.spatial[srow + (t.x as i64 - x as i64 + r) as usize];
                     let a = if CARRY { row_a[c + i] } else { f32::NAN };
                     all.add(ws, t.z, a);
+                    let dc = sum_abs(cp, &t.color);
+                    closest = closest.min(dc);
                     // Without labels every tap carries label 0 like p: one segment.
                     if t.label == lp {
-                        same.add(ws * self.gc[sum_abs(cp, &t.color)], t.z, a);
+                        same.add(ws * self.gc[dc], t.z, a);
                     } else {
                         others.push((ws, t.z, a));
                     }
@@ -246,6 +263,9 @@ impl Ctx<'_> {
             }
             let (z, a) = estimate(&same, &all, &others, self.inv_2r2);
             *o = z;
+            if closest != usize::MAX {
+                gap_row[x] = closest as f32 / 3.0;
+            }
             if CARRY {
                 a_row[x] = a;
             }
@@ -373,6 +393,32 @@ mod tests {
             .depth;
         assert!((out[w - 1 - 4] - 1.5).abs() < 1e-4);
         assert!(out[w - 1].is_nan(), "more than radius from every sample");
+    }
+
+    #[test]
+    fn color_gap_is_the_distance_to_the_closest_coloured_sample() {
+        // Samples on the dark left half only: bright pixels within the radius of them got their
+        // depth from another colour (gap 190 = 220 - 30), dark ones from their own (gap 0),
+        // and pixels beyond the radius of every sample have none (NaN).
+        let (w, h) = (20, 4);
+        let (mut sparse, img, lab) = step(w, h);
+        for (i, z) in sparse.iter_mut().enumerate() {
+            if i % w >= w / 2 {
+                *z = f32::NAN;
+            }
+        }
+        let p = UpsampleParams::default();
+        let out = upsample_depth(&sparse, None, &img, Some(&lab), w, h, &p).unwrap();
+        let gap = |x: usize| out.color_gap[w + x];
+        assert_eq!(gap(0), 0.0);
+        assert_eq!(gap(w / 2 - 1), 0.0);
+        assert_eq!(gap(w / 2), 190.0);
+        assert_eq!(gap(w / 2 + 3), 190.0, "last sample at x = 8, radius 5");
+        assert!(gap(w / 2 + 4).is_nan() && out.depth[w + w / 2 + 4].is_nan());
+        assert!(
+            (out.depth[w + w / 2] - 1.0).abs() < 1e-6,
+            "the bled depth itself stays"
+        );
     }
 
     #[test]

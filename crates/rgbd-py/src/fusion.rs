@@ -116,7 +116,7 @@ impl PyUpsampleConfig {
 }
 
 /// Extended cross bilateral upsampling of a sparse depth map, carrying an optional channel with
-/// the depth's weights: `(depth, channel or None)`.
+/// the depth's weights: `(depth, channel or None, color_gap)` (`Upsampled::color_gap`).
 #[pyfunction]
 #[pyo3(signature = (sparse, channel, image, labels, config))]
 #[allow(clippy::type_complexity)]
@@ -127,7 +127,11 @@ pub fn upsample_depth<'py>(
     image: PyReadonlyArray3<'py, u8>,
     labels: Option<PyReadonlyArray2<'py, i32>>,
     config: &PyUpsampleConfig,
-) -> PyResult<(Bound<'py, PyArray2<f32>>, Option<Bound<'py, PyArray2<f32>>>)> {
+) -> PyResult<(
+    Bound<'py, PyArray2<f32>>,
+    Option<Bound<'py, PyArray2<f32>>>,
+    Bound<'py, PyArray2<f32>>,
+)> {
     let (h, w) = rgb_shape("image", &image)?;
     let s = borrow("sparse", &sparse)?;
     let img = borrow("image", &image)?;
@@ -141,7 +145,11 @@ pub fn upsample_depth<'py>(
         Some(_) => Some(to_numpy(py, (h, w), out.channel)?),
         None => None,
     };
-    Ok((to_numpy(py, (h, w), out.depth)?, carried))
+    Ok((
+        to_numpy(py, (h, w), out.depth)?,
+        carried,
+        to_numpy(py, (h, w), out.color_gap)?,
+    ))
 }
 
 /// The LC parameter set (eq. 2.16 constants, window, bins, view), validated once when built.

@@ -82,7 +82,9 @@ def _upsample(
     sigma_color: float,
     sigma_range: float,
     names: tuple[str, str] = ("sparse", "channel"),
-) -> tuple[F32, F32 | None]:
+) -> tuple[F32, F32 | None, F32]:
+    """The native filter: ``(depth, channel or None, color_gap)`` (see
+    :attr:`ToFOnReference.color_gap`)."""
     img = rgb8("image", image)
     h, w = img.shape[:2]
     s = map2d("sparse", sparse, (h, w))
@@ -151,7 +153,7 @@ def upsample_depth(
     interpolated with the very weights the depth gets, so its unit never enters the filter; the
     result is then ``(depth, channel)``.
     """
-    depth, carried = _upsample(
+    depth, carried, _ = _upsample(
         sparse, channel, image, labels, radius, sigma_spatial, sigma_color, sigma_range
     )
     if carried is None:
@@ -168,6 +170,11 @@ class ToFOnReference:
     disparity: F32
     amplitude: F32
     labels: npt.NDArray[np.int32]
+    #: The smallest mean absolute colour difference (8-bit levels) between each pixel and a ToF
+    #: sample within the upsampling window (NaN where none): where it is large, the pixel's
+    #: depth came only from samples of other-coloured surfaces, i.e. from across an edge that the
+    #: low-resolution ToF cannot place (:data:`~rgbd_rs.fusion.fuse.UNCONFIRMED_COLOR_GAP`).
+    color_gap: F32 | None = None
 
 
 def tof_to_reference(
@@ -242,7 +249,7 @@ def _densify_tof(
         radius = max(2, round(UPSAMPLE_RADIUS * r.reference_camera.width / 960))
     # One pass: the amplitude rides on the depth's weights (a second filter run on the amplitude
     # would apply the depth-relative range term to amplitude differences).
-    dense, dense_amp = _upsample(
+    dense, dense_amp, gap = _upsample(
         sparse.depth,
         sparse.amplitude,
         img,
@@ -255,4 +262,5 @@ def _densify_tof(
     )
     assert dense_amp is not None
     disp = depth_to_disparity(dense, r.stereo.baseline, r.stereo.focal)
-    return ToFOnReference(sparse.depth, dense, disp, dense_amp, np.asarray(lab, dtype=np.int32))
+    labels_out = np.asarray(lab, dtype=np.int32)
+    return ToFOnReference(sparse.depth, dense, disp, dense_amp, labels_out, gap)
