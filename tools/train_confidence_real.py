@@ -33,6 +33,12 @@ def main() -> None:
     ap.add_argument("--batch-size", type=int, default=16)
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--target-t",
+        type=float,
+        default=None,
+        help="error (px) at which the target confidence reaches 0 (default: the recipe's 3)",
+    )
     ap.add_argument("--init", type=Path, default=None, help="start from these weights")
     ap.add_argument("--quiet", action="store_true")
     a = ap.parse_args()
@@ -42,6 +48,8 @@ def main() -> None:
     )
     val = prepare(real_samples("val", a.val_laws), cache / "val", matcher=a.matcher, quiet=a.quiet)
     recipe = Recipe(width=a.width, per_scene=a.per_scene)
+    if a.target_t is not None:
+        recipe = Recipe(width=a.width, per_scene=a.per_scene, target_t=a.target_t)
     best = None
     # One epoch per call (the trainer resumes bit for bit), so every epoch's weights are kept
     # as epN.pt for the choice on what the fusion gives.
