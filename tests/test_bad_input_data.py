@@ -217,7 +217,7 @@ CASES: list[Case] = [
             _frame_npz("no_ir.npz", np.ones((4, 4), np.uint16), ir=None)
         ),
         ARG,
-        r"^path: could not read .*no_ir\.npz \(it has no 'ir'\)",
+        r"^path: could not read .*no_ir\.npz: missing arrays \['ir'\]",
         "missing array",
     ),
     Case(

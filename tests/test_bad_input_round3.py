@@ -464,14 +464,14 @@ def _fuzz_cases(tmp: Path) -> list[Case]:
             "fit_mask",
             lambda: surface.fit_mask(np.zeros((4, 4, 3), np.float32), [[True], [True, False]]),
             ARG,
-            r"^mask: got list that is not array-like",
+            r"^mask: got list with rows of different lengths",
             "ragged",
         ),
         Case(
             "Texture.image",
             lambda: render.Texture.image([[1, 2], [3]], 1.0),
             ARG,
-            r"^rgb: got list that is not array-like",
+            r"^rgb: got list with rows of different lengths",
             "ragged",
         ),
         Case(

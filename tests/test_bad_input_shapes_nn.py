@@ -509,7 +509,7 @@ ALL_CASES: list[Case] = [
         "ShapeClassifier.load",
         lambda: ShapeClassifier.load(CKPT, dataset="modelnet10"),
         ARG,
-        r"^dataset: given with path",
+        r"^path: got .* together with dataset=.modelnet10.",
         "both",
     ),
     Case(

@@ -315,7 +315,9 @@ def test_reproject_of_a_pickled_frame_says_what_the_file_holds(
     tmp_path: Path, shared_data: Path
 ) -> None:
     calib = shared_data / "tof" / "azure_kinect_calibration.json"
-    frame = _pickled_npz(tmp_path / "x_depth.npz", "depth_mm")
+    frame = tmp_path / "x_depth.npz"
+    obj = np.array([{"depth": 1.0}], dtype=object)
+    np.savez(frame, depth_mm=obj, ir=np.zeros((2, 2)), color=np.zeros((2, 2, 3), np.uint8))
     res = run("reproject", "--frame", str(frame), "--calib", str(calib), "--out", str(tmp_path))
     _assert_one_line_error(res, "x_depth.npz", "it holds Python objects")
     assert "allow_pickle" not in res.stderr

@@ -39,12 +39,16 @@ def asarray(name: str, value: object) -> np.ndarray:
     if isinstance(value, np.ndarray):
         return _bounded(name, value if type(value) is np.ndarray else value.view(np.ndarray))
     try:
-        return _bounded(name, np.asarray(value))
-    except (TypeError, ValueError) as exc:  # ragged lists and the like
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged lists and the like
+        what = type(value).__name__
+        if isinstance(value, (list, tuple)):
+            what += " with rows of different lengths (ragged)"
         raise InvalidArgumentError(
-            f"{name}: got {type(value).__name__} that is not array-like ({exc}), "
-            "expected a numpy array"
+            f"{name}: got {what}, which cannot be read as one array; expected a rectangular "
+            "array of numbers"
         ) from None
+    return _bounded(name, arr)
 
 
 def _bounded(name: str, arr: np.ndarray) -> np.ndarray:

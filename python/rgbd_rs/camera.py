@@ -49,6 +49,10 @@ def _camera_arg(name: str, value: object) -> PinholeCamera:
     return value
 
 
+#: Largest magnitude of a distortion coefficient (a 1e30 k1 projected points to 8e28 px).
+MAX_DISTORTION = 1e9
+
+
 @dataclass(frozen=True)
 class Distortion:
     """Lens distortion of eq. 2.8 (Heikkila) plus the rational terms k4..k6.
@@ -68,7 +72,12 @@ class Distortion:
 
     def __post_init__(self) -> None:
         for name in ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"):
-            _validate.real(f"distortion.{name}", getattr(self, name))
+            v = _validate.real(f"distortion.{name}", getattr(self, name))
+            if abs(v) > MAX_DISTORTION:
+                raise InvalidArgumentError(
+                    f"distortion.{name}: got {v:.3g}, expected a coefficient within "
+                    f"+-{MAX_DISTORTION:g} (calibrated lenses stay within a few hundred)"
+                )
 
     @classmethod
     def from_opencv(cls, coeffs: npt.ArrayLike) -> Distortion:
@@ -184,6 +193,8 @@ def _pose_arg(name: str, value: object, *, default_identity: bool = False) -> Po
 #: pixels is 1e6 px), and inside them the projection's products and squares stay within float32
 #: (at 1e30 px a normal's cross product overflows; at 1e-40 px the inverse does).
 FOCAL_RANGE = (1e-3, 1e8)
+#: The farthest a principal point may lie from the image origin, in pixels (as the focal range).
+MAX_PRINCIPAL = 1e8
 
 
 def _focal(name: str, value: object) -> float:
@@ -194,6 +205,15 @@ def _focal(name: str, value: object) -> float:
             f"{name}: got {f:.3g} px, expected a focal length in [{lo:g}, {hi:g}] px"
         )
     return f
+
+
+def _principal(name: str, value: object) -> float:
+    c = _validate.real(name, value)
+    if abs(c) > MAX_PRINCIPAL:
+        raise InvalidArgumentError(
+            f"{name}: got {c:.3g} px, expected a principal point within +-{MAX_PRINCIPAL:g} px"
+        )
+    return c
 
 
 @dataclass(frozen=True)
@@ -220,8 +240,8 @@ class PinholeCamera:
         for name, v in (
             ("fx", _focal("fx", self.fx)),
             ("fy", _focal("fy", self.fy)),
-            ("cx", _validate.real("cx", self.cx)),
-            ("cy", _validate.real("cy", self.cy)),
+            ("cx", _principal("cx", self.cx)),
+            ("cy", _principal("cy", self.cy)),
             ("width", _validate.size("width", self.width)),
             ("height", _validate.size("height", self.height)),
         ):

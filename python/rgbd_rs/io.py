@@ -10,6 +10,7 @@ import hashlib
 import io
 import json
 import os
+import stat
 import tempfile
 import zipfile
 from collections.abc import Callable, Mapping, Sequence
@@ -50,25 +51,60 @@ def _path(value: object, name: str = "path") -> Path:
     raise InvalidArgumentError(f"{name}: got {value!r}, expected a file path (str or Path)")
 
 
-def _read_bytes(path: Path) -> bytes:
-    """The file's bytes; a missing or empty file raises RgbdError naming it."""
+def _special(path: Path) -> str | None:
+    """What ``path`` is when it exists but is neither a regular file nor a folder (a device, a
+    FIFO, a socket), else None."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    return "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "special"
+
+
+def _file_bytes(path: Path) -> bytes:
+    """The file's bytes; a missing, special or unreadable file raises RgbdError naming it."""
     if path.is_dir():
         raise RgbdError(f"{path}: is a folder, expected a file")
+    kind = _special(path)
+    if kind is not None:
+        raise RgbdError(f"{path}: is {kind}, expected a regular file")
     if not path.is_file():
         raise RgbdError(f"{path}: file not found")
-    data = path.read_bytes()
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise RgbdError(f"{path}: could not be read ({reason(exc)})") from exc
+
+
+def _read_bytes(path: Path) -> bytes:
+    """:func:`_file_bytes`, and an empty file refused too."""
+    data = _file_bytes(path)
     if not data:
         raise RgbdError(f"{path}: empty file")
     return data
 
 
 def _atomic_bytes(path: Path, data: bytes) -> Path:
+    """Write ``data`` through a temporary file beside ``path`` renamed over it; a folder, a
+    device or another special file at ``path`` is refused (the rename would replace it)."""
     if path.is_dir():
         raise RgbdError(f"{path}: is a folder, expected a file path to write")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    kind = _special(path)
+    if kind is not None:
+        raise RgbdError(f"{path}: is {kind}, expected a regular file path to write")
     tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_bytes(data)
+        tmp.replace(path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise RgbdError(f"{path}: could not be written ({reason(exc)})") from exc
     return path
 
 
@@ -252,10 +288,7 @@ def _no_constant(name: str) -> Any:
 
 def sha256(path: str | Path) -> str:
     """Hex SHA-256 of a file's bytes."""
-    path = _path(path)
-    if not path.is_file():
-        raise RgbdError(f"{path}: file not found")
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    return hashlib.sha256(_file_bytes(_path(path))).hexdigest()
 
 
 # -- create-once files (package-internal: shared by the resumable, sharded dataset jobs) --------

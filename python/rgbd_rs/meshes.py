@@ -73,12 +73,11 @@ class Mesh:
     def transformed(
         self, rotation: npt.ArrayLike | None = None, translation: npt.ArrayLike = (0, 0, 0)
     ) -> Mesh:
-        """``R v + t`` applied to every vertex."""
-        r = (
-            np.eye(3)
-            if rotation is None
-            else _validate.array("rotation", rotation, shape=(3, 3), dtype=np.float64, finite=True)
-        )
+        """``R v + t`` applied to every vertex (``rotation`` a proper rotation: orthonormal,
+        det +1; a scale or a mirror would turn the triangles' winding inside out)."""
+        from rgbd_rs.camera import Pose
+
+        r = np.eye(3) if rotation is None else Pose(rotation=rotation).rotation  # type: ignore[arg-type]
         t = _vec3("translation", translation)
         v = self.vertices.astype(np.float64) @ r.T + t
         return Mesh(v.astype(np.float32), self.triangles)
@@ -98,7 +97,7 @@ class Mesh:
 
     def normalized(self, size: float = 1.0) -> Mesh:
         """Centred on its bounding-box centre and scaled so the longest side is ``size``."""
-        size = _validate.real("size", size, positive=True)
+        size = _length("size", size)
         lo, hi = self.bounds()
         extent = float((hi - lo).max())
         if not extent > 0:
@@ -118,7 +117,7 @@ def concat(meshes: Sequence[Mesh]) -> Mesh:
         )
     meshes = [_mesh_arg(f"meshes[{i}]", m) for i, m in enumerate(meshes)]
     if not meshes:
-        return Mesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32))
+        raise InvalidArgumentError("meshes: got an empty list, expected at least one Mesh")
     offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
     return Mesh(
         np.concatenate([m.vertices for m in meshes]),
@@ -130,6 +129,22 @@ def quad(corners: npt.ArrayLike) -> Mesh:
     """Two triangles over four corners given in order around the quad."""
     c = _validate.array("corners", corners, shape=(4, 3), finite=True)
     return Mesh(c, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
+
+
+#: Lengths a primitive may have: float32 (the vertex type) holds them with room to resolve
+#: their vertices (a radius of 1e-308 was stored as 0, one of 1e308 as inf).
+LENGTH_RANGE = (1e-30, 1e30)
+
+
+def _length(name: str, value: object) -> float:
+    """A primitive's length: a positive real within :data:`LENGTH_RANGE`."""
+    v = _validate.real(name, value, positive=True)
+    lo, hi = LENGTH_RANGE
+    if not lo <= v <= hi:
+        raise InvalidArgumentError(
+            f"{name}: got {v:.3g}, expected a length in [{lo:g}, {hi:g}] (float32 vertices)"
+        )
+    return v
 
 
 def _float32(local: npt.NDArray[np.float64], center: npt.NDArray[np.float64]) -> F32:
@@ -152,6 +167,8 @@ def box(size: Sequence[float], center: Sequence[float] = (0.0, 0.0, 0.0)) -> Mes
     s = _vec3("size", size) / 2
     if not (s > 0).all():
         raise InvalidArgumentError(f"size: got {size}, expected three positive lengths")
+    for k in range(3):
+        _length(f"size[{k}]", 2 * float(s[k]))
     c = _vec3("center", center)
     v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
     faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
@@ -167,8 +184,8 @@ def cylinder(
     axis: int = 1,
 ) -> Mesh:
     """Closed cylinder along world ``axis`` (default y, the vertical of a y-down camera world)."""
-    radius = _validate.real("radius", radius, positive=True)
-    height = _validate.real("height", height, positive=True)
+    radius = _length("radius", radius)
+    height = _length("height", height)
     c = _vec3("center", center)
     n = _validate.integer("segments", segments, minimum=3, maximum=MAX_SEGMENTS)
     axis = _validate.integer("axis", axis, maximum=2)
@@ -191,7 +208,7 @@ def sphere(
     radius: float, center: Sequence[float] = (0.0, 0.0, 0.0), rings: int = 16, segments: int = 32
 ) -> Mesh:
     """UV sphere with ``rings`` latitude bands and ``segments`` longitudes."""
-    radius = _validate.real("radius", radius, positive=True)
+    radius = _length("radius", radius)
     c = _vec3("center", center)
     nr = _validate.integer("rings", rings, minimum=2, maximum=MAX_SEGMENTS)
     ns = _validate.integer("segments", segments, minimum=3, maximum=MAX_SEGMENTS)

@@ -101,7 +101,7 @@ class Texture:
         return cls("image", (_validate.real("period", period, positive=True, f32=True),), 0, img)
 
     def __post_init__(self) -> None:
-        _validate.choice("texture", self.kind, _TEXTURE_KINDS)
+        _validate.choice("kind", self.kind, _TEXTURE_KINDS)
         if not isinstance(self.params, (tuple, list)):
             raise InvalidArgumentError(f"params: got {self.params!r}, expected a tuple of numbers")
         for i, v in enumerate(self.params):

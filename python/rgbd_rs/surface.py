@@ -255,12 +255,22 @@ def _restore_fit(
     )
 
 
+#: Largest smoothing weight: past ~1e12 the fit is already the regulariser's limit (the same
+#: surface to 1e-4 at 1e8 and 1e12), and past ~1e18 the normal equations lose their pivots.
+MAX_LAMBDA = 1e12
+
+
 def _params(spacing: float, degree: int, lam: float) -> tuple[float, int, float]:
     s = _validate.real("spacing", spacing, positive=True)
     if s < 1.0:
         raise InvalidArgumentError(f"spacing: got {s}, expected a knot spacing >= 1 pixel")
     d = _validate.integer("degree", degree, minimum=1, maximum=MAX_DEGREE)
-    return s, d, _validate.real("lam", lam, positive=True)
+    lm = _validate.real("lam", lam, positive=True)
+    if lm > MAX_LAMBDA:
+        raise InvalidArgumentError(
+            f"lam: got {lm:.3g}, expected a smoothing weight <= {MAX_LAMBDA:g}"
+        )
+    return s, d, lm
 
 
 def _maps(raw: tuple[F32, F32, F32, F32, F32, F32]) -> dict[str, F32]:
@@ -301,6 +311,15 @@ def fit_mask(
     s, d, lam_ = _params(spacing, degree, lam)
     if not isinstance(crop, (bool, np.bool_)):
         raise InvalidArgumentError(f"crop: got {crop!r}, expected True or False")
+    if m is not None and not m.any():
+        raise InvalidArgumentError("mask: got no pixel set, expected at least one pixel to fit")
+    usable = np.isfinite(p).all(axis=2)
+    if not (usable if m is None else usable & m).any():
+        where = "" if m is None else " inside the mask"
+        raise InvalidArgumentError(
+            f"points: got no valid pixel (none with three finite coordinates{where}), expected "
+            "at least one"
+        )
     native, n, sse, dof, linear, box = _rgbd_rs.fit_surface(p, m, s, d, lam_, bool(with_dof))
     r0, r1, c0, c1 = box
     # Copies of the box: the maps are computed later, from the points as they are now.

@@ -3,6 +3,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::thread;
 use std::time::Duration;
 
@@ -50,6 +51,50 @@ pub fn shape_err(msg: String) -> PyErr {
 /// How often a waiting caller looks for Ctrl-C while a kernel runs on another thread.
 const SIGNAL_POLL: Duration = Duration::from_millis(50);
 
+/// The process that imported the module. rayon's global pool belongs to it: a forked child
+/// (multiprocessing's default start method on Linux, torch DataLoader workers) inherits the
+/// pool's bookkeeping but none of its threads, and a parallel kernel there would wait for them
+/// forever.
+static PARENT: OnceLock<u32> = OnceLock::new();
+/// A forked child's own pool, built at its first call (keyed by pid: a grandchild builds anew).
+static CHILD_POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+
+/// Records the importing process (called once, when the module is created).
+pub fn record_parent() {
+    PARENT.get_or_init(std::process::id);
+}
+
+/// Runs `f` where its rayon work can run: directly in the importing process, in a pool of the
+/// child's own after a fork (see [`PARENT`]).
+fn in_own_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    let pid = std::process::id();
+    if *PARENT.get_or_init(|| pid) == pid {
+        return f();
+    }
+    let pool = {
+        let mut slot = CHILD_POOL.lock().unwrap_or_else(|e| e.into_inner());
+        match slot.as_ref() {
+            Some((owner, pool)) if *owner == pid => Arc::clone(pool),
+            _ => {
+                let built = rayon::ThreadPoolBuilder::new()
+                    .num_threads(crate::rayon_threads())
+                    .build();
+                match built {
+                    Ok(pool) => {
+                        let pool = Arc::new(pool);
+                        *slot = Some((pid, Arc::clone(&pool)));
+                        pool
+                    }
+                    // No thread to be had: the caller's catch_unwind makes this an RgbdError
+                    // instead of a hang.
+                    Err(e) => panic!("could not start worker threads after a fork: {e}"),
+                }
+            }
+        }
+    };
+    pool.install(f)
+}
+
 /// Runs `f` with the GIL released; a panic becomes `RgbdError` instead of crossing into Python.
 pub fn run<T, F>(py: Python<'_>, f: F) -> PyResult<T>
 where
@@ -57,7 +102,7 @@ where
     F: FnOnce() -> Result<T, CoreError> + Send,
 {
     let _running = rgbd_error::running();
-    finish(py.detach(|| catch_unwind(AssertUnwindSafe(f))))
+    finish(py.detach(|| catch_unwind(AssertUnwindSafe(|| in_own_pool(f)))))
 }
 
 /// [`run`] for kernels that can take seconds: `f` runs on a scoped thread while this thread
@@ -77,7 +122,7 @@ where
             let (tx, rx) = mpsc::channel();
             s.spawn(move || {
                 // The receiver lives until the scope ends, so this send cannot fail.
-                let _ = tx.send(catch_unwind(AssertUnwindSafe(f)));
+                let _ = tx.send(catch_unwind(AssertUnwindSafe(|| in_own_pool(f))));
             });
             loop {
                 match rx.recv_timeout(SIGNAL_POLL) {

@@ -21,7 +21,7 @@ fn num_threads() -> usize {
     rayon_threads()
 }
 
-fn rayon_threads() -> usize {
+pub(crate) fn rayon_threads() -> usize {
     std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(
@@ -35,6 +35,7 @@ fn rayon_threads() -> usize {
 
 #[pymodule]
 fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    errors::record_parent();
     let py = m.py();
     m.add("RgbdError", py.get_type::<errors::RgbdError>())?;
     m.add(

@@ -411,6 +411,9 @@ impl SegmentFits {
     /// [`Criterion::Seam`]: `(χ²_ij - tolerance·|seam|) / (|S_i| + |S_j|)`, so eq. 4.8 is the
     /// seam test; infinite (never merged) when the segments have no seam.
     pub fn union_error(&self, i: usize, j: usize) -> Result<f64, RgbdError> {
+        // Both checked first, each under its own name (the helpers below name theirs `i`).
+        self.live("i", i)?;
+        self.live("j", j)?;
         match (self.test_chi2(i, j)?, &self.test) {
             // No seam: the parts do not meet, nothing says they are one surface (and the χ² of
             // the union equals the parts' up to rounding, which must not decide).
@@ -425,6 +428,8 @@ impl SegmentFits {
 
     /// Eq. 4.8: whether `e_i|S_i| + e_j|S_j| > e_ij (|S_i| + |S_j|)`.
     pub fn should_merge(&self, i: usize, j: usize) -> Result<bool, RgbdError> {
+        self.live("i", i)?;
+        self.live("j", j)?;
         let (ni, nj) = (self.size(i)? as f64, self.size(j)? as f64);
         let lhs = self.fit_error(i)? * ni + self.fit_error(j)? * nj;
         Ok(lhs > self.union_error(i, j)? * (ni + nj))

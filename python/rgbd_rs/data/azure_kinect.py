@@ -15,7 +15,6 @@ tests/test_azure_kinect.py).
 from __future__ import annotations
 
 import json
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,8 +24,9 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs._reasons import reason
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.geometry import Reprojection, reproject_depth
+from rgbd_rs.io import read_npz
 
 # mode -> (binned resolution, crop offset, output resolution), from the SDK's mode tables.
 DEPTH_MODES: dict[str, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]] = {
@@ -177,22 +177,13 @@ def load_azure_kinect_frame(path: str | Path) -> AzureKinectFrame:
         raise InvalidArgumentError(f"path: got {path!r}, expected an npz file path")
     path = Path(path)
     try:
-        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
-            depth_mm, ir, color = z["depth_mm"], z["ir"], z["color"]
-    except (
-        OSError,
-        KeyError,
-        ValueError,
-        zipfile.BadZipFile,
-        EOFError,
-        AttributeError,  # np.load gave a plain array (an .npy), not an archive
-        TypeError,
-    ) as exc:
+        arrays = read_npz(path, ["depth_mm", "ir", "color"])
+    except RgbdError as exc:
         raise InvalidArgumentError(
-            f"path: could not read an Azure Kinect frame from {path} ({reason(exc)}), expected "
-            "an npz "
-            "with depth_mm, ir and color"
+            f"path: could not read an Azure Kinect frame ({exc}), expected an npz with "
+            "depth_mm, ir and color"
         ) from None
+    depth_mm, ir, color = arrays["depth_mm"], arrays["ir"], arrays["color"]
     if depth_mm.dtype.kind not in "ui" or depth_mm.dtype.itemsize < 2:
         raise InvalidArgumentError(
             f"path: {path} holds depth_mm as {depth_mm.dtype}, expected integer millimetres "

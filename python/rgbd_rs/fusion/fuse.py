@@ -248,6 +248,10 @@ def fuse(
     rgt = rgb8("right", right, size)
     ref_img, tgt_img, sign = views(lft, rgt, r.reference)
     h, w = ref_img.shape[:2]
+    if w < 2:
+        raise InvalidArgumentError(
+            f"left/right: got images {w} pixel wide, expected at least 2 columns to match"
+        )
     # The cheap checks come before the stages run.
     if params is not None and not isinstance(params, LcParams):
         raise InvalidArgumentError(f"params: got {type(params).__name__}, expected LcParams")

@@ -176,6 +176,12 @@ def lc_refine(
         raise InvalidArgumentError(
             "disparity: got only NaN, expected at least one valid disparity to refine"
         )
+    largest = float(np.nanmax(np.abs(d)))
+    if largest > _validate.MAX_SIDE:
+        raise InvalidArgumentError(
+            f"disparity: got values up to {largest:.3g} px, expected disparities within "
+            f"+-{_validate.MAX_SIDE} px (no image is wider), or NaN"
+        )
     ref, tgt, sign = views(lft, rgt, ref_name)
     p = LcParams(bin_width=REFINE_BIN_WIDTH) if params is None else params
     out, _ = lc_fuse(ref, tgt, [d], None, target_sign=sign, params=p)

@@ -184,7 +184,9 @@ def sgm(
     lft = rgb8("left", left)
     rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
     ref = _validate.choice("reference", reference, ("left", "right"))
-    lo = _validate.integer("min_disparity", min_disparity, minimum=0)
+    lo = _validate.integer(
+        "min_disparity", min_disparity, minimum=0, maximum=max(0, lft.shape[1] - 2)
+    )
     hi = _validate.integer("max_disparity", max_disparity, minimum=lo + 1)
     if hi >= lft.shape[1]:
         raise InvalidArgumentError(

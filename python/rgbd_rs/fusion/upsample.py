@@ -218,6 +218,14 @@ def _reproject_tof(
     z = map2d("tof_depth", tof_depth, tof_shape)
     amp = map2d("tof_amplitude", tof_amplitude, tof_shape)
     valid = np.isfinite(z) & (z > 0)
+    # The disparity b f / z of a subnormal depth overflows float32 (checked here to name the
+    # argument; depth_to_disparity would call it "depth").
+    floor = r.stereo.baseline * r.stereo.focal / _validate.F32_MAX
+    if valid.any() and float(z[valid].min()) < floor:
+        raise InvalidArgumentError(
+            f"tof_depth: got depths down to {float(z[valid].min()):.3g} m, expected depths >= "
+            f"{floor:.3g} m (smaller ones give disparities beyond float32's range)"
+        )
     if not valid.any():
         warnings.warn(
             "tof_depth: no valid pixel; the ToF maps on the reference camera are all NaN",

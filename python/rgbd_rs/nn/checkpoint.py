@@ -329,6 +329,10 @@ def load_checkpoint(
         raise InvalidArgumentError(
             f"normalisation_keys: got {normalisation_keys!r}, expected a collection of names"
         )
+    if arch is not None and not isinstance(arch, str):
+        raise InvalidArgumentError(
+            f"arch: got {type(arch).__name__}, expected an architecture name (str) or None"
+        )
     path = Path(path)
     if not isinstance(map_location, (str, torch.device)):
         raise InvalidArgumentError(

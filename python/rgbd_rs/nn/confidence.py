@@ -195,6 +195,10 @@ class ConfidenceEstimator:
         # Channels-last weights to match predict()'s channels-last inputs.
         self.net = net.to(memory_format=torch.channels_last)
         self.sigmas = _validate.array("sigmas", sigmas, shape=(IN_CHANNELS,), finite=True)
+        if not isinstance(source, str):
+            raise InvalidArgumentError(
+                f"source: got {type(source).__name__}, expected a str (where the weights came from)"
+            )
         self.source = source
         self.stereo_power = _validate.real("stereo_power", stereo_power, positive=True)
         self.matcher: Literal["census", "opencv"] = cast(

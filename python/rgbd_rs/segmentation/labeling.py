@@ -188,8 +188,19 @@ class SemanticLabeler:
             raise ShapeMismatchError(
                 f"cues: got shape {x.shape}, expected ({N_CUES}, H, W), the 9 cues of eq. 4.2"
             )
+        self._fits_input("cues", x.shape[2], x.shape[1])
         small = downsample_cues(x, self.input_size)
         return self.pdfs_of_cues(small, (int(x.shape[1]), int(x.shape[2])))
+
+    def _fits_input(self, name: str, width: int, height: int) -> None:
+        """Refuses a frame smaller than the network's input (the cues are reduced to it, never
+        enlarged)."""
+        w, h = self.input_size
+        if width < w or height < h:
+            raise ShapeMismatchError(
+                f"{name}: got a {width}x{height} frame, smaller than the labeling network's "
+                f"{w}x{h} input; expected a frame at least {w}x{h}"
+            )
 
     def pdfs(
         self, rgb: npt.ArrayLike, depth: npt.ArrayLike, camera: PinholeCamera
@@ -204,6 +215,9 @@ class SemanticLabeler:
                 f"{self.source}: a network trained on the cues of {self.cues}, not "
                 f"{CUE_FUNCTION}; compute those and call pdfs_from_full_cues"
             )
+        shape = tuple(getattr(rgb, "shape", ()))
+        if len(shape) == 3:  # checked before the cues are computed (the cues check the rest)
+            self._fits_input("rgb", int(shape[1]), int(shape[0]))
         return self.pdfs_from_full_cues(semantic_cues(rgb, depth, camera, seed=self.seed))
 
     def labels(

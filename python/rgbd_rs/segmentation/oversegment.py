@@ -79,11 +79,15 @@ F32 = npt.NDArray[np.float32]
 I32 = npt.NDArray[np.int32]
 
 
+#: Most feature channels per pixel :func:`oversegment` takes (eq. 4.1 has 9).
+MAX_CHANNELS = 1024
+
+
 def default_channel_weights(n_channels: int) -> F32:
     """The channel weights :func:`oversegment` applies by default: :data:`GROUP_WEIGHTS`
     repeated over the three channels of each group for the 9-D vectors of eq. 4.1, all ones
     for any other channel count."""
-    d = _validate.integer("n_channels", n_channels, minimum=1)
+    d = _validate.integer("n_channels", n_channels, minimum=1, maximum=MAX_CHANNELS)
     if d == 9:
         return np.repeat(np.asarray(GROUP_WEIGHTS, np.float32), 3)
     return np.ones(d, np.float32)
@@ -148,6 +152,7 @@ def oversegment(
     h, w, d = f.shape
     _validate.size("features height", h)
     _validate.size("features width", w)
+    _validate.integer("features channels", d, maximum=MAX_CHANNELS)
     if np.isinf(f).any():
         raise InvalidArgumentError(
             f"features: got {int(np.isinf(f).sum())} infinite values, expected finite values "

@@ -164,7 +164,10 @@ class ShapeClassifier:
         if path is None:
             file = _default_weights(dataset)
         elif dataset is not None:
-            raise InvalidArgumentError("dataset: given with path, expected one of the two")
+            raise InvalidArgumentError(
+                f"path: got {str(path)!r} together with dataset={dataset!r}; expected one of the "
+                "two (dataset picks the shipped weights)"
+            )
         elif not isinstance(path, (str, os.PathLike)) or not str(path):
             raise InvalidArgumentError(f"path: got {path!r}, expected a checkpoint file")
         else:
@@ -293,6 +296,11 @@ def classify(
         checkpoint = _validate.path("checkpoint", checkpoint)
     if dataset is not None:
         _validate.choice("dataset", dataset, tuple(WEIGHT_FILES))
+        if checkpoint is not None:
+            raise InvalidArgumentError(
+                f"checkpoint: got {str(checkpoint)!r} together with dataset={dataset!r}; "
+                "expected one of the two (dataset picks the shipped weights)"
+            )
     key = None if checkpoint is None else str(Path(checkpoint).resolve())
     file = Path(key) if key is not None else None
     stamp = file.stat().st_mtime if file is not None and file.is_file() else 0.0

@@ -210,6 +210,11 @@ def _options(
         raise InvalidArgumentError(
             f"background: got {bg}, expected a finite number (nan only with lcn=False)"
         )
+    if abs(bg) > _validate.F32_MAX:  # the views are float32
+        raise InvalidArgumentError(
+            f"background: got {bg:.3g}, expected a number float32 can hold (|x| <= "
+            f"{_validate.F32_MAX:.3g})"
+        )
     w = None
     if window is not None:
         w = _validate.integer("lcn_window", window, minimum=1)
