@@ -322,9 +322,14 @@ def main() -> None:
             None,
         ),
         (
-            "tof_to_reference (reprojection + mean shift + upsampling)",
+            "tof_to_reference (reprojection + upsampling; old path: with the mean-shift "
+            "segmentation, OpenCV's)",
             lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right),
-            old_path(lambda: tof_to_reference(s.tof_depth, s.tof_amplitude, rig, s.right)),
+            old_path(
+                lambda: tof_to_reference(
+                    s.tof_depth, s.tof_amplitude, rig, s.right, segmentation=True
+                )
+            ),
         ),
         (
             f"census SGM (fuse()'s matcher: 4 paths, LR check; the scene's range {dmax} px)",

@@ -1,11 +1,12 @@
 """Stage 1: ToF depth -> the reference colour camera, upsampled to its lattice (thesis §3.3 step 1).
 
 The ToF depth is reprojected by z-buffered forward splatting (one colour pixel per ToF sample,
-:func:`rgbd_rs.reproject_depth`), the colour image is segmented by mean shift (OpenCV's
-``pyrMeanShiftFiltering``, reimplemented bit-exactly in Rust, + connected regions of equal
-filtered colour), and the sparse samples are interpolated by the extended cross bilateral filter
-of Dal Mutto et al. (spatial, colour, depth-range and segmentation terms; see
-``crates/rgbd-fusion/src/upsample.rs``). Depth becomes disparity with d = b f / z.
+:func:`rgbd_rs.reproject_depth`) and the sparse samples are interpolated by a cross bilateral
+filter (spatial and colour terms). With ``segmentation=True`` the colour image is first segmented
+by mean shift (OpenCV's ``pyrMeanShiftFiltering``, reimplemented bit-exactly in Rust, + connected
+regions of equal filtered colour) and the filter is Dal Mutto et al.'s extended one (a
+segmentation and a depth-range term; see ``crates/rgbd-fusion/src/upsample.rs``); the default
+leaves it out (:data:`UPSAMPLE_SEGMENTATION`). Depth becomes disparity with d = b f / z.
 """
 
 from __future__ import annotations
@@ -29,6 +30,13 @@ MEANSHIFT_COLOR = 16
 REGION_TOLERANCE = 2.0
 #: Largest window half-size (defined once, in crates/rgbd-fusion).
 MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
+#: Whether :func:`tof_to_reference` (and :func:`~rgbd_rs.fusion.fuse`) segments the colour image
+#: for the upsampling. Off: on the real train + val cases the fusion gave the same or better
+#: without it (60 cases, 20 scenes x 3 ToF laws: mean fused / better input 0.7715 vs 0.7708,
+#: worst fused / good input 1.013 vs 1.016, mean fused RMS 0.764 vs 0.770 px; a dense 512 x 424
+#: ToF: 0.903 / 1.352 vs 0.903 / 1.439), and the mean shift took ~70 ms of fuse() at 960 x 540
+#: (docs/experiments.md).
+UPSAMPLE_SEGMENTATION = False
 #: Extended cross bilateral filter defaults at 960 px width (ToF samples ~2 px apart there).
 UPSAMPLE_RADIUS = 5
 SIGMA_SPATIAL = 3.0
@@ -169,7 +177,8 @@ class ToFOnReference:
     depth: F32
     disparity: F32
     amplitude: F32
-    labels: npt.NDArray[np.int32]
+    #: The segmentation the upsampling followed (None: none, the default).
+    labels: npt.NDArray[np.int32] | None
     #: The smallest mean absolute colour difference (8-bit levels) between each pixel and a ToF
     #: sample within the upsampling window (NaN where none): where it is large, the pixel's
     #: depth came only from samples of other-coloured surfaces, i.e. from across an edge that the
@@ -185,6 +194,7 @@ def tof_to_reference(
     *,
     labels: npt.ArrayLike | None = None,
     radius: int | None = None,
+    segmentation: bool = UPSAMPLE_SEGMENTATION,
 ) -> ToFOnReference:
     """Reproject ToF depth and amplitude onto the reference camera and upsample both.
 
@@ -192,12 +202,15 @@ def tof_to_reference(
         tof_depth, tof_amplitude: ``H_t x W_t`` ToF maps (metres; NaN/<=0 invalid).
         rig: the :class:`~rgbd_rs.ToFStereoRig`.
         image: the reference colour image (uint8 RGB) on the reference camera.
-        labels: a segmentation of ``image``; computed by :func:`segment_mean_shift` if None.
+        labels: a segmentation of ``image`` for the filter's segmentation term.
         radius: filter window half-size; default scales 5 px at 960 px width.
+        segmentation: without ``labels``, segment ``image`` by :func:`segment_mean_shift`
+            first (default :data:`UPSAMPLE_SEGMENTATION`: no, a plain cross bilateral filter).
     """
     r = rig_arg(rig)
     img = rgb8("image", image, r.reference_camera.size)
-    return _densify_tof(_reproject_tof(tof_depth, tof_amplitude, r), r, img, labels, radius)
+    seg = _validate.flag("segmentation", segmentation)
+    return _densify_tof(_reproject_tof(tof_depth, tof_amplitude, r), r, img, labels, radius, seg)
 
 
 @dataclass(frozen=True)
@@ -248,11 +261,14 @@ def _densify_tof(
     image: npt.ArrayLike,
     labels: npt.ArrayLike | None = None,
     radius: int | None = None,
+    segmentation: bool = UPSAMPLE_SEGMENTATION,
 ) -> ToFOnReference:
     """The upsampling step of :func:`tof_to_reference` (same arguments)."""
     r = rig_arg(rig)
     img = rgb8("image", image, r.reference_camera.size)
-    lab = segment_mean_shift(img) if labels is None else labels
+    lab = labels
+    if lab is None and segmentation:
+        lab = segment_mean_shift(img)
     if radius is None:
         radius = max(2, round(UPSAMPLE_RADIUS * r.reference_camera.width / 960))
     # One pass: the amplitude rides on the depth's weights (a second filter run on the amplitude
@@ -270,5 +286,5 @@ def _densify_tof(
     )
     assert dense_amp is not None
     disp = depth_to_disparity(dense, r.stereo.baseline, r.stereo.focal)
-    labels_out = np.asarray(lab, dtype=np.int32)
+    labels_out = None if lab is None else np.asarray(lab, dtype=np.int32)
     return ToFOnReference(sparse.depth, dense, disp, dense_amp, labels_out, gap)
