@@ -177,11 +177,15 @@ def test_cli_with_a_checkpoint_writes_classes(
         assert (out / name).exists(), name
     # Issue 30: the class pictures carry a legend; classes.json maps id -> name -> colour.
     classes = json.loads((out / "classes.json").read_text())
-    assert [c["id"] for c in classes] == list(range(len(classes)))
+    assert [c["id"] for c in classes] == [*range(len(classes) - 1), -1]
     assert classes[1]["name"] == "bed" and len(classes[1]["rgb"]) == 3
+    # The pictures' "no data" grey is named too; segments.png shows it with a legend.
+    from rgbd_rs.viz import NO_DATA_BGR
+
+    assert classes[-1] == {"id": -1, "name": "no data", "rgb": list(NO_DATA_BGR[::-1])}
     from rgbd_rs.io import read_png
 
-    for name in ("semantic.png", "network.png"):
+    for name in ("semantic.png", "network.png", "segments.png"):
         pic = read_png(out / name)
         assert pic.shape[1] == 640 and pic.shape[0] > 480 + 40, (name, pic.shape)  # + legend
     assert main([*argv[:-2], "--labeler", str(tmp_path / "nope.pt"), "--quiet"]) == 2

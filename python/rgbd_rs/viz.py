@@ -379,15 +379,16 @@ def outline_segments(
 
 def paint_segments(labels: npt.ArrayLike, boundaries: bool = True) -> U8:
     """A BGR picture of ``labels`` (``H x W`` int): one colour per label (a hash of the label,
-    so the same label has the same colour in every frame of a merge animation), negative labels
-    black, boundaries white unless ``boundaries=False``."""
+    so the same label has the same colour in every frame of a merge animation; never darker than
+    70 levels, so no segment passes for no data), negative labels (no data) in the "no data"
+    grey :data:`NO_DATA_BGR`, boundaries white unless ``boundaries=False``."""
     lab = _label_image("labels", labels)
     if not isinstance(boundaries, bool):
         raise InvalidArgumentError(f"boundaries: got {boundaries!r}, expected True or False")
     h = (lab.astype(np.uint64) * np.uint64(2654435761)) & np.uint64(0xFFFFFFFF)
     rgb = np.stack([(h >> np.uint64(s)) & np.uint64(255) for s in (0, 8, 16)], axis=-1)
-    img = (40 + rgb.astype(np.uint16) * 215 // 255).astype(np.uint8)
-    img[lab < 0] = 0
+    img = (70 + rgb.astype(np.uint16) * 185 // 255).astype(np.uint8)
+    img[lab < 0] = NO_DATA_BGR
     if boundaries:
         img[_boundaries(lab, 1)] = 255
     return np.ascontiguousarray(img)

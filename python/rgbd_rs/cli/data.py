@@ -10,6 +10,8 @@ from rgbd_rs.geometry import MAX_SPLAT_RADIUS
 
 #: Everything ``rgbd reproject`` may write (cleared first: a run without ``--undistort`` must
 #: not leave an earlier run's undistorted colour image and camera beside its distorted depth).
+#: Width of each panel of `rgbd reproject`'s preview.png (pixels).
+PREVIEW_WIDTH = 480
 REPROJECT_OUTPUTS = ("depth.npz", "depth_mm.png", "preview.png", "color.png", "camera.json")
 
 
@@ -120,7 +122,7 @@ def run_reproject(args: argparse.Namespace) -> int:
         reproject_to_color,
     )
     from rgbd_rs.io import write_npz
-    from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+    from rgbd_rs.viz import as_bgr, grid, image_panel, map_panel, save_png
 
     cal = flagged({"path": "--calib"}, lambda: load_azure_kinect_calibration(args.calib))
     frame = flagged({"path": "--frame"}, lambda: load_azure_kinect_frame(args.frame))
@@ -149,9 +151,10 @@ def run_reproject(args: argparse.Namespace) -> int:
     write_npz(args.out / "depth.npz", {"depth": depth, "amplitude": amplitude})
     mm = np.clip(np.nan_to_num(depth * 1000.0, nan=0.0), 0, 65535).astype(np.uint16)
     save_png(args.out / "depth_mm.png", mm)
-    save_png(
-        args.out / "preview.png",
-        tile([as_bgr(color), colorize(depth)], ["colour", "ToF depth on colour"], columns=2),
-    )
+    panels = [
+        image_panel(as_bgr(color), "colour camera", width=PREVIEW_WIDTH),
+        map_panel(depth, "ToF depth on the colour camera", unit="m", width=PREVIEW_WIDTH),
+    ]
+    save_png(args.out / "preview.png", grid(panels, columns=2))
     print(f"coverage {rep.coverage:.1%}; wrote {args.out}/{written}")
     return 0

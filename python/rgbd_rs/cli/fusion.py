@@ -15,6 +15,9 @@ from rgbd_rs import _rgbd_rs
 from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
+#: Width of each panel of `rgbd fuse`'s preview.png (pixels).
+PREVIEW_WIDTH = 400
+
 #: fuse()'s parameters -> the flags that gave them (errors name the flag).
 FUSE_FLAGS = {
     "left/right": "--left/--right",
@@ -286,7 +289,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     from rgbd_rs.data.calibration import load_rig
     from rgbd_rs.fusion import LcParams, fuse
     from rgbd_rs.io import read_png, write_npz, write_png
-    from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+    from rgbd_rs.viz import as_bgr, grid, image_panel, map_panel, save_png
 
     if (args.tof_confidence is None) != (args.stereo_confidence is None):
         raise InvalidArgumentError(
@@ -364,21 +367,20 @@ def run_fuse(args: argparse.Namespace) -> int:
     ref = right if out.reference == "right" else left
     d = out.disparity[np.isfinite(out.disparity)]
     lo, hi = (float(np.percentile(d, 1)), float(np.percentile(d, 99))) if d.size else (0.0, 1.0)
-    save_png(
-        args.out / "preview.png",
-        tile(
-            [
-                as_bgr(ref),
-                colorize(out.tof.disparity, lo, hi),
-                colorize(out.stereo_disparity, lo, hi),
-                colorize(out.disparity, lo, hi),
-                colorize(out.plausibility, 0, 1),
-            ],
-            ["reference colour", "ToF disparity", "SGM disparity", "LC fused", "LC plausibility"],
-            columns=5,
-            width=320,
-        ),
-    )
+    weights = "confidence-weighted" if out.tof_confidence is not None else "uniform weights"
+    panels = [
+        image_panel(as_bgr(ref), f"{out.reference} camera (reference)", width=PREVIEW_WIDTH),
+        map_panel(out.tof.disparity, "ToF, upsampled: disparity", unit="px", vmin=lo, vmax=hi,
+                  width=PREVIEW_WIDTH),
+        map_panel(out.stereo_disparity, f"stereo ({out.stereo_matcher} SGM): disparity",
+                  unit="px", vmin=lo, vmax=hi, width=PREVIEW_WIDTH),
+        map_panel(out.disparity, f"fused (LC, {weights}): disparity", unit="px", vmin=lo,
+                  vmax=hi, width=PREVIEW_WIDTH),
+        map_panel(out.plausibility, "fused: plausibility", unit="", vmin=0, vmax=1,
+                  width=PREVIEW_WIDTH),
+        map_panel(out.depth, "fused: depth", unit="m", width=PREVIEW_WIDTH),
+    ]  # fmt: skip
+    save_png(args.out / "preview.png", grid(panels, columns=3))
     how = "--max-disparity" if args.max_disparity is not None else "from the ToF disparities"
     print(f"SGM search range: 0-{out.max_disparity} px ({how})")
 

@@ -144,7 +144,16 @@ def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.io import read_npy, read_png, write_png
     from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
     from rgbd_rs.segmentation.pipeline import segment
-    from rgbd_rs.viz import outline_segments, paint_segments, save_png
+    from rgbd_rs.viz import (
+        NO_DATA_BGR,
+        class_legend,
+        image_panel,
+        outline_segments,
+        paint_segments,
+        save_png,
+    )
+
+    NO_DATA_RGB = (NO_DATA_BGR[2], NO_DATA_BGR[1], NO_DATA_BGR[0])
 
     rgb = named("--rgb", lambda: read_png(args.rgb))
     scale = depth_png_scale("--depth", args.depth, args.depth_scale)
@@ -195,7 +204,16 @@ def run_segment(args: argparse.Namespace) -> int:
     png[result.labels >= 0] = (ids + 1).astype(np.uint16)
     write_png(out / "labels.png", png, rgb=False)
     save_png(out / "overlay.png", outline_segments(rgb, result.labels))
-    save_png(out / "segments.png", paint_segments(result.labels))
+    n_found = int(ids.max()) + 1 if ids.size else 0
+    seg_panel = image_panel(
+        paint_segments(result.labels),
+        f"{n_found} segments (labels.png in colour; white: boundaries)",
+        width=int(rgb.shape[1]),
+    )
+    legend = class_legend(
+        ["no depth: not segmented (labels.png 0)"], [NO_DATA_RGB], seg_panel.shape[1]
+    )
+    save_png(out / "segments.png", np.vstack([seg_panel, legend]))
     written = "labels.png, labels.npy, over.npy, overlay.png, segments.png"
     if result.semantic is not None:
         from rgbd_rs.data.nyuv2 import LABEL13_NAMES
@@ -215,7 +233,8 @@ def run_segment(args: argparse.Namespace) -> int:
             [
                 {"id": i, "name": n, "rgb": list(c)}
                 for i, (n, c) in enumerate(zip(names, colors, strict=True))
-            ],
+            ]
+            + [{"id": -1, "name": "no data", "rgb": list(NO_DATA_RGB)}],
         )
         width = int(rgb.shape[1])
         save_png(

@@ -11,10 +11,12 @@ import numpy as np
 from rgbd_rs.data.synth import _rig_poses, generate, synth3_rig, tof_seed
 from rgbd_rs.metrics import rms_error
 from rgbd_rs.render import ToFModel
-from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+from rgbd_rs.viz import NO_DATA_BGR, class_legend, grid, image_panel, map_panel, save_png
 
 #: Colour range of the error maps (metres, symmetric).
 ERROR_RANGE_M = 0.05
+#: Panel width (pixels).
+WIDTH = 400
 
 
 def write_preview(
@@ -26,22 +28,19 @@ def write_preview(
     _, _, to_tof = _rig_poses(rig)
     model = ToFModel()
     noise_seed = tof_seed(seed, "test", index)
-    images = [
-        as_bgr(sample.left),
-        as_bgr(sample.right),
-        colorize(sample.gt_depth),
-        colorize(sample.tof_gt_depth),
-        colorize(sample.tof_depth),
-        colorize(sample.tof_amplitude),
-    ]
-    labels = [
-        "left",
-        "right (reference)",
-        "GT depth (reference)",
-        "GT depth (ToF view)",
-        "ToF depth (all effects)",
-        "ToF amplitude",
-    ]
+    lo = float(np.nanpercentile(sample.gt_depth, 1))
+    hi = float(np.nanpercentile(sample.gt_depth, 99))
+    panels = [
+        image_panel(sample.left[:, :, ::-1], "left camera", width=WIDTH),
+        image_panel(sample.right[:, :, ::-1], "right camera (reference)", width=WIDTH),
+        map_panel(sample.gt_depth, "true depth (reference)", unit="m", vmin=lo, vmax=hi,
+                  width=WIDTH),
+        map_panel(sample.tof_gt_depth, "true depth (ToF view)", unit="m", vmin=lo, vmax=hi,
+                  width=WIDTH),
+        map_panel(sample.tof_depth, "ToF depth (all effects)", unit="m", vmin=lo, vmax=hi,
+                  width=WIDTH),
+        map_panel(sample.tof_amplitude, "ToF amplitude (sensor units)", unit="", width=WIDTH),
+    ]  # fmt: skip
     rms: dict[str, float] = {}
     cases = [
         ("mixed", model.only("mixed")),
@@ -56,12 +55,22 @@ def write_preview(
     frames["all"] = (sample.tof_depth, sample.tof_gt_depth)
     for name, (depth, truth) in frames.items():
         rms[name] = rms_error(depth, truth)
-        err = depth - truth
-        images.append(colorize(err, -ERROR_RANGE_M, ERROR_RANGE_M, colormap=cv2.COLORMAP_JET))
-        labels.append(f"ToF error: {name} (rms {100 * rms[name]:.1f} cm)")
+        title = f"ToF error: {name}, rms {100 * rms[name]:.1f} cm"
+        panels.append(
+            map_panel(
+                (depth - truth) * 100, title, unit="cm", vmin=-100 * ERROR_RANGE_M,
+                vmax=100 * ERROR_RANGE_M, width=WIDTH, colormap=cv2.COLORMAP_JET,
+            )
+        )  # fmt: skip
     dropout = np.isnan(sample.tof_depth) & np.isfinite(sample.tof_gt_depth)
     rms["dropout_fraction"] = float(dropout.mean())
-    images.append(as_bgr((dropout * 255).astype(np.uint8)))
-    labels.append(f"invalid ToF pixels ({100 * dropout.mean():.1f} %)")
-    save_png(path, tile(images, labels, columns=4, width=400))
+    pic = np.full((*dropout.shape, 3), 255, np.uint8)
+    pic[dropout] = (0, 0, 200)
+    pic[~np.isfinite(sample.tof_gt_depth)] = NO_DATA_BGR
+    cell = image_panel(pic, f"invalid ToF pixels ({100 * dropout.mean():.1f} %)", width=WIDTH)
+    legend = class_legend(
+        ["ToF returned nothing", "no surface in view"], [(200, 0, 0), NO_DATA_BGR[::-1]], WIDTH
+    )
+    panels.append(np.vstack([cell, legend]))
+    save_png(path, grid(panels, columns=4))
     return rms
