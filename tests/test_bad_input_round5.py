@@ -266,3 +266,21 @@ def test_native_calls_work_in_a_forked_child() -> None:
         if child.is_alive():
             child.kill()
     assert got == ((240, 320, 3), (60, 80))
+
+
+@pytest.mark.parametrize(
+    "text, said",
+    [
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+            "a face refers to a vertex the file does not hold",
+        ),
+    ],
+)
+def test_mesh_files_are_refused_in_our_words(text: str, said: str, tmp_path: Path) -> None:
+    from rgbd_rs.shapes import load_shape
+
+    path = tmp_path / "bad.obj"
+    path.write_text(text)
+    with pytest.raises(RgbdError, match=f"bad.obj: .*{said}"):
+        load_shape(path)

@@ -228,6 +228,11 @@ def test_cli_warns_on_a_wrong_depth_unit_naming_the_flag(
         assert lines[0].endswith("; --depth-scale 0.0001 brings it to 3.04 m"), lines
         assert main([*argv, "--out", str(tmp_path / "b"), "--depth-scale", "0.0001"]) == 0
         assert capsys.readouterr().err == ""
+        # Read as metres (a scale of 1) the depth is refused outright, naming the fix too.
+        assert main([*argv, "--out", str(tmp_path / "c"), "--depth-scale", "1"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("rgbd: error: --depth: got a median valid depth of"), err
+        assert err.endswith("; --depth-scale 0.0001 brings it to 3.04 m"), err
 
 
 @pytest.mark.parametrize(

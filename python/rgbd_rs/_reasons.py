@@ -29,6 +29,8 @@ _BY_TEXT: tuple[tuple[str, str], ...] = (
     ("file signature not found", "it is not an HDF5 file"),
     ("truncated file", "it ends early: truncated?"),
     ("unable to open file", "it cannot be opened as HDF5: corrupt or another format"),
+    ("unexpected length", "its data is shorter or longer than its header declares: truncated?"),
+    ("out of bounds for axis", "a face refers to a vertex the file does not hold"),
 )
 
 

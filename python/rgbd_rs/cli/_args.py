@@ -114,8 +114,9 @@ def flagged(
     """``call()``, with its errors and warnings about a library parameter worded for the
     command line: a message that starts ``"name:"`` (a key of ``names``) starts with that
     parameter's flag instead (``"camera: got a 640x480 camera ..."`` -> ``"--calib: got a
-    640x480 camera ..."``). The call's warnings are shown once it has returned or failed, each
-    first passed through ``amend`` (e.g. to add the flag value that fixes it)."""
+    640x480 camera ..."``). The call's warnings are shown once it has returned or failed; they
+    and its error are first passed through ``amend`` (e.g. to add the flag value that fixes
+    it)."""
 
     def worded(msg: str) -> str | None:
         for name, flag in names.items():
@@ -132,9 +133,12 @@ def flagged(
             finally:
                 seen = list(caught)
     except RgbdError as exc:
-        msg = worded(str(exc))
+        text = str(exc) if amend is None else amend(str(exc))
+        msg = worded(text)
         if msg is None:
-            raise
+            if text == str(exc):
+                raise
+            msg = text
         raise type(exc)(msg) from None
     finally:
         for w in seen:

@@ -267,12 +267,13 @@ def run_segment(args: argparse.Namespace) -> int:
 
 
 def _naming_the_depth_scale(path: Path, depth: np.ndarray, scale: float) -> Callable[[str], str]:
-    """A warning rewriter: the depth-unit warning ends with the --depth-scale value that makes
-    the PNG's median depth plausible (a .npy/.npz holds metres: no flag fixes it)."""
+    """A message rewriter: the depth-unit warning or error ends with the --depth-scale value
+    that makes the PNG's median depth plausible (a .npy/.npz holds metres: no flag fixes it)."""
     from rgbd_rs.segmentation.pipeline import _suggested_depth_scale
 
     def amend(text: str) -> str:
-        if not (text.startswith("depth: median ") and path.suffix.lower() == ".png"):
+        about_median = text.startswith("depth:") and "median" in text
+        if not (about_median and path.suffix.lower() == ".png"):
             return text
         valid = depth[np.isfinite(depth) & (depth > 0)]
         med = float(np.median(valid)) if valid.size else 0.0
