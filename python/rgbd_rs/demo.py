@@ -106,7 +106,7 @@ def run_synthetic(out: Path | None, seed: int = 0) -> SyntheticResult:
 COVERAGE = (
     ("reprojected", (60, 170, 60)),
     ("hidden from camera A (occlusion)", (230, 150, 30)),
-    ("outside camera A's view", (255, 255, 255)),
+    ("outside camera A's view", (120, 180, 255)),
 )
 
 
@@ -178,32 +178,35 @@ def run_kinect(out: Path | None) -> dict[str, float] | None:
     }
     if out is not None:
         color = as_bgr(frame.color)
-        over = (0.5 * color + 0.5 * colorize(rep.depth)).astype(np.uint8)
         assert rep.channels is not None
         lo, hi = (float(v) for v in np.nanpercentile(frame.depth, [1, 99]))
+        # Depth over colour where the ToF landed, the plain colour image elsewhere.
+        tinted = (0.5 * color + 0.5 * colorize(rep.depth, lo, hi)).astype(np.uint8)
+        over = np.where(np.isfinite(rep.depth)[..., None], tinted, color)
         amp = np.log10(np.where(frame.amplitude > 0, frame.amplitude, np.nan))
         alo, ahi = (float(v) for v in np.nanpercentile(amp, [1, 99]))
         rep_amp = np.log10(np.where(rep.channels > 0, rep.channels, np.nan))
         ch, cw = frame.color.shape[:2]
         dh, dw = frame.depth.shape
-        save_png(
-            out / "kinect_depth_to_color.png",
-            grid(
-                [
-                    image_panel(color, f"colour camera {cw}x{ch}"),
-                    map_panel(frame.depth, f"ToF depth, ToF camera {dw}x{dh}", unit="m",
-                              vmin=lo, vmax=hi),
-                    map_panel(rep.depth, "ToF depth on the colour camera", unit="m",
-                              vmin=lo, vmax=hi),
-                    map_panel(amp, "ToF amplitude, ToF camera (log10)", unit="",
-                              vmin=alo, vmax=ahi),
-                    map_panel(rep_amp, "ToF amplitude on the colour camera (log10)", unit="",
-                              vmin=alo, vmax=ahi),
-                    image_panel(over, "colour + depth on the colour camera"),
-                ],
-                columns=3,
-            ),
-        )  # fmt: skip
+        # One row per camera lattice, so no row is padded to the other's aspect ratio.
+        on_color = [
+            image_panel(color, f"colour camera {cw}x{ch}"),
+            map_panel(rep.depth, "ToF depth on the colour camera", unit="m", vmin=lo, vmax=hi),
+            image_panel(over, "colour + ToF depth (its colours as beside)"),
+        ]
+        on_tof = [
+            map_panel(frame.depth, f"ToF depth, ToF camera {dw}x{dh}", unit="m", vmin=lo,
+                      vmax=hi),
+            map_panel(amp, "ToF amplitude, ToF camera", unit="log10 DN", vmin=alo, vmax=ahi),
+            map_panel(rep_amp, "ToF amplitude on the colour camera", unit="log10 DN", vmin=alo,
+                      vmax=ahi),
+        ]  # fmt: skip
+        rows = [grid(on_color, columns=3), grid(on_tof, columns=3)]
+        width = max(r.shape[1] for r in rows)
+        rows = [
+            np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows
+        ]
+        save_png(out / "kinect_depth_to_color.png", np.vstack(rows))
     return stats
 
 

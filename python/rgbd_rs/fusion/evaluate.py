@@ -276,16 +276,21 @@ def markdown_table(results: list[SceneResult], title: str) -> str:
 def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
     """BGR picture in the thesis Fig. 3.4 layout, two rows of four 480-px panels per scene:
     colour, ground truth, ToF, stereo; the fused map (the ConvNet fusion when it was run, else
-    the heuristic one) and the |error| of ToF, stereo and fused. Disparities share one colour
-    bar in px, errors one of 0..``ORACLE_T`` px; excluded pixels (occluded, or without a value in
-    some compared map) are the "no data" grey."""
+    the heuristic one) and the |error| of ToF, stereo and fused wherever the map and the ground
+    truth have a value (the RMS in the title is over the pixels every compared map shares).
+    Disparities share one colour bar in px, errors one of 0..``ORACLE_T`` px (larger errors in
+    its top colour); pixels without a value are the "no data" grey."""
     panels = []
     for s, r in zip(samples, results, strict=True):
-        gt, mask = r.maps["gt"], r.maps["mask"] > 0
+        gt = r.maps["gt"]
         lo, hi = float(np.nanpercentile(gt, 1)), float(np.nanpercentile(gt, 99))
         ref = s.right if s.rig.reference == "right" else s.left
         fused = CONVNET if CONVNET in r.maps else "LC heuristic"
-        shown = (("Interpolated ToF", "ToF"), ("SGM", "stereo"), (fused, f"fused ({fused})"))
+        shown = (
+            ("Interpolated ToF", "Interpolated ToF"),
+            ("SGM", "SGM"),
+            (fused, f"fused ({fused})"),
+        )
         panels += [
             image_panel(as_bgr(ref), f"{s.name}: colour ({s.rig.reference} camera)"),
             map_panel(gt, "ground-truth disparity", unit="px", vmin=lo, vmax=hi),
@@ -296,8 +301,9 @@ def figure(samples: list[Sample], results: list[SceneResult]) -> U8:
         ]
         panels.append(map_panel(r.maps[fused], shown[2][1], unit="px", vmin=lo, vmax=hi))
         for key, short in shown:
-            err = np.where(mask, np.abs(r.maps[key] - gt), np.nan)
-            title = f"{short.split(' (')[0]} |error|, RMS {r.rms[key]:.2f} px"
+            err = np.abs(r.maps[key] - gt)
+            name = short.split(" (")[0]
+            title = f"{name} |error| (RMS {r.rms[key]:.2f} px shared; red >= {ORACLE_T:g})"
             panels.append(map_panel(err, title, unit="px", vmin=0.0, vmax=ORACLE_T))
     return grid(panels, columns=4)
 
