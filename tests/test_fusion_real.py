@@ -195,13 +195,39 @@ def test_the_band_the_other_camera_does_not_see_takes_the_tof(shared_data: Path)
     s = real_sample(load_stereo_scene("Bowling1"), 0)
     out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig)
     assert out.source is not None and out.tof_confidence is not None
+    # An unconfirmed ToF pixel (confidence 0) is not taken: the test below skips them.
     x = np.arange(out.disparity.shape[1])[None, :]
     with np.errstate(invalid="ignore"):
         unseen = np.isfinite(out.tof_fused) & (x - out.tof_fused < 0)
-    unseen &= ~np.isfinite(out.stereo_disparity)
+    unseen &= ~np.isfinite(out.stereo_disparity) & (out.tof_confidence > 0)
     assert unseen.sum() > 1000
     np.testing.assert_array_equal(out.disparity[unseen], out.tof_fused[unseen])
     assert (out.source[unseen] == FUSE.SOURCE_TOF).all()
     np.testing.assert_array_equal(out.plausibility[unseen], out.tof_confidence[unseen])
     err = np.abs(out.disparity - s.gt_disparity)[unseen]
     assert np.nanmedian(err) < 0.5
+
+
+@pytest.mark.parametrize("sign", [-1, 1])
+def test_the_unseen_band_on_either_reference(sign: int) -> None:
+    # Disparity 3 on a 10-px row: the left reference (target x - d) cannot be seen at x < 3,
+    # the right one (target x + d) at x >= 7. Only pixels without a stereo match and with a
+    # ToF weight > 0 take the ToF; every other pixel keeps LC's value.
+    w = 10
+    lc = np.full((1, w), 5.0, np.float32)
+    plaus = np.full((1, w), 0.5, np.float32)
+    source = np.full((1, w), FUSE.SOURCE_LC, np.uint8)
+    tof = np.full((1, w), 3.0, np.float32)
+    stereo = np.full((1, w), np.nan, np.float32)
+    conf = np.full((1, w), 0.8, np.float32)
+    band = np.arange(w) < 3 if sign < 0 else np.arange(w) >= 7
+    edge = 0 if sign < 0 else w - 1
+    stereo[0, edge] = 3.0  # matched after all: LC's answer stays
+    conf[0, 1 if sign < 0 else w - 2] = 0.0  # an unconfirmed ToF pixel: not taken either
+    FUSE._unseen_from_tof(lc, plaus, source, tof, stereo, conf, sign)
+    taken = band.copy()
+    taken[edge] = False
+    taken[1 if sign < 0 else w - 2] = False
+    np.testing.assert_array_equal(lc[0], np.where(taken, 3.0, 5.0))
+    np.testing.assert_array_equal(source[0], np.where(taken, FUSE.SOURCE_TOF, FUSE.SOURCE_LC))
+    np.testing.assert_array_equal(plaus[0], np.where(taken, 0.8, 0.5).astype(np.float32))

@@ -180,9 +180,9 @@ def test_cli_with_a_checkpoint_writes_classes(
     assert [c["id"] for c in classes] == [*range(len(classes) - 1), -1]
     assert classes[1]["name"] == "bed" and len(classes[1]["rgb"]) == 3
     # The pictures' "no data" grey is named too; segments.png shows it with a legend.
-    from rgbd_rs.viz import NO_DATA_BGR
+    from rgbd_rs.viz import NO_DATA_RGB
 
-    assert classes[-1] == {"id": -1, "name": "no data", "rgb": list(NO_DATA_BGR[::-1])}
+    assert classes[-1] == {"id": -1, "name": "no data", "rgb": list(NO_DATA_RGB)}
     from rgbd_rs.io import read_png
 
     for name in ("semantic.png", "network.png", "segments.png"):

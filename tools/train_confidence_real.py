@@ -37,7 +37,8 @@ def main() -> None:
         "--target-t",
         type=float,
         default=None,
-        help="error (px) at which the target confidence reaches 0 (default: the recipe's 3)",
+        help=f"error (px) at which the target confidence reaches 0 (default: the recipe's "
+        f"{Recipe().target_t:g}; the shipped network: 1)",
     )
     ap.add_argument("--init", type=Path, default=None, help="start from these weights")
     ap.add_argument("--quiet", action="store_true")

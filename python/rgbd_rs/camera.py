@@ -193,8 +193,9 @@ def _pose_arg(name: str, value: object, *, default_identity: bool = False) -> Po
 #: pixels is 1e6 px), and inside them the projection's products and squares stay within float32
 #: (at 1e30 px a normal's cross product overflows; at 1e-40 px the inverse does).
 FOCAL_RANGE = (1e-3, 1e8)
-#: The farthest a principal point may lie from the image origin, in pixels (as the focal range).
-MAX_PRINCIPAL = 1e8
+#: The farthest a principal point may lie from the image origin, in pixels (the focal range's
+#: top: beyond it the projection's products leave float32 as a focal length's would).
+MAX_PRINCIPAL = FOCAL_RANGE[1]
 
 
 def _focal(name: str, value: object) -> float:

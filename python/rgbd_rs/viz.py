@@ -15,6 +15,7 @@ from rgbd_rs.io import write_png
 
 __all__ = [
     "NO_DATA_BGR",
+    "NO_DATA_RGB",
     "as_bgr",
     "class_legend",
     "class_picture",
@@ -80,6 +81,8 @@ def colorize(
 #: Colour of "no data" pixels in :func:`colorize_with_bar` (BGR, mid grey: distinct from every
 #: TURBO colour and from black image content).
 NO_DATA_BGR = (128, 128, 128)
+#: The same grey in RGB order (class colours, classes.json).
+NO_DATA_RGB = (NO_DATA_BGR[2], NO_DATA_BGR[1], NO_DATA_BGR[0])
 
 
 def colorize_with_bar(

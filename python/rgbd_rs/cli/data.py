@@ -8,10 +8,10 @@ from pathlib import Path
 from rgbd_rs.cli._args import Commands, fail, flagged, folder, integer, output_folder, real
 from rgbd_rs.geometry import MAX_SPLAT_RADIUS
 
-#: Everything ``rgbd reproject`` may write (cleared first: a run without ``--undistort`` must
-#: not leave an earlier run's undistorted colour image and camera beside its distorted depth).
 #: Width of each panel of `rgbd reproject`'s preview.png (pixels).
 PREVIEW_WIDTH = 480
+#: Everything ``rgbd reproject`` may write (cleared first: a run without ``--undistort`` must
+#: not leave an earlier run's undistorted colour image and camera beside its distorted depth).
 REPROJECT_OUTPUTS = ("depth.npz", "depth_mm.png", "preview.png", "color.png", "camera.json")
 
 

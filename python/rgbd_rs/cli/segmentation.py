@@ -36,7 +36,8 @@ DESCRIPTION = (
     "OUT/overlay.png (boundaries on the colour image), OUT/segments.png (labels.png in colour); "
     "with classes OUT/semantic.npy, OUT/semantic.png (refined classes), OUT/network.png (the "
     "ConvNet's per-pixel classes), both with a class legend, and OUT/classes.json (id, name, "
-    "colour of each class); with --frames N every N-th merge step as OUT/merge/NNNN.png (Fig. 4.5)."
+    "colour of each class, and id -1 for the pictures' no-data grey); with --frames N every "
+    "N-th merge step as OUT/merge/NNNN.png (Fig. 4.5)."
 )
 
 
@@ -145,15 +146,13 @@ def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
     from rgbd_rs.segmentation.pipeline import segment
     from rgbd_rs.viz import (
-        NO_DATA_BGR,
+        NO_DATA_RGB,
         class_legend,
         image_panel,
         outline_segments,
         paint_segments,
         save_png,
     )
-
-    NO_DATA_RGB = (NO_DATA_BGR[2], NO_DATA_BGR[1], NO_DATA_BGR[0])
 
     rgb = named("--rgb", lambda: read_png(args.rgb))
     scale = depth_png_scale("--depth", args.depth, args.depth_scale)

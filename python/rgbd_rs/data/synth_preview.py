@@ -11,7 +11,15 @@ import numpy as np
 from rgbd_rs.data.synth import _rig_poses, generate, synth3_rig, tof_seed
 from rgbd_rs.metrics import rms_error
 from rgbd_rs.render import ToFModel
-from rgbd_rs.viz import NO_DATA_BGR, class_legend, grid, image_panel, map_panel, save_png
+from rgbd_rs.viz import (
+    NO_DATA_BGR,
+    NO_DATA_RGB,
+    class_legend,
+    grid,
+    image_panel,
+    map_panel,
+    save_png,
+)
 
 #: Colour range of the error maps (metres, symmetric).
 ERROR_RANGE_M = 0.05
@@ -69,7 +77,7 @@ def write_preview(
     pic[~np.isfinite(sample.tof_gt_depth)] = NO_DATA_BGR
     cell = image_panel(pic, f"invalid ToF pixels ({100 * dropout.mean():.1f} %)", width=WIDTH)
     legend = class_legend(
-        ["ToF returned nothing", "no surface in view"], [(200, 0, 0), NO_DATA_BGR[::-1]], WIDTH
+        ["ToF returned nothing", "no surface in view"], [(200, 0, 0), NO_DATA_RGB], WIDTH
     )
     panels.append(np.vstack([cell, legend]))
     save_png(path, grid(panels, columns=4))

@@ -66,9 +66,9 @@ CONFIDENCE_KINDS = ("convnet", "uniform", "heuristic")
 #: (a background pixel given the foreground's depth). The estimated ToF confidence ("convnet",
 #: "heuristic") is 0 there, so LC takes such a pixel from the stereo map and its consistent
 #: neighbours; the ToF value still fills it where LC leaves it empty. Chosen on the real train
-#: + val cases (20 scenes x 3 ToF laws, docs/experiments.md): mean fused / better input 0.794
-#: without the gate, 0.77 with it, and the worst damage to a good input 1.24 -> 1.03 (Barn2:
-#: a sparse ToF bleeding across edges beside a good stereo map).
+#: + val cases (20 scenes x 3 ToF laws, docs/experiments.md; P_S^3): mean fused / better input
+#: 0.802 without the gate, 0.772 with it, and the worst damage to a good input 1.265 -> 1.035
+#: (Barn2: a sparse ToF bleeding across edges beside a good stereo map).
 UNCONFIRMED_COLOR_GAP = 20.0
 
 
@@ -358,9 +358,7 @@ def fuse(
         cross_check=params is not None and params.cross_check,
     )
     if not (params is not None and params.cross_check):
-        _unseen_from_tof(
-            disp, plaus, source, tof_disp, st_map, ct, sign, keep_out_zero=given is not None
-        )
+        _unseen_from_tof(disp, plaus, source, tof_disp, st_map, ct, sign)
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
         disp, depth, plaus, tof, st_map, ct, cs, dmax, r.reference, tof_disp, matcher, source
@@ -384,8 +382,6 @@ def _unseen_from_tof(
     stereo: F32,
     tof_confidence: F32 | None,
     sign: int,
-    *,
-    keep_out_zero: bool = False,
 ) -> None:
     """In place: the pixels whose ToF disparity puts their match outside the other image (the
     band of columns the other camera does not see) and that the stereo matcher could not match
@@ -395,24 +391,19 @@ def _unseen_from_tof(
     where the ToF had 0.02-0.13 px; over the 40 train + val cases the band's median error went
     from 25.7 to 11.6 px). Where the stereo map has a match the pixel may be seen after all and
     the ToF's disparity is the suspect one (ToF outliers 36 px too far on Bowling1, which taking
-    every such pixel from the ToF made 1.21 x its good stereo map), so LC's answer stays.
-    Where the caller's ToF weight is 0 (``keep_out_zero``) the pixel is left empty instead."""
+    every such pixel from the ToF made 1.21 x its good stereo map), so LC's answer stays. A ToF
+    pixel of confidence 0 (the caller's weights, or an unconfirmed one:
+    :data:`UNCONFIRMED_COLOR_GAP`) is not taken either."""
     w = tof.shape[1]
     with np.errstate(invalid="ignore"):
         target = np.arange(w, dtype=np.float32)[None, :] + np.float32(sign) * tof
         unseen = np.isfinite(tof) & ((target < 0) | (target > w - 1)) & ~np.isfinite(stereo)
-    if not unseen.any():
-        return
-    take = unseen
-    if keep_out_zero and tof_confidence is not None:
+    if tof_confidence is not None:
         with np.errstate(invalid="ignore"):
-            take = unseen & (tof_confidence > 0)
-        disp[unseen & ~take] = np.nan
-        plaus[unseen & ~take] = np.nan
-        source[unseen & ~take] = SOURCE_NONE
-    disp[take] = tof[take]
-    plaus[take] = 1.0 if tof_confidence is None else tof_confidence[take]
-    source[take] = SOURCE_TOF
+            unseen &= tof_confidence > 0
+    disp[unseen] = tof[unseen]
+    plaus[unseen] = 1.0 if tof_confidence is None else tof_confidence[unseen]
+    source[unseen] = SOURCE_TOF
 
 
 #: :attr:`FusionResult.source` values: where each fused pixel comes from.

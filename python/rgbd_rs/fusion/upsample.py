@@ -31,10 +31,11 @@ REGION_TOLERANCE = 2.0
 #: Largest window half-size (defined once, in crates/rgbd-fusion).
 MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 #: Whether :func:`tof_to_reference` (and :func:`~rgbd_rs.fusion.fuse`) segments the colour image
-#: for the upsampling. Off: on the real train + val cases the fusion gave the same or better
-#: without it (60 cases, 20 scenes x 3 ToF laws: mean fused / better input 0.7715 vs 0.7708,
-#: worst fused / good input 1.013 vs 1.016, mean fused RMS 0.764 vs 0.770 px; a dense 512 x 424
-#: ToF: 0.903 / 1.352 vs 0.903 / 1.439), and the mean shift took ~70 ms of fuse() at 960 x 540
+#: for the upsampling (read at each call). Off: on the real train + val cases the fusion gave
+#: about the same without it (60 cases, 20 scenes x 3 ToF laws: mean fused / better input
+#: 0.7715 vs 0.7708, worst fused / good input 1.013 vs 1.016, mean fused RMS 0.764 vs 0.770 px;
+#: a dense 512 x 424 ToF: 0.903 / 1.352 vs 0.903 / 1.439), and the mean shift took ~70 ms of
+#: fuse() at 960 x 540
 #: (docs/experiments.md).
 UPSAMPLE_SEGMENTATION = False
 #: Extended cross bilateral filter defaults at 960 px width (ToF samples ~2 px apart there).
@@ -194,7 +195,7 @@ def tof_to_reference(
     *,
     labels: npt.ArrayLike | None = None,
     radius: int | None = None,
-    segmentation: bool = UPSAMPLE_SEGMENTATION,
+    segmentation: bool | None = None,
 ) -> ToFOnReference:
     """Reproject ToF depth and amplitude onto the reference camera and upsample both.
 
@@ -205,11 +206,12 @@ def tof_to_reference(
         labels: a segmentation of ``image`` for the filter's segmentation term.
         radius: filter window half-size; default scales 5 px at 960 px width.
         segmentation: without ``labels``, segment ``image`` by :func:`segment_mean_shift`
-            first (default :data:`UPSAMPLE_SEGMENTATION`: no, a plain cross bilateral filter).
+            first (None: :data:`UPSAMPLE_SEGMENTATION`, read at the call: no, a plain cross
+            bilateral filter).
     """
     r = rig_arg(rig)
     img = rgb8("image", image, r.reference_camera.size)
-    seg = _validate.flag("segmentation", segmentation)
+    seg = None if segmentation is None else _validate.flag("segmentation", segmentation)
     return _densify_tof(_reproject_tof(tof_depth, tof_amplitude, r), r, img, labels, radius, seg)
 
 
@@ -261,12 +263,14 @@ def _densify_tof(
     image: npt.ArrayLike,
     labels: npt.ArrayLike | None = None,
     radius: int | None = None,
-    segmentation: bool = UPSAMPLE_SEGMENTATION,
+    segmentation: bool | None = None,
 ) -> ToFOnReference:
     """The upsampling step of :func:`tof_to_reference` (same arguments)."""
     r = rig_arg(rig)
     img = rgb8("image", image, r.reference_camera.size)
     lab = labels
+    if segmentation is None:
+        segmentation = UPSAMPLE_SEGMENTATION
     if lab is None and segmentation:
         lab = segment_mean_shift(img)
     if radius is None:
