@@ -153,6 +153,21 @@ MAX_INT = 2**31 - 1
 MAX_SEED = 2**63 - 1
 
 
+def within(
+    name: str, value: object, bounds: tuple[float, float], what: str, unit: str = ""
+) -> float:
+    """A positive real in the closed ``bounds``; the message calls it ``what`` (e.g. "a focal
+    length") and prints ``unit`` beside the numbers."""
+    v = real(name, value, positive=True)
+    lo, hi = bounds
+    if not lo <= v <= hi:
+        u = f" {unit}" if unit else ""
+        raise InvalidArgumentError(
+            f"{name}: got {v:.3g}{u}, expected {what} in [{lo:g}, {hi:g}]{u}"
+        )
+    return v
+
+
 def integer(name: str, value: object, *, minimum: int = 0, maximum: int | None = MAX_INT) -> int:
     """Validate an integer in ``[minimum, maximum]`` (``maximum`` defaults to :data:`MAX_INT`:
     a count beyond it would overflow the kernels or allocate without bound)."""

@@ -199,13 +199,7 @@ MAX_PRINCIPAL = FOCAL_RANGE[1]
 
 
 def _focal(name: str, value: object) -> float:
-    f = _validate.real(name, value, positive=True)
-    lo, hi = FOCAL_RANGE
-    if not lo <= f <= hi:
-        raise InvalidArgumentError(
-            f"{name}: got {f:.3g} px, expected a focal length in [{lo:g}, {hi:g}] px"
-        )
-    return f
+    return _validate.within(name, value, FOCAL_RANGE, "a focal length", "px")
 
 
 def _principal(name: str, value: object) -> float:

@@ -137,14 +137,8 @@ LENGTH_RANGE = (1e-30, 1e30)
 
 
 def _length(name: str, value: object) -> float:
-    """A primitive's length: a positive real within :data:`LENGTH_RANGE`."""
-    v = _validate.real(name, value, positive=True)
-    lo, hi = LENGTH_RANGE
-    if not lo <= v <= hi:
-        raise InvalidArgumentError(
-            f"{name}: got {v:.3g}, expected a length in [{lo:g}, {hi:g}] (float32 vertices)"
-        )
-    return v
+    """A primitive's length: a positive real within :data:`LENGTH_RANGE` (float32 vertices)."""
+    return _validate.within(name, value, LENGTH_RANGE, "a length")
 
 
 def _float32(local: npt.NDArray[np.float64], center: npt.NDArray[np.float64]) -> F32:
