@@ -254,4 +254,4 @@ def _run(out: Path | None, seed: int) -> None:
     report(run_fusion(out, seed))
     from rgbd_rs import demo_scene
 
-    demo_scene.report(demo_scene.run_segmentation(out), demo_scene.run_shapes())
+    demo_scene.report(demo_scene.run_segmentation(out), demo_scene.run_shapes(out))

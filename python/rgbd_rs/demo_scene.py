@@ -72,8 +72,9 @@ def segmentation_figure(rgb: np.ndarray, r: Segmentation, label13: np.ndarray) -
     return grid(panels, columns=2)
 
 
-def run_shapes() -> list[tuple[str, str, float]] | None:
-    """Classify :data:`DEMO_MESHES` with the shipped weights: (file, class, probability)."""
+def run_shapes(out: Path | None = None) -> list[tuple[str, str, float]] | None:
+    """Classify :data:`DEMO_MESHES` with the shipped weights: (file, class, probability); with
+    ``out``, ``out/shapes.png``: the 15 network inputs of the first mesh (:func:`shape_figure`)."""
     from rgbd_rs.shapes import classify
 
     root = data_root()
@@ -83,7 +84,45 @@ def run_shapes() -> list[tuple[str, str, float]] | None:
     for name, up in DEMO_MESHES:
         best, probs = classify(root / "meshes" / name, up=up)
         rows.append((name if up == "z" else f"{name} ({up} up)", best, probs[best]))
+    if out is not None:
+        name, up = DEMO_MESHES[0]
+        save_png(out / "shapes.png", shape_figure(root / "meshes" / name, up, rows[0][1:]))
     return rows
+
+
+def shape_figure(path: Path, up: str, result: tuple[str, float]) -> np.ndarray:
+    """BGR picture of what the shape network reads for the mesh at ``path`` (its shipped input
+    spec, each map normalised as the network gets it): the six depth views, the six curvature
+    maps (k1, the larger principal curvature) and the three voxel density profiles, titled
+    with ``result`` = (class, probability)."""
+    from rgbd_rs.meshes import load_mesh
+    from rgbd_rs.shapes import VIEW_NAMES, ShapeClassifier, shape_inputs, to_z_up
+    from rgbd_rs.viz import grid, map_panel
+
+    spec = ShapeClassifier.load().spec
+    x = shape_inputs(to_z_up(load_mesh(path), up), spec)
+    width = 240
+    panels = []
+
+    def row(maps: np.ndarray, titles: list[str]) -> None:
+        # One symmetric whole-number range per row: the maps are normalised (about -2..2).
+        q = float(np.ceil(np.nanpercentile(np.abs(maps), 99))) or 1.0
+        for m, t in zip(maps, titles, strict=True):
+            panels.append(map_panel(m, t, unit="", vmin=-q, vmax=q, width=width))
+
+    if "depth" in x:
+        row(x["depth"], [f"depth view {v}" for v in VIEW_NAMES])
+    if "curvature" in x:
+        row(x["curvature"][:, 0], [f"k1 curvature {v}" for v in VIEW_NAMES])
+    if "volume" in x:
+        row(x["volume"], [f"density profile along {a}" for a in "xyz"])
+    label, p = result
+    head = grid(panels, columns=6)
+    from rgbd_rs.viz import image_panel
+
+    title = f"{path.name}: the network's inputs (normalised); classified as {label} ({p:.0%})"
+    strip = image_panel(np.full((1, head.shape[1], 3), 255, np.uint8), title, width=head.shape[1])
+    return np.vstack([strip, head])
 
 
 def report(seg: dict[str, float] | None, shapes: list[tuple[str, str, float]] | None) -> None:
