@@ -95,6 +95,11 @@ class Distortion:
                 f"coeffs: got {c.size} coefficients, expected 0, 4, 5 or 8 "
                 "(k1, k2, p1, p2[, k3[, k4, k5, k6]])"
             )
+        if c.size and float(np.abs(c).max()) > MAX_DISTORTION:
+            raise InvalidArgumentError(
+                f"coeffs: got a coefficient of {float(np.abs(c).max()):.3g}, expected each within "
+                f"+-{MAX_DISTORTION:g}"
+            )
         full = np.zeros(8)
         full[: c.size] = c
         return cls(*(float(v) for v in full))
