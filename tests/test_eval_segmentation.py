@@ -92,10 +92,11 @@ def test_tiny_evaluation_with_the_peers(tmp_path: Path) -> None:
     table = report.table()
     assert len(table.splitlines()) == 2 + 3
     assert "| slic (RGB) | n_segments=" in table and "not available" in table
-    # One figure per frame: 3 x 2 panels of 320 px.
+    # One figure per frame: 3 x 2 panels of 320 px (with the grid's gaps and the depth bar).
     for name in ("0046", "0047"):
         fig = read_png(tmp_path / f"{name}.png")
-        assert fig.shape[1] == 3 * E.PANEL_WIDTH and fig.shape[0] > 2 * 240
+        assert 3 * E.PANEL_WIDTH <= fig.shape[1] <= 3 * E.PANEL_WIDTH + 64
+        assert fig.shape[0] > 2 * 240
 
 
 def test_count_match_line() -> None:

@@ -41,7 +41,7 @@ from rgbd_rs.data.synth_indoor_scene import IndoorScene, _random_indoor_scene
 from rgbd_rs.data.synth_indoor_sensor import _kinect_color, _kinect_depth
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.io import _bytes_writer, _create_once, read_json, read_png, write_png
-from rgbd_rs.viz import colorize, save_png, tile
+from rgbd_rs.viz import class_picture, grid, image_panel, map_panel, save_png
 
 __all__ = [
     "LABEL13_COLORS",
@@ -289,22 +289,24 @@ def label_colors(label13: npt.ArrayLike) -> U8:
 
 
 def write_indoor_preview(path: str | Path, frames: Sequence[IndoorFrame], width: int = 320) -> Path:
-    """A PNG grid, one row per frame: colour | depth (holes black) | labels."""
+    """A PNG grid, one row per frame: colour | depth (a colour bar in metres, holes in the "no
+    data" grey) | labels (with the 13 classes' legend)."""
     if (
         not isinstance(frames, Sequence)
         or not frames
         or not all(isinstance(f, IndoorFrame) for f in frames)
     ):
         raise InvalidArgumentError(f"frames: got {frames!r:.60}, expected a list of IndoorFrame")
-    images, captions = [], []
+    panels = []
     for f in frames:
-        images += [
-            np.ascontiguousarray(f.rgb[:, :, ::-1]),
-            colorize(f.depth, 0.5, 6.0),
-            label_colors(f.label13),
+        panels += [
+            image_panel(np.ascontiguousarray(f.rgb[:, :, ::-1]), f"{f.name} colour", width=width),
+            map_panel(f.depth, "depth", unit="m", vmin=0.5, vmax=6.0, width=width),
+            class_picture(
+                f.label13.astype(np.int64), LABEL13_NAMES, LABEL13_COLORS, "label13", width=width
+            ),
         ]
-        captions += [f"{f.name} colour", "depth 0.5-6 m", "label13"]
-    return save_png(path, tile(images, captions, columns=3, width=width))
+    return save_png(path, grid(panels, columns=3))
 
 
 def class_frequencies(labels: Iterable[npt.ArrayLike]) -> npt.NDArray[np.float64]:

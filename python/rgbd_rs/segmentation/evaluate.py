@@ -419,11 +419,14 @@ def _outlined(rgb: U8, labels: Labels) -> U8:
 
 
 def _painted(labels: Labels) -> U8:
-    """BGR image of one random colour per label (< 0 black), boundaries white."""
+    """BGR image of one random colour per label (< 0: the "no data" grey), boundaries white."""
+    from rgbd_rs.viz import NO_DATA_BGR
+
     rng = np.random.default_rng(0)
     top = int(labels.max()) + 1 if labels.size else 0
     palette = rng.integers(40, 256, (max(top, 1), 3)).astype(np.uint8)
-    img = np.where((labels >= 0)[:, :, None], palette[np.clip(labels, 0, None)], 0)
+    grey = np.array(NO_DATA_BGR, np.uint8)
+    img = np.where((labels >= 0)[:, :, None], palette[np.clip(labels, 0, None)], grey)
     img = np.asarray(img, np.uint8)
     img[_edges(labels)] = 255
     return img
@@ -436,23 +439,27 @@ def frame_figure(
     results: Mapping[str, Labels],
     peer: str | None,
 ) -> Path:
-    """One frame's PNG: colour, depth, ground truth / our over-segmentation, merged, best peer
-    (boundaries drawn, segment counts in the captions; a method that did not run shows a grey
-    panel)."""
-    from rgbd_rs.viz import as_bgr, colorize, save_png, tile
+    """One frame's PNG: colour, depth (a colour bar in metres), ground truth / our
+    over-segmentation, merged, best peer (boundaries drawn, segment counts in the titles;
+    pixels without a region in the "no data" grey, a method that did not run says so in
+    white)."""
+    from rgbd_rs.viz import as_bgr, grid, image_panel, map_panel, save_png
 
-    blank = np.full((*gt.shape, 3), 128, np.uint8)
-    panels = [as_bgr(frame.rgb), colorize(frame.depth), _painted(gt)]
-    captions = [f"{frame.name} colour", "depth", f"ground truth ({int(gt.max()) + 1} regions)"]
+    w = PANEL_WIDTH
+    panels = [
+        image_panel(as_bgr(frame.rgb), f"{frame.name} colour", width=w),
+        map_panel(frame.depth, "depth", unit="m", width=w),
+        image_panel(_painted(gt), f"ground truth ({int(gt.max()) + 1} regions)", width=w),
+    ]
     for name in (OURS_OVER, OURS_MERGED, peer):
         labels = None if name is None else results.get(name)
         if labels is None:
-            panels.append(blank)
-            captions.append(f"{name or 'peer'}: not available")
+            blank = np.full((*gt.shape, 3), 255, np.uint8)
+            panels.append(image_panel(blank, f"{name or 'peer'}: not run", width=w))
         else:
-            panels.append(_outlined(frame.rgb, labels))
-            captions.append(f"{name} ({_count(labels)})")
-    return save_png(path, tile(panels, captions, columns=3, width=PANEL_WIDTH))
+            panels.append(image_panel(_outlined(frame.rgb, labels), f"{name} ({_count(labels)})",
+                                      width=w))  # fmt: skip
+    return save_png(path, grid(panels, columns=3))
 
 
 # -- the protocol ------------------------------------------------------------------------------
