@@ -198,7 +198,8 @@ def load_rig(path: str | Path) -> ToFStereoRig:
             f"{path}: holds one camera, expected a ToF + stereo rig (stereo.left, "
             "stereo.right, baseline, tof, tof_to_reference): fusion needs a rectified "
             "stereo pair and a ToF camera; to reproject one depth camera onto another "
-            "use `rgbd reproject`, to read one camera use load_camera"
+            "use rgbd_rs.reproject_depth (`rgbd reproject` for an Azure Kinect recording), "
+            "to read one camera use load_camera"
         )
     try:
         top = _object("the file", d)
