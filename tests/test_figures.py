@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rgbd_rs.demo_page import FIGURES
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.viz import NO_DATA_BGR, class_legend, class_picture, grid, image_panel, map_panel
 
@@ -106,4 +107,4 @@ def test_demo_page_loads_every_image_in_a_browser(demo_out: Path) -> None:
     found = re.search(r'data-widths="([^"]*)"', res.stdout)
     assert found, res.stdout[-2000:]
     widths = [int(w) for w in found.group(1).split(",")]
-    assert len(widths) == 4 and all(w >= 960 for w in widths), widths
+    assert len(widths) == len(FIGURES) and all(w >= 960 for w in widths), widths
