@@ -201,11 +201,8 @@ def run_kinect(out: Path | None) -> dict[str, float] | None:
             map_panel(rep_amp, "ToF amplitude on the colour camera", unit="log10 DN", vmin=alo,
                       vmax=ahi),
         ]  # fmt: skip
+        # Equal widths: three panels of the default width in each row.
         rows = [grid(on_color, columns=3), grid(on_tof, columns=3)]
-        width = max(r.shape[1] for r in rows)
-        rows = [
-            np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows
-        ]
         save_png(out / "kinect_depth_to_color.png", np.vstack(rows))
     return stats
 

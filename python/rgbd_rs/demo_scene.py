@@ -97,7 +97,7 @@ def shape_figure(path: Path, up: str, result: tuple[str, float]) -> np.ndarray:
     with ``result`` = (class, probability)."""
     from rgbd_rs.meshes import load_mesh
     from rgbd_rs.shapes import VIEW_NAMES, ShapeClassifier, shape_inputs, to_z_up
-    from rgbd_rs.viz import grid, map_panel
+    from rgbd_rs.viz import grid, image_panel, map_panel
 
     spec = ShapeClassifier.load().spec
     x = shape_inputs(to_z_up(load_mesh(path), up), spec)
@@ -118,8 +118,6 @@ def shape_figure(path: Path, up: str, result: tuple[str, float]) -> np.ndarray:
         row(x["volume"], [f"density profile along {a}" for a in "xyz"])
     label, p = result
     head = grid(panels, columns=6)
-    from rgbd_rs.viz import image_panel
-
     title = f"{path.name}: the network's inputs (normalised); classified as {label} ({p:.0%})"
     strip = image_panel(np.full((1, head.shape[1], 3), 255, np.uint8), title, width=head.shape[1])
     return np.vstack([strip, head])

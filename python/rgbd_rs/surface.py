@@ -265,12 +265,7 @@ def _params(spacing: float, degree: int, lam: float) -> tuple[float, int, float]
     if s < 1.0:
         raise InvalidArgumentError(f"spacing: got {s}, expected a knot spacing >= 1 pixel")
     d = _validate.integer("degree", degree, minimum=1, maximum=MAX_DEGREE)
-    lm = _validate.real("lam", lam, positive=True)
-    if lm > MAX_LAMBDA:
-        raise InvalidArgumentError(
-            f"lam: got {lm:.3g}, expected a smoothing weight <= {MAX_LAMBDA:g}"
-        )
-    return s, d, lm
+    return s, d, _validate.within("lam", lam, (0.0, MAX_LAMBDA), "a smoothing weight")
 
 
 def _maps(raw: tuple[F32, F32, F32, F32, F32, F32]) -> dict[str, F32]:

@@ -347,6 +347,8 @@ def fuse(
     lc_disp, lc_plaus = lc_fuse(
         ref_img, tgt_img, [tof_disp, st_map], [ct, cs], target_sign=sign, params=params
     )
+    # After LC's two-view check nothing is filled back: its rejections stand.
+    cross_check = params is not None and params.cross_check
     disp, plaus, source = _fill_single_source(
         lc_disp,
         lc_plaus,
@@ -355,9 +357,9 @@ def fuse(
         ct,
         cs,
         keep_out_zero=given is not None,
-        cross_check=params is not None and params.cross_check,
+        cross_check=cross_check,
     )
-    if not (params is not None and params.cross_check):
+    if not cross_check:
         _unseen_from_tof(disp, plaus, source, tof_disp, st_map, ct, sign)
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
@@ -398,8 +400,7 @@ def _unseen_from_tof(
     with np.errstate(invalid="ignore"):
         target = np.arange(w, dtype=np.float32)[None, :] + np.float32(sign) * tof
         unseen = np.isfinite(tof) & ((target < 0) | (target > w - 1)) & ~np.isfinite(stereo)
-    if tof_confidence is not None:
-        with np.errstate(invalid="ignore"):
+        if tof_confidence is not None:
             unseen &= tof_confidence > 0
     disp[unseen] = tof[unseen]
     plaus[unseen] = 1.0 if tof_confidence is None else tof_confidence[unseen]

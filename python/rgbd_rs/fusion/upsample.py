@@ -35,8 +35,7 @@ MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 #: about the same without it (60 cases, 20 scenes x 3 ToF laws: mean fused / better input
 #: 0.7715 vs 0.7708, worst fused / good input 1.013 vs 1.016, mean fused RMS 0.764 vs 0.770 px;
 #: a dense 512 x 424 ToF: 0.903 / 1.352 vs 0.903 / 1.439), and the mean shift took ~70 ms of
-#: fuse() at 960 x 540
-#: (docs/experiments.md).
+#: fuse() at 960 x 540 (docs/experiments.md).
 UPSAMPLE_SEGMENTATION = False
 #: Extended cross bilateral filter defaults at 960 px width (ToF samples ~2 px apart there).
 UPSAMPLE_RADIUS = 5

@@ -398,40 +398,6 @@ class EvaluationReport:
 PANEL_WIDTH = 320
 
 
-def _edges(labels: Labels) -> npt.NDArray[np.bool_]:
-    """Pixels with a right or lower neighbour of another label."""
-    e = np.zeros(labels.shape, bool)
-    e[:, :-1] |= labels[:, :-1] != labels[:, 1:]
-    e[:-1, :] |= labels[:-1, :] != labels[1:, :]
-    return e
-
-
-def _outlined(rgb: U8, labels: Labels) -> U8:
-    """BGR colour image with the segment boundaries in yellow."""
-    from rgbd_rs.viz import as_bgr
-
-    img = as_bgr(rgb)
-    # Two pixels wide, so the boundaries survive the panel's downscaling.
-    edges = _edges(labels)
-    edges[1:, 1:] |= edges[:-1, :-1]
-    img[edges] = (0, 255, 255)
-    return img
-
-
-def _painted(labels: Labels) -> U8:
-    """BGR image of one random colour per label (< 0: the "no data" grey), boundaries white."""
-    from rgbd_rs.viz import NO_DATA_BGR
-
-    rng = np.random.default_rng(0)
-    top = int(labels.max()) + 1 if labels.size else 0
-    palette = rng.integers(40, 256, (max(top, 1), 3)).astype(np.uint8)
-    grey = np.array(NO_DATA_BGR, np.uint8)
-    img = np.where((labels >= 0)[:, :, None], palette[np.clip(labels, 0, None)], grey)
-    img = np.asarray(img, np.uint8)
-    img[_edges(labels)] = 255
-    return img
-
-
 def frame_figure(
     path: Path,
     frame: NyuFrame,
@@ -443,13 +409,21 @@ def frame_figure(
     over-segmentation, merged, best peer (boundaries drawn, segment counts in the titles;
     pixels without a region in the "no data" grey, a method that did not run says so in
     white)."""
-    from rgbd_rs.viz import as_bgr, grid, image_panel, map_panel, save_png
+    from rgbd_rs.viz import (
+        as_bgr,
+        grid,
+        image_panel,
+        map_panel,
+        outline_segments,
+        paint_segments,
+        save_png,
+    )
 
     w = PANEL_WIDTH
     panels = [
         image_panel(as_bgr(frame.rgb), f"{frame.name} colour", width=w),
         map_panel(frame.depth, "depth", unit="m", width=w),
-        image_panel(_painted(gt), f"ground truth ({int(gt.max()) + 1} regions)", width=w),
+        image_panel(paint_segments(gt), f"ground truth ({int(gt.max()) + 1} regions)", width=w),
     ]
     for name in (OURS_OVER, OURS_MERGED, peer):
         labels = None if name is None else results.get(name)
@@ -457,8 +431,8 @@ def frame_figure(
             blank = np.full((*gt.shape, 3), 255, np.uint8)
             panels.append(image_panel(blank, f"{name or 'peer'}: not run", width=w))
         else:
-            panels.append(image_panel(_outlined(frame.rgb, labels), f"{name} ({_count(labels)})",
-                                      width=w))  # fmt: skip
+            outlined = outline_segments(frame.rgb, labels)
+            panels.append(image_panel(outlined, f"{name} ({_count(labels)})", width=w))
     return save_png(path, grid(panels, columns=3))
 
 
