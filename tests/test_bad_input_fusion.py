@@ -339,6 +339,13 @@ CASES: list[Case] = [
         r"^radius: got 0",
         "radius",
     ),
+    Case(
+        "tof_to_reference",
+        lambda: F.tof_to_reference(TOF, TOF, RIG, LEFT, segmentation="yes"),  # type: ignore[arg-type]
+        ARG,
+        r"^segmentation: got 'yes'",
+        "segmentation",
+    ),
 ]
 
 
