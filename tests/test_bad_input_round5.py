@@ -238,18 +238,26 @@ def test_readers_refuse_special_files(reader: str, tmp_path: Path) -> None:
         _write(reader)(_fifo(tmp_path))  # a FIFO read would block forever
 
 
-def _points_in_child(queue: multiprocessing.Queue[object]) -> None:
+def _points_in_child(queue: multiprocessing.Queue[object], threads: str | None) -> None:
+    # Read at the child's first native call, when its own pool is built.
+    os.environ.pop("RAYON_NUM_THREADS", None)
+    if threads is not None:
+        os.environ["RAYON_NUM_THREADS"] = threads
     depth = np.ones((240, 320), np.float32)
     cam = PinholeCamera(fx=300.0, fy=300.0, cx=160.0, cy=120.0, width=320, height=240)
     sgm = _fusion("sgm")
     img = np.random.default_rng(0).integers(0, 255, (60, 80, 3), dtype=np.uint8)
-    queue.put((cam.depth_to_points(depth).shape, sgm(img, img, max_disparity=8).shape))
+    from rgbd_rs import _rgbd_rs
+
+    shapes = (cam.depth_to_points(depth).shape, sgm(img, img, max_disparity=8).shape)
+    queue.put((shapes, _rgbd_rs.num_threads()))
 
 
 @pytest.mark.skipif(
     "fork" not in multiprocessing.get_all_start_methods(), reason="no fork on this platform"
 )
-def test_native_calls_work_in_a_forked_child() -> None:
+@pytest.mark.parametrize("threads", [None, "2"])
+def test_native_calls_work_in_a_forked_child(threads: str | None) -> None:
     # rayon's pool is the parent's: a forked child (DataLoader workers, multiprocessing's
     # default on Linux) inherited its bookkeeping without its threads and hung forever.
     depth = np.ones((240, 320), np.float32)
@@ -257,7 +265,7 @@ def test_native_calls_work_in_a_forked_child() -> None:
     cam.depth_to_points(depth)  # the parent's pool now exists
     ctx = multiprocessing.get_context("fork")
     queue = ctx.Queue()
-    child = ctx.Process(target=_points_in_child, args=(queue,))
+    child = ctx.Process(target=_points_in_child, args=(queue, threads))
     child.start()
     try:
         got = queue.get(timeout=60)
@@ -265,7 +273,11 @@ def test_native_calls_work_in_a_forked_child() -> None:
         child.join(timeout=10)
         if child.is_alive():
             child.kill()
-    assert got == ((240, 320, 3), (60, 80))
+    shapes, used = got
+    assert shapes == ((240, 320, 3), (60, 80))
+    # One of N workers: one thread, as torch's DataLoader workers get, unless asked otherwise.
+    cores = len(os.sched_getaffinity(0))
+    assert used == (1 if threads is None else min(int(threads), cores))
 
 
 @pytest.mark.parametrize(
@@ -284,3 +296,18 @@ def test_mesh_files_are_refused_in_our_words(text: str, said: str, tmp_path: Pat
     path.write_text(text)
     with pytest.raises(RgbdError, match=f"bad.obj: .*{said}"):
         load_shape(path)
+
+
+@pytest.mark.parametrize("value", ["-inf", "-1e-3", "-nan"])
+def test_a_negative_number_is_a_flag_value_not_a_flag(
+    value: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # argparse took "-inf" for an option and said "expected one argument"; now the value
+    # reaches the flag's own check, which names what it expects.
+    from rgbd_rs.cli import main
+
+    argv = ["stereo", "--left", "a.png", "--right", "b.png", "--max-disparity", "8"]
+    with pytest.raises(SystemExit):
+        main([*argv, "--min-depth", value, "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert f"argument --min-depth: got {value}" in err and "expected a number" in err

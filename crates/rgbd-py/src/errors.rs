@@ -64,20 +64,26 @@ pub fn record_parent() {
     PARENT.get_or_init(std::process::id);
 }
 
+/// Whether this process is a fork of the one that imported the module.
+pub fn is_fork_child() -> bool {
+    let pid = std::process::id();
+    *PARENT.get_or_init(|| pid) != pid
+}
+
 /// Runs `f` where its rayon work can run: directly in the importing process, in a pool of the
 /// child's own after a fork (see [`PARENT`]).
 fn in_own_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
-    let pid = std::process::id();
-    if *PARENT.get_or_init(|| pid) == pid {
+    if !is_fork_child() {
         return f();
     }
+    let pid = std::process::id();
     let pool = {
         let mut slot = CHILD_POOL.lock().unwrap_or_else(|e| e.into_inner());
         match slot.as_ref() {
             Some((owner, pool)) if *owner == pid => Arc::clone(pool),
             _ => {
                 let built = rayon::ThreadPoolBuilder::new()
-                    .num_threads(crate::rayon_threads())
+                    .num_threads(crate::fork_child_threads())
                     .build();
                 match built {
                     Ok(pool) => {

@@ -15,22 +15,36 @@ mod stereo;
 mod views;
 mod voxel;
 
-/// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import).
+/// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import; in a
+/// forked child, 1 unless `RAYON_NUM_THREADS` says otherwise).
 #[pyfunction]
 fn num_threads() -> usize {
-    rayon_threads()
+    if errors::is_fork_child() {
+        fork_child_threads()
+    } else {
+        rayon_threads()
+    }
+}
+
+/// `RAYON_NUM_THREADS` when set to a positive count.
+fn requested_threads() -> Option<usize> {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .filter(|&n: &usize| n > 0)
 }
 
 pub(crate) fn rayon_threads() -> usize {
     std::thread::available_parallelism()
         .map_or(1, |n| n.get())
-        .min(
-            std::env::var("RAYON_NUM_THREADS")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .filter(|&n: &usize| n > 0)
-                .unwrap_or(usize::MAX),
-        )
+        .min(requested_threads().unwrap_or(usize::MAX))
+}
+
+/// Threads of a forked child's pool: one, as torch gives its DataLoader workers, since a fork is
+/// usually one of several workers sharing the cores (N workers of a full-size pool each would
+/// run N x cores threads); `RAYON_NUM_THREADS` overrides it.
+pub(crate) fn fork_child_threads() -> usize {
+    requested_threads().map_or(1, |_| rayon_threads())
 }
 
 #[pymodule]

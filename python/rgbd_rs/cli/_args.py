@@ -5,11 +5,12 @@ pipeline adds its commands to, and the wrapper that names the flag when its file
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import NoReturn, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 from rgbd_rs.errors import RgbdError
 
@@ -17,8 +18,22 @@ T = TypeVar("T")
 Run = Callable[[argparse.Namespace], int]
 
 
+#: What reads as a negative number, so ``--min-depth -inf`` or ``--offset -1e-3`` give the flag its
+#: value (argparse's own pattern knows only ``-1`` and ``-1.5`` and takes ``-inf`` for a flag).
+NEGATIVE_NUMBER = re.compile(
+    r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^-(?:inf|infinity|nan)$", re.IGNORECASE
+)
+
+
 class Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors are one line: ``rgbd: error: ... (see `PROG --help`)``."""
+    """An ArgumentParser whose errors are one line: ``rgbd: error: ... (see `PROG --help`)``,
+    and that reads ``-inf``, ``-nan`` and ``-1e3`` as values (:data:`NEGATIVE_NUMBER`)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # argparse consults this (a private attribute since Python 3.2) before taking a word
+        # that starts with "-" for an option; no rgbd flag looks like a number.
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"rgbd: error: {one_line(message)} (see `{self.prog} --help`)\n")
