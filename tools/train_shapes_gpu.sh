@@ -1,0 +1,114 @@
+#!/usr/bin/env bash
+# The thesis' shape ConvNet (width 128, 320 x 320 views, ch. 5) trained on a lent GPU (issue 31).
+#
+# Never needed: the shipped weights come from CPU runs (docs/training.md), and no test needs a
+# GPU. The device machine has Python 3.12 with torch but none of this project, and a call carries
+# at most 64 MiB, so the inputs are computed there from the 1024-point clouds:
+#
+#   here:    tools/train_shapes_gpu.sh prepare
+#              .gpu/ (git-ignored): a cp312 wheel of rgbd_rs, trimesh's wheel (not on the device)
+#              and the ModelNet10 point pack, about 33 MB
+#   device:  run(command="bash tools/train_shapes_gpu.sh run", carry=[".gpu"], timeout_s=600)
+#              installs the wheels, builds the cache on the machine's cores, trains on the GPU
+#              until BUDGET_S, and brings back best.pt, last.pt (with the per-epoch learning
+#              curve) and the log under $OUT
+#   here:    tools/train_shapes_gpu.sh smoke
+#              the same steps at toy size on this CPU (a 40-shape pack, 32 px, width 8)
+#
+# Knobs (environment): RES (320), WIDTH (128), EPOCHS (30), COPIES (0: scaled copies per
+# training shape), BATCH (32), LR (0.02), SEED (1), WORKERS (data loaders, <= 8), BUDGET_S (540: the whole run, cache included;
+# training is stopped there and keeps its last completed epoch as best.pt / last.pt).
+# The recipe is the shipped CPU one (cosine, batch norm, dropout 0.5, label smoothing 0.1).
+set -euo pipefail
+
+here=$(cd "$(dirname "$0")/.." && pwd)
+gpu="$here/.gpu"
+RES=${RES:-320}
+WIDTH=${WIDTH:-128}
+EPOCHS=${EPOCHS:-30}
+COPIES=${COPIES:-0}
+BATCH=${BATCH:-32}
+LR=${LR:-0.02}
+SEED=${SEED:-1}
+BUDGET_S=${BUDGET_S:-540}
+WORKERS=${WORKERS:-$(($(nproc) < 8 ? $(nproc) : 8))}
+
+prepare() {
+    local data="${RGBD_DATA:-$here/../shared/data}/modelnet/modelnet10_1024.npz"
+    [[ -f "$data" ]] || { echo "train_shapes_gpu: no ModelNet10 pack at $data (set RGBD_DATA)" >&2; exit 2; }
+    grep -qx '/.gpu/' "$here/.git/info/exclude" 2>/dev/null || echo '/.gpu/' >>"$here/.git/info/exclude"
+    rm -rf "$gpu" && mkdir -p "$gpu"
+    # The device's Python is 3.12; maturin builds for it from its own sysconfig table when no
+    # python3.12 is installed here.
+    # The Makefile's target folder: only the binding crate is rebuilt for another Python.
+    (cd "$here" && CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/rgbd_rs/target} \
+        maturin build --release -q -i python3.12 -o "$gpu")
+    "${PYTHON:-python3}" -m pip download -q --no-deps --only-binary=:all: -d "$gpu" "trimesh==$(pip_version trimesh)"
+    cp "$data" "$gpu/"
+    du -sh "$gpu"
+    echo "now: run(command=\"bash tools/train_shapes_gpu.sh run\", carry=[\".gpu\"], timeout_s=600)"
+}
+
+pip_version() {
+    "${PYTHON:-python3}" -c "import importlib.metadata as m; print(m.version('$1'))"
+}
+
+# train PY PACK WORK: the cache, then training until the budget, then the files to bring back.
+train() {
+    local py=$1 pack=$2 work=$3 out=$4 start=$SECONDS
+    mkdir -p "$work" "$out"
+    "$py" -m rgbd_rs.cli shapes cache --data "$pack" --out "$work/cache" --resolution "$RES" \
+        --representations depth,volume,curvature --scale-copies "$COPIES" --quiet \
+        2>&1 | tee -a "$out/log.txt"
+    local left=$((BUDGET_S - (SECONDS - start)))
+    echo "cache: $((SECONDS - start)) s; training for at most $left s" | tee -a "$out/log.txt"
+    ((left > 30)) || { echo "train_shapes_gpu: no time left to train" >&2; exit 3; }
+    local rc=0
+    timeout --signal=INT "$left" "$py" -m rgbd_rs.cli train shapes --cache "$work/cache" \
+        --out "$work/run" --width "$WIDTH" --epochs "$EPOCHS" --batch-size "$BATCH" \
+        --schedule cosine --lr "$LR" --batch-norm --dropout 0.5 --label-smoothing 0.1 \
+        --seed "$SEED" --workers "$WORKERS" --quiet 2>&1 | tee -a "$out/log.txt" || rc=$?
+    local how="finished"
+    ((rc == 0)) || how="stopped (exit $rc; 124: the budget)"
+    echo "training $how after $((SECONDS - start)) s in all" | tee -a "$out/log.txt"
+    cp "$work/run/best.pt" "$work/run/last.pt" "$out/" 2>/dev/null || true
+    if [[ -f "$out/last.pt" ]]; then
+        "$py" "$here/tools/plot_learning_curve.py" --checkpoint "$out/last.pt" \
+            --out "$out/curve.png" --title "ModelNet10, ${RES} px, width ${WIDTH}" || true
+    fi
+    ls -la "$out"
+}
+
+run() {
+    : "${OUT:?run on the device machine, where OUT is set}"
+    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target /tmp/site \
+        "$gpu"/*.whl
+    export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
+    nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
+    train python3 "$(ls "$gpu"/modelnet10_1024.npz)" /tmp/shapes_gpu "$OUT"
+}
+
+smoke() {
+    local work
+    work=$(mktemp -d)
+    "${PYTHON:-python3}" - "$work/pack.npz" <<'EOF'
+import os, sys
+import numpy as np
+src = os.path.join(os.environ.get("RGBD_DATA", "../shared/data"), "modelnet/modelnet10_1024.npz")
+d = np.load(src)
+keep = np.concatenate([np.flatnonzero((d["label"] == c) & (d["split"] == s))[:2]
+                       for c in range(len(d["classes"])) for s in (0, 1)])
+np.savez(sys.argv[1], **{k: d[k][keep] if d[k].shape[:1] == d["label"].shape else d[k] for k in d.files})
+EOF
+    RES=32 WIDTH=8 EPOCHS=${EPOCHS_SMOKE:-1} BATCH=8 WORKERS=0 train "${PYTHON:-python3}" "$work/pack.npz" "$work" "$work/out"
+    [[ -f "$work/out/best.pt" ]] || { echo "smoke: no best.pt" >&2; exit 1; }
+    echo "smoke: ok ($work/out)"
+}
+
+case "${1:-}" in
+prepare | run | smoke) "$1" ;;
+*)
+    sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac
