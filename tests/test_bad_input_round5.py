@@ -249,8 +249,12 @@ def _points_in_child(queue: multiprocessing.Queue[object], threads: str | None) 
     img = np.random.default_rng(0).integers(0, 255, (60, 80, 3), dtype=np.uint8)
     from rgbd_rs import _rgbd_rs
 
+    tasks = Path("/proc/self/task")
+    before = len(list(tasks.iterdir())) if tasks.is_dir() else None
     shapes = (cam.depth_to_points(depth).shape, sgm(img, img, max_disparity=8).shape)
-    queue.put((shapes, _rgbd_rs.num_threads()))
+    # The threads the child's own pool started (None where /proc is missing).
+    started = None if before is None else len(list(tasks.iterdir())) - before
+    queue.put((shapes, _rgbd_rs.num_threads(), started))
 
 
 @pytest.mark.skipif(
@@ -273,11 +277,14 @@ def test_native_calls_work_in_a_forked_child(threads: str | None) -> None:
         child.join(timeout=10)
         if child.is_alive():
             child.kill()
-    shapes, used = got
+    shapes, said, started = got
     assert shapes == ((240, 320, 3), (60, 80))
     # One of N workers: one thread, as torch's DataLoader workers get, unless asked otherwise.
     cores = len(os.sched_getaffinity(0))
-    assert used == (1 if threads is None else min(int(threads), cores))
+    expected = 1 if threads is None else min(int(threads), cores)
+    assert said == expected
+    if started is not None:
+        assert started == expected
 
 
 @pytest.mark.parametrize(

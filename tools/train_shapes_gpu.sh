@@ -10,14 +10,16 @@
 #              and the ModelNet10 point pack, about 33 MB
 #   device:  run(command="bash tools/train_shapes_gpu.sh run", carry=[".gpu"], timeout_s=600)
 #              installs the wheels, builds the cache on the machine's cores, trains on the GPU
-#              until BUDGET_S, and brings back best.pt, last.pt (with the per-epoch learning
-#              curve) and the log under $OUT
+#              until BUDGET_S, and brings back best.pt and last.pt as inference-only float16
+#              copies (a file comes back only under 16 MiB; last.pt holds the per-epoch learning
+#              curve), curve.png and the log under $OUT
 #   here:    tools/train_shapes_gpu.sh smoke
 #              the same steps at toy size on this CPU (a 40-shape pack, 32 px, width 8)
 #
 # Knobs (environment): RES (320), WIDTH (128), EPOCHS (30), COPIES (0: scaled copies per
-# training shape), BATCH (32), LR (0.02), SEED (1), WORKERS (data loaders, <= 8), BUDGET_S (540: the whole run, cache included;
-# training is stopped there and keeps its last completed epoch as best.pt / last.pt).
+# training shape), BATCH (32), LR (0.02), SEED (1), WORKERS (data loaders, <= 8), BUDGET_S
+# (540: seconds from the script's start, install and cache included, to the end of training;
+# keep it ~60 s under the call's timeout_s, less where the device has less time left).
 # The recipe is the shipped CPU one (cosine, batch norm, dropout 0.5, label smoothing 0.1).
 set -euo pipefail
 
@@ -36,7 +38,10 @@ WORKERS=${WORKERS:-$(($(nproc) < 8 ? $(nproc) : 8))}
 prepare() {
     local data="${RGBD_DATA:-$here/../shared/data}/modelnet/modelnet10_1024.npz"
     [[ -f "$data" ]] || { echo "train_shapes_gpu: no ModelNet10 pack at $data (set RGBD_DATA)" >&2; exit 2; }
-    grep -qx '/.gpu/' "$here/.git/info/exclude" 2>/dev/null || echo '/.gpu/' >>"$here/.git/info/exclude"
+    local exclude
+    exclude=$(git -C "$here" rev-parse --git-path info/exclude)
+    [[ "$exclude" = /* ]] || exclude="$here/$exclude"
+    grep -qx '/.gpu/' "$exclude" 2>/dev/null || echo '/.gpu/' >>"$exclude"
     rm -rf "$gpu" && mkdir -p "$gpu"
     # The device's Python is 3.12; maturin builds for it from its own sysconfig table when no
     # python3.12 is installed here.
@@ -53,52 +58,62 @@ pip_version() {
     "${PYTHON:-python3}" -c "import importlib.metadata as m; print(m.version('$1'))"
 }
 
-# train PY PACK WORK: the cache, then training until the budget, then the files to bring back.
+# train PY PACK WORK OUT: the cache, training until the budget (BUDGET_S from the script's
+# start), then the files to bring back.
 train() {
-    local py=$1 pack=$2 work=$3 out=$4 start=$SECONDS
+    local py=$1 pack=$2 work=$3 out=$4
     mkdir -p "$work" "$out"
     "$py" -m rgbd_rs.cli shapes cache --data "$pack" --out "$work/cache" --resolution "$RES" \
         --representations depth,volume,curvature --scale-copies "$COPIES" --quiet \
         2>&1 | tee -a "$out/log.txt"
-    local left=$((BUDGET_S - (SECONDS - start)))
-    echo "cache: $((SECONDS - start)) s; training for at most $left s" | tee -a "$out/log.txt"
+    local left=$((BUDGET_S - SECONDS))
+    echo "cache done at $SECONDS s; training for at most $left s" | tee -a "$out/log.txt"
     ((left > 30)) || { echo "train_shapes_gpu: no time left to train" >&2; exit 3; }
     local rc=0
-    timeout --signal=INT "$left" "$py" -m rgbd_rs.cli train shapes --cache "$work/cache" \
+    timeout --signal=INT --kill-after=30 "$left" "$py" -m rgbd_rs.cli train shapes --cache "$work/cache" \
         --out "$work/run" --width "$WIDTH" --epochs "$EPOCHS" --batch-size "$BATCH" \
         --schedule cosine --lr "$LR" --batch-norm --dropout 0.5 --label-smoothing 0.1 \
         --seed "$SEED" --workers "$WORKERS" --quiet 2>&1 | tee -a "$out/log.txt" || rc=$?
     local how="finished"
     ((rc == 0)) || how="stopped (exit $rc; 124: the budget)"
-    echo "training $how after $((SECONDS - start)) s in all" | tee -a "$out/log.txt"
-    cp "$work/run/best.pt" "$work/run/last.pt" "$out/" 2>/dev/null || true
+    echo "training $how at $SECONDS s" | tee -a "$out/log.txt"
+    local f
+    for f in best last; do
+        [[ -f "$work/run/$f.pt" ]] || continue
+        "$py" -c "import sys; from rgbd_rs.shapes.train import ship; ship(sys.argv[1], sys.argv[2])" \
+            "$work/run/$f.pt" "$out/$f.pt"
+    done
     if [[ -f "$out/last.pt" ]]; then
         "$py" "$here/tools/plot_learning_curve.py" --checkpoint "$out/last.pt" \
             --out "$out/curve.png" --title "ModelNet10, ${RES} px, width ${WIDTH}" || true
     fi
     ls -la "$out"
+    # Stopped at the budget is a result; any other failure is not.
+    ((rc == 0 || rc == 124)) || exit "$rc"
+    [[ -f "$out/best.pt" ]] || { echo "train_shapes_gpu: no completed epoch" >&2; exit 3; }
 }
 
 run() {
     : "${OUT:?run on the device machine, where OUT is set}"
-    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target /tmp/site \
-        "$gpu"/*.whl
+    local pack="$gpu/modelnet10_1024.npz"
+    [[ -f "$pack" ]] || { echo "train_shapes_gpu: no $pack: run prepare here and carry .gpu" >&2; exit 2; }
+    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+        --target /tmp/site "$gpu"/*.whl
     export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
     nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
-    train python3 "$(ls "$gpu"/modelnet10_1024.npz)" /tmp/shapes_gpu "$OUT"
+    train python3 "$pack" /tmp/shapes_gpu "$OUT"
 }
 
 smoke() {
     local work
     work=$(mktemp -d)
-    "${PYTHON:-python3}" - "$work/pack.npz" <<'EOF'
+    "${PYTHON:-python3}" - "${RGBD_DATA:-$here/../shared/data}" "$work/pack.npz" <<'EOF'
 import os, sys
 import numpy as np
-src = os.path.join(os.environ.get("RGBD_DATA", "../shared/data"), "modelnet/modelnet10_1024.npz")
-d = np.load(src)
+d = np.load(os.path.join(sys.argv[1], "modelnet/modelnet10_1024.npz"))
 keep = np.concatenate([np.flatnonzero((d["label"] == c) & (d["split"] == s))[:2]
                        for c in range(len(d["classes"])) for s in (0, 1)])
-np.savez(sys.argv[1], **{k: d[k][keep] if d[k].shape[:1] == d["label"].shape else d[k] for k in d.files})
+np.savez(sys.argv[2], **{k: d[k][keep] if d[k].shape[:1] == d["label"].shape else d[k] for k in d.files})
 EOF
     RES=32 WIDTH=8 EPOCHS=${EPOCHS_SMOKE:-1} BATCH=8 WORKERS=0 train "${PYTHON:-python3}" "$work/pack.npz" "$work" "$work/out"
     [[ -f "$work/out/best.pt" ]] || { echo "smoke: no best.pt" >&2; exit 1; }
@@ -108,7 +123,7 @@ EOF
 case "${1:-}" in
 prepare | run | smoke) "$1" ;;
 *)
-    sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac
