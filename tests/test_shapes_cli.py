@@ -99,6 +99,23 @@ def test_train_regularised_recipe_flags(
     with pytest.raises(SystemExit) as exit_:
         main([*train[:2], "--cache", str(cache), "--dropout", "1.5"])
     assert exit_.value.code == 2 and "--dropout: got 1.5" in capsys.readouterr().err
+    # --exclude-names: a file of training shape names kept out of training and validation
+    names = ShapeCache(cache).names
+    first = next(n for n, s in zip(names, ShapeCache(cache).splits, strict=True) if s == 0)
+    listing = tmp_path / "names.txt"
+    listing.write_text(f"# held out\n{first}\n\n")
+    short = ["train", "shapes", "--cache", str(cache), "--width", "2", "--epochs", "1"]
+    short += ["--quiet", "--device", "cpu", "--val-fraction", "0"]
+    assert main([*short, "--out", str(tmp_path / "ex"), "--exclude-names", str(listing)]) == 0
+    listing.write_text("no_such_shape\n")
+    assert main([*short, "--out", str(tmp_path / "ex2"), "--exclude-names", str(listing)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rgbd: error: exclude: 1 name(s) are not training shapes") and (
+        "no_such_shape" in err
+    )
+    listing.write_text("# nothing\n")
+    assert main([*short, "--out", str(tmp_path / "ex3"), "--exclude-names", str(listing)]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: --exclude-names: ")
 
 
 def test_bad_runs_end_in_one_line(

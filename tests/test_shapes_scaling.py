@@ -148,3 +148,59 @@ def test_without_copies_the_split_is_the_trainers(pack: Path, tmp_path: Path) ->
         a, b = _split_by_shape(cache, data, 0.34, seed)
         a2, b2 = split(data, 0.34, seed=seed)
         assert (a.indices, b.indices) == (a2.indices, b2.indices)
+
+
+def test_excluded_names_and_their_copies_are_neither_trained_nor_validated(
+    pack: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import importlib
+
+    from rgbd_rs.errors import InvalidArgumentError
+    from rgbd_rs.nn.train import TrainConfig
+    from rgbd_rs.shapes.train import ShapeRecipe, train_shapes
+
+    cache = build_cache(
+        ScaledCopies(PointCloudSet(pack), 2), tmp_path / "c", spec=VOLUME, workers=1, quiet=True
+    )
+    seen: dict[str, list[str]] = {}
+
+    class Stop(Exception):
+        pass
+
+    def spy(model: object, train_set: object, val_set: object, *a: object, **k: object) -> None:
+        for side, subset in (("train", train_set), ("val", val_set)):
+            rows = np.asarray(subset.dataset.indices)[subset.indices]  # type: ignore[attr-defined]
+            seen[side] = [cache.names[int(r)] for r in rows]
+        raise Stop
+
+    # rgbd_rs.nn re-exports the function train, which hides the module of that name
+    monkeypatch.setattr(importlib.import_module("rgbd_rs.nn.train"), "train", spy)
+    cfg = TrainConfig(epochs=1, batch_size=2, device="cpu", seed=0)
+    data = cache.dataset("train")
+    _, val = _split_by_shape(cache, data, 0.34, 0)
+    val_names = [cache.names[int(data.indices[i])] for i in val.indices]
+    train_names = [n for n in cache.names[:10] if n not in val_names]
+    train_idx = [i for i in range(10) if cache.splits[i] == 0 and cache.names[i] in train_names]
+    drop = (val_names[0], cache.names[train_idx[0]])
+    recipe = ShapeRecipe(width=4, val_fraction=0.34, split_seed=0, exclude=list(drop))
+    with pytest.raises(Stop):
+        train_shapes(cache, tmp_path / "run", recipe=recipe, config=cfg, quiet=True)
+    assert not {original_name(n) for n in seen["train"] + seen["val"]} & set(drop)
+    assert set(seen["val"]) == set(val_names) - set(drop), "the rest of the split unchanged"
+    assert len(seen["train"]) == len(data) - 3 * len(val_names) - 3
+    for bad, pattern in (
+        (["no_such_shape"], r"^exclude: 1 name\(s\) are not training shapes of .*no_such_shape"),
+        ([cache.names[int(np.flatnonzero(cache.splits == 1)[0])]], r"^exclude: 1 name\(s\)"),
+    ):
+        with pytest.raises(InvalidArgumentError, match=pattern):
+            train_shapes(
+                cache,
+                tmp_path / "bad",
+                recipe=ShapeRecipe(width=4, val_fraction=0.34, exclude=bad),
+                config=cfg,
+                quiet=True,
+            )
+    with pytest.raises(InvalidArgumentError, match=r"^exclude: got str"):
+        ShapeRecipe(exclude="chair_0001")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgumentError, match=r"^exclude: got ''"):
+        ShapeRecipe(exclude=[""])

@@ -40,6 +40,21 @@ def _representations(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _names_file(path: Path) -> tuple[str, ...]:
+    """The shape names of a text file, one a line (blank lines and ``#`` comments skipped)."""
+
+    def read() -> tuple[str, ...]:
+        from rgbd_rs.errors import RgbdError
+
+        lines = (ln.split("#", 1)[0].strip() for ln in path.read_text().splitlines())
+        names = tuple(ln for ln in lines if ln)
+        if not names:
+            raise RgbdError(f"{path}: no shape name in it, expected one name a line")
+        return names
+
+    return named("--exclude-names", read)
+
+
 def _classify(commands: Commands) -> None:
     p = commands.command(
         "classify",
@@ -305,6 +320,14 @@ def _train(commands: Commands) -> None:
         help="seed of the validation hold-out (default: --seed); give the members of an "
         "ensemble one split",
     )
+    p.add_argument(
+        "--exclude-names",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="a text file of training shape names (one a line) neither trained nor validated "
+        "on, nor their scaled copies",
+    )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     training_run_options(p)
 
@@ -340,6 +363,7 @@ def run_train(args: argparse.Namespace) -> int:
         dropout=args.dropout,
         label_smoothing=args.label_smoothing,
         split_seed=args.split_seed,
+        exclude=() if args.exclude_names is None else _names_file(args.exclude_names),
     )
     t0 = time.perf_counter()
     if args.ablation:

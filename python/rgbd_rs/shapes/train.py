@@ -66,7 +66,11 @@ class ShapeRecipe:
     off by default). ``label_smoothing``: the cross-entropy's target puts that mass uniformly
     over the classes (0: none, the thesis' loss). ``split_seed``: the seed of the validation
     hold-out (None: the run's seed), so runs of other seeds, e.g. the members of an ensemble,
-    can share one validation split that none of them trained on."""
+    can share one validation split that none of them trained on. ``exclude``: names of original
+    training shapes (e.g. ``chair_0001``) that are neither trained nor validated on, nor are
+    their scaled copies: a network of another class list (ModelNet40) can then be measured on
+    shapes it never saw (the validation shapes of a ModelNet10 run); each must name a training
+    shape of the cache."""
 
     representations: tuple[str, ...] | None = None
     width: int = THESIS_WIDTH
@@ -77,8 +81,20 @@ class ShapeRecipe:
     dropout: float = 0.0
     label_smoothing: float = 0.0
     split_seed: int | None = None
+    exclude: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        ex = self.exclude
+        if isinstance(ex, str) or not isinstance(ex, (tuple, list, frozenset, set)):
+            raise InvalidArgumentError(
+                f"exclude: got {type(ex).__name__}, expected a list of shape names (str)"
+            )
+        bad = [x for x in ex if not isinstance(x, str) or not x]
+        if bad:
+            raise InvalidArgumentError(
+                f"exclude: got {bad[0]!r}, expected shape names (non-empty str)"
+            )
+        object.__setattr__(self, "exclude", tuple(sorted(set(ex))))
         if self.split_seed is not None:
             _validate.integer("split_seed", self.split_seed, maximum=2**63 - 1)
         if self.representations is not None:
@@ -196,6 +212,13 @@ def train_shapes(
             raise RgbdError(f"{c.path}: {len(data)} training shape(s), too few to validate")
         split_seed = cfg.seed if r.split_seed is None else r.split_seed
         train_set, val_set = _split_by_shape(c, data, r.val_fraction, split_seed)
+    if r.exclude:
+        train_set = _without(c, data, train_set, r.exclude)
+        val_set = (
+            None
+            if val_set is None
+            else _without(c, data, val_set, r.exclude, check=False, what="validation")
+        )
     if r.rotate or r.mirror:
         train_set = AugmentedShapes(train_set, data.shapes, turns=r.rotate, mirror=r.mirror)
     seed_everything(cfg.seed)  # the initial weights come from the seed too
@@ -233,6 +256,35 @@ def train_shapes(
         metric_fn=accuracy,
     )
     return Path(result.best_checkpoint or result.last_checkpoint)
+
+
+def _without(
+    cache: ShapeCache,
+    data: Any,
+    subset: Any,
+    names: Sequence[str],
+    *,
+    check: bool = True,
+    what: str = "training",
+) -> Subset[Any]:
+    """``subset`` of ``data`` (or ``data`` itself) less the rows whose original shape is named
+    in ``names``; with ``check``, every name must be an original training shape of ``cache``."""
+    positions = list(subset.indices) if isinstance(subset, Subset) else list(range(len(data)))
+    rows = np.asarray(data.indices, np.int64)
+    origin = original_rows(cache.meta.get("augmentation"), cache.splits)[rows]
+    drop = set(names)
+    if check:
+        known = {cache.names[o] for o in origin.tolist()}
+        missing = sorted(drop - known)
+        if missing:
+            raise InvalidArgumentError(
+                f"exclude: {len(missing)} name(s) are not training shapes of {cache.path} "
+                f"(e.g. {missing[:3]}), expected names from its names.json with split 0"
+            )
+    keep = [p for p in positions if cache.names[int(origin[p])] not in drop]
+    if not keep:
+        raise RgbdError(f"{cache.path}: no {what} shape is left once exclude is applied")
+    return Subset(data, keep)
 
 
 def _split_by_shape(
