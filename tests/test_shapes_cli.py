@@ -103,19 +103,32 @@ def test_train_regularised_recipe_flags(
     names = ShapeCache(cache).names
     first = next(n for n, s in zip(names, ShapeCache(cache).splits, strict=True) if s == 0)
     listing = tmp_path / "names.txt"
-    listing.write_text(f"# held out\n{first}\n\n")
+    listing.write_text(f"\ufeff# held out\r\n{first}\r\n\n", encoding="utf-8")  # BOM, CRLF
     short = ["train", "shapes", "--cache", str(cache), "--width", "2", "--epochs", "1"]
-    short += ["--quiet", "--device", "cpu", "--val-fraction", "0"]
-    assert main([*short, "--out", str(tmp_path / "ex"), "--exclude-names", str(listing)]) == 0
-    listing.write_text("no_such_shape\n")
-    assert main([*short, "--out", str(tmp_path / "ex2"), "--exclude-names", str(listing)]) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("rgbd: error: exclude: 1 name(s) are not training shapes") and (
-        "no_such_shape" in err
+    short += ["--quiet", "--device", "cpu", "--val-fraction", "0", "--out", str(tmp_path / "ex")]
+    assert main([*short, "--exclude-names", str(listing)]) == 0
+    assert load_checkpoint(tmp_path / "ex" / "last.pt").normalisation["exclude"] == [first]
+    # a resume with another list would train on other data: refused
+    other = tmp_path / "other.txt"
+    second = next(
+        n for n, s in zip(names, ShapeCache(cache).splits, strict=True) if s == 0 and n != first
     )
-    listing.write_text("# nothing\n")
-    assert main([*short, "--out", str(tmp_path / "ex3"), "--exclude-names", str(listing)]) == 2
-    assert capsys.readouterr().err.startswith("rgbd: error: --exclude-names: ")
+    other.write_text(f"{second}\n")
+    more = [*short[:7], "2", *short[8:]]
+    assert main([*more, "--exclude-names", str(other)]) == 2
+    assert "exclude" in capsys.readouterr().err
+    for text, start in (
+        ("no_such_shape\n", "rgbd: error: --exclude-names: 1 name(s) are not training shapes"),
+        (f"{first}#s1\n", "rgbd: error: --exclude-names: 1 name(s) are not training shapes"),
+        ("# nothing\n", f"rgbd: error: --exclude-names: {listing}: no shape name"),
+    ):
+        listing.write_text(text)
+        assert main([*short, "--exclude-names", str(listing)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(start) and err.count("\n") == 1, err
+    listing.write_bytes("chaise_0001\n".encode("utf-16"))
+    assert main([*short, "--exclude-names", str(listing)]) == 2
+    assert "not UTF-8 text" in capsys.readouterr().err
 
 
 def test_bad_runs_end_in_one_line(

@@ -204,3 +204,19 @@ def test_excluded_names_and_their_copies_are_neither_trained_nor_validated(
         ShapeRecipe(exclude="chair_0001")  # type: ignore[arg-type]
     with pytest.raises(InvalidArgumentError, match=r"^exclude: got ''"):
         ShapeRecipe(exclude=[""])
+
+
+def test_exclude_refuses_a_name_that_names_two_shapes(pack: Path, tmp_path: Path) -> None:
+    from rgbd_rs.errors import InvalidArgumentError
+    from rgbd_rs.nn.train import TrainConfig
+    from rgbd_rs.shapes.train import ShapeRecipe, train_shapes
+
+    d = dict(np.load(pack))
+    d["name"] = np.where(d["name"] == d["name"][1], d["name"][0], d["name"])
+    dup = tmp_path / "dup.npz"
+    np.savez(dup, **d)
+    cache = build_cache(PointCloudSet(dup), tmp_path / "c", spec=VOLUME, workers=1, quiet=True)
+    recipe = ShapeRecipe(width=4, val_fraction=0, exclude=[str(d["name"][0])])
+    cfg = TrainConfig(epochs=1, batch_size=2, device="cpu")
+    with pytest.raises(InvalidArgumentError, match=r"^exclude: '.*' names 2 training shapes"):
+        train_shapes(cache, tmp_path / "r", recipe=recipe, config=cfg, quiet=True)

@@ -79,7 +79,7 @@ def main() -> None:
     cache = ShapeCache(a.cache)
     if a.write_names is not None:
         names = validation_names(cache, a.seed, a.val_fraction)
-        a.write_names.write_text("".join(f"{n}\n" for n in names))
+        a.write_names.write_text("".join(f"{n}\n" for n in names), encoding="utf-8")
         print(f"{a.write_names}: {len(names)} validation shape names")
     for mirror in (False, True) if a.mirror else (False,):
         total = None

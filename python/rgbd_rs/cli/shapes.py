@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 from rgbd_rs.cli._args import (
     Commands,
@@ -20,6 +22,8 @@ from rgbd_rs.cli._args import (
     shard,
     training_run_options,
 )
+
+T = TypeVar("T")
 
 
 def register(commands: Commands) -> None:
@@ -41,18 +45,38 @@ def _representations(text: str) -> tuple[str, ...]:
 
 
 def _names_file(path: Path) -> tuple[str, ...]:
-    """The shape names of a text file, one a line (blank lines and ``#`` comments skipped)."""
+    """The shape names of a UTF-8 text file, one a line (blank lines and lines that start with
+    ``#`` skipped; a ``#`` inside a name is part of it)."""
 
     def read() -> tuple[str, ...]:
         from rgbd_rs.errors import RgbdError
 
-        lines = (ln.split("#", 1)[0].strip() for ln in path.read_text().splitlines())
-        names = tuple(ln for ln in lines if ln)
+        try:
+            text = path.read_text(encoding="utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise RgbdError(
+                f"{path}: not UTF-8 text (byte {exc.start}), expected one shape name a line"
+            ) from None
+        lines = (ln.strip() for ln in text.splitlines())
+        names = tuple(ln for ln in lines if ln and not ln.startswith("#"))
         if not names:
             raise RgbdError(f"{path}: no shape name in it, expected one name a line")
         return names
 
     return named("--exclude-names", read)
+
+
+def _excluding(call: Callable[[], T]) -> T:
+    """``call()``, an error about the recipe's ``exclude`` list worded for ``--exclude-names``
+    (not :func:`flagged`: that would hold a long training's warnings back until its end)."""
+    from rgbd_rs.errors import RgbdError
+
+    try:
+        return call()
+    except RgbdError as exc:
+        if str(exc).startswith("exclude:"):
+            raise type(exc)(f"--exclude-names{str(exc).removeprefix('exclude')}") from None
+        raise
 
 
 def _classify(commands: Commands) -> None:
@@ -371,18 +395,18 @@ def run_train(args: argparse.Namespace) -> int:
             from rgbd_rs.errors import InvalidArgumentError
 
             raise InvalidArgumentError("--ablation: expected neither --init nor --ship with it")
-        rows = train_ablation(
+        rows = _excluding(lambda: train_ablation(
             cache, args.out, recipe=recipe, config=config, resume=not args.no_resume,
             quiet=args.quiet,
-        )  # fmt: skip
+        ))  # fmt: skip
         if is_main_process():
             for row, best in rows.items():
                 print(f"{row}: best checkpoint {best}")
         return 0
-    best = train_shapes(
+    best = _excluding(lambda: train_shapes(
         cache, args.out, recipe=recipe, config=config, init=args.init,
         resume=not args.no_resume, quiet=args.quiet,
-    )  # fmt: skip
+    ))  # fmt: skip
     if not is_main_process():  # under torchrun, rank 0 reports and ships
         return 0
     print(f"best checkpoint: {best} ({time.perf_counter() - t0:.0f} s)")

@@ -33,7 +33,7 @@ from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, _parse_representations
 from rgbd_rs.shapes.augment import AugmentedShapes
 from rgbd_rs.shapes.dataset import ShapeCache
-from rgbd_rs.shapes.scaling import original_rows
+from rgbd_rs.shapes.scaling import original_name, original_rows
 
 __all__ = [
     "ShapeRecipe",
@@ -250,7 +250,9 @@ def train_shapes(
         out,
         arch=ARCH,
         arch_config=model.arch_config(),
-        normalisation=normalisation_of(c, reps),
+        # exclude is recorded (when used), so a resume with another list is refused
+        normalisation=normalisation_of(c, reps)
+        | ({"exclude": list(r.exclude)} if r.exclude else {}),
         quiet=quiet,
         resume=resume,
         metric_fn=accuracy,
@@ -274,12 +276,20 @@ def _without(
     origin = original_rows(cache.meta.get("augmentation"), cache.splits)[rows]
     drop = set(names)
     if check:
-        known = {cache.names[o] for o in origin.tolist()}
-        missing = sorted(drop - known)
+        originals = [cache.names[o] for o in sorted(set(origin.tolist()))]
+        missing = sorted(drop - set(originals))
         if missing:
+            copies = [n for n in missing if original_name(n) != n]
+            hint = f"; {copies[0]!r} is a scaled copy: name its original" if copies else ""
             raise InvalidArgumentError(
                 f"exclude: {len(missing)} name(s) are not training shapes of {cache.path} "
-                f"(e.g. {missing[:3]}), expected names from its names.json with split 0"
+                f"(e.g. {missing[:3]}), expected names from its names.json with split 0{hint}"
+            )
+        twice = sorted({n for n in originals if n in drop and originals.count(n) > 1})
+        if twice:
+            raise InvalidArgumentError(
+                f"exclude: {twice[0]!r} names {originals.count(twice[0])} training shapes of "
+                f"{cache.path}, expected names that each name one shape"
             )
     keep = [p for p in positions if cache.names[int(origin[p])] not in drop]
     if not keep:
