@@ -579,3 +579,25 @@ def test_fuse_precision_choices_are_the_libraries() -> None:
         if "--precision" in a.option_strings
     )
     assert tuple(fuse.choices or ()) == PRECISIONS
+
+
+def test_flagged_words_the_error_and_can_let_warnings_through_as_they_come() -> None:
+    import warnings
+
+    from rgbd_rs.cli._args import flagged
+    from rgbd_rs.errors import InvalidArgumentError
+
+    when: list[str] = []
+
+    def call() -> None:
+        warnings.warn("exclude: a warning", RuntimeWarning, stacklevel=1)
+        when.append("after the warning")
+        raise InvalidArgumentError("exclude: got 'x', expected a training shape")
+
+    for too, shown in ((True, "--exclude-names: a warning"), (False, "exclude: a warning")):
+        when.clear()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with pytest.raises(InvalidArgumentError, match=r"^--exclude-names: got 'x'"):
+                flagged({"exclude": "--exclude-names"}, call, warnings_too=too)
+        assert [str(w.message) for w in caught] == [shown] and when

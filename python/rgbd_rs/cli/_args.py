@@ -125,13 +125,16 @@ def flagged(
     names: Mapping[str, str],
     call: Callable[[], T],
     amend: Callable[[str], str] | None = None,
+    *,
+    warnings_too: bool = True,
 ) -> T:
     """``call()``, with its errors and warnings about a library parameter worded for the
     command line: a message that starts ``"name:"`` (a key of ``names``) starts with that
     parameter's flag instead (``"camera: got a 640x480 camera ..."`` -> ``"--calib: got a
     640x480 camera ..."``). The call's warnings are shown once it has returned or failed; they
     and its error are first passed through ``amend`` (e.g. to add the flag value that fixes
-    it)."""
+    it). ``warnings_too=False`` words the error only and lets warnings show as they come (for
+    a long call such as a training, whose warnings must not wait for its end)."""
 
     def worded(msg: str) -> str | None:
         for name, flag in names.items():
@@ -141,6 +144,8 @@ def flagged(
 
     seen: list[warnings.WarningMessage] = []
     try:
+        if not warnings_too:
+            return call()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:

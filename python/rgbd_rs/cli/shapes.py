@@ -5,9 +5,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
 
 from rgbd_rs.cli._args import (
     Commands,
@@ -22,8 +20,6 @@ from rgbd_rs.cli._args import (
     shard,
     training_run_options,
 )
-
-T = TypeVar("T")
 
 
 def register(commands: Commands) -> None:
@@ -42,6 +38,10 @@ def _representations(text: str) -> tuple[str, ...]:
         return _parse_representations(text)
     except RgbdError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+#: The recipe parameter ``--exclude-names`` sets (its errors name the flag).
+EXCLUDE = {"exclude": "--exclude-names"}
 
 
 def _names_file(path: Path) -> tuple[str, ...]:
@@ -64,19 +64,6 @@ def _names_file(path: Path) -> tuple[str, ...]:
         return names
 
     return named("--exclude-names", read)
-
-
-def _excluding(call: Callable[[], T]) -> T:
-    """``call()``, an error about the recipe's ``exclude`` list worded for ``--exclude-names``
-    (not :func:`flagged`: that would hold a long training's warnings back until its end)."""
-    from rgbd_rs.errors import RgbdError
-
-    try:
-        return call()
-    except RgbdError as exc:
-        if str(exc).startswith("exclude:"):
-            raise type(exc)(f"--exclude-names{str(exc).removeprefix('exclude')}") from None
-        raise
 
 
 def _classify(commands: Commands) -> None:
@@ -395,18 +382,18 @@ def run_train(args: argparse.Namespace) -> int:
             from rgbd_rs.errors import InvalidArgumentError
 
             raise InvalidArgumentError("--ablation: expected neither --init nor --ship with it")
-        rows = _excluding(lambda: train_ablation(
+        rows = flagged(EXCLUDE, lambda: train_ablation(
             cache, args.out, recipe=recipe, config=config, resume=not args.no_resume,
             quiet=args.quiet,
-        ))  # fmt: skip
+        ), warnings_too=False)  # fmt: skip
         if is_main_process():
             for row, best in rows.items():
                 print(f"{row}: best checkpoint {best}")
         return 0
-    best = _excluding(lambda: train_shapes(
+    best = flagged(EXCLUDE, lambda: train_shapes(
         cache, args.out, recipe=recipe, config=config, init=args.init,
         resume=not args.no_resume, quiet=args.quiet,
-    ))  # fmt: skip
+    ), warnings_too=False)  # fmt: skip
     if not is_main_process():  # under torchrun, rank 0 reports and ships
         return 0
     print(f"best checkpoint: {best} ({time.perf_counter() - t0:.0f} s)")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -285,10 +286,11 @@ def _without(
                 f"exclude: {len(missing)} name(s) are not training shapes of {cache.path} "
                 f"(e.g. {missing[:3]}), expected names from its names.json with split 0{hint}"
             )
-        twice = sorted({n for n in originals if n in drop and originals.count(n) > 1})
+        count = Counter(originals)
+        twice = sorted(n for n in drop if count[n] > 1)
         if twice:
             raise InvalidArgumentError(
-                f"exclude: {twice[0]!r} names {originals.count(twice[0])} training shapes of "
+                f"exclude: {twice[0]!r} names {count[twice[0]]} training shapes of "
                 f"{cache.path}, expected names that each name one shape"
             )
     keep = [p for p in positions if cache.names[int(origin[p])] not in drop]
