@@ -3,6 +3,7 @@ fusion's knobs are chosen by, and fuse()'s choice of stereo matcher."""
 
 from __future__ import annotations
 
+import hashlib
 import sys
 from pathlib import Path
 
@@ -13,12 +14,20 @@ from rgbd_rs import InvalidArgumentError
 from rgbd_rs.cli import main
 from rgbd_rs.data import load_stereo_scene
 from rgbd_rs.fusion import LcParams, fuse, sgm
-from rgbd_rs.fusion.real_scenes import TOF_SCALE, real_sample, real_samples
+from rgbd_rs.fusion.real_scenes import (
+    DENSE_PROTOCOL_SIZE,
+    DENSE_TOF_SCALE,
+    TOF_SCALE,
+    dense_protocol_samples,
+    real_sample,
+    real_samples,
+)
 from rgbd_rs.fusion.score import score_maps, summarize
 from rgbd_rs.fusion.stereo import _whole_steps
 from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet
 
 FUSE = sys.modules["rgbd_rs.fusion.fuse"]
+REAL = sys.modules["rgbd_rs.fusion.real_scenes"]
 
 
 def test_a_law_is_fixed_per_case_and_redrawn_per_epoch(shared_data: Path) -> None:
@@ -40,6 +49,45 @@ def test_a_law_is_fixed_per_case_and_redrawn_per_epoch(shared_data: Path) -> Non
     assert len(names) == 12 and names[:2] == ["Baby1_law0", "Baby1_law1"]
     with pytest.raises(InvalidArgumentError, match=r"^split"):
         next(real_samples("dev"))
+
+
+def test_the_dense_family_is_its_own_fine_tof_and_leaves_the_coarse_laws_alone(
+    shared_data: Path,
+) -> None:
+    scene = load_stereo_scene("Tsukuba")
+    h, w = scene.left.shape[:2]
+    coarse, dense = real_sample(scene, 0), real_sample(scene, 0, dense=True)
+    assert dense.name == "Tsukuba_dense0"
+    th, tw = dense.tof_depth.shape
+    # As fine as the colour camera or finer, the colour camera's aspect.
+    assert DENSE_TOF_SCALE[0] * w - 1 <= tw <= DENSE_TOF_SCALE[1] * w + 1
+    assert abs(th / tw - h / w) < 0.05
+    # Fixed per case, its own draw (not a coarse law resized), another per epoch.
+    np.testing.assert_array_equal(dense.tof_depth, real_sample(scene, 0, dense=True).tof_depth)
+    assert not np.array_equal(
+        dense.tof_depth, real_sample(scene, 0, epoch=2, dense=True).tof_depth, equal_nan=True
+    )
+    # The coarse laws are what they were before the family existed (the benchmark's cases):
+    # their seeds are still the hash of "<scene>/<law>/fixed".
+    old = int.from_bytes(hashlib.sha256(b"Tsukuba/0/fixed").digest()[:8], "little")
+    assert REAL._seed("Tsukuba", 0, None) == old != REAL._seed("Tsukuba", 0, None, True)
+    assert coarse.tof_depth.shape[1] <= TOF_SCALE[1] * w + 1
+    names = [s.name for s in real_samples("val", 2, dense_laws=1)]
+    assert names[:3] == ["Baby1_law0", "Baby1_law1", "Baby1_dense0"] and len(names) == 18
+    with pytest.raises(InvalidArgumentError, match=r"^dense_laws"):
+        next(real_samples("val", 1, dense_laws=-1))
+    with pytest.raises(InvalidArgumentError, match=r"^dense"):
+        real_sample(scene, 0, dense="yes")  # type: ignore[arg-type]
+
+
+def test_the_dense_protocol_is_the_default_sensor_at_512_by_424(shared_data: Path) -> None:
+    cases = list(dense_protocol_samples("val"))
+    assert [c.name for c in cases][:2] == ["Baby1_dense", "Books_dense"] and len(cases) == 6
+    assert cases[0].tof_depth.shape == DENSE_PROTOCOL_SIZE[::-1]
+    again = next(dense_protocol_samples("val"))
+    np.testing.assert_array_equal(cases[0].tof_depth, again.tof_depth)
+    with pytest.raises(InvalidArgumentError, match=r"^split"):
+        next(dense_protocol_samples("dev"))
 
 
 def test_scores_say_what_the_fusion_did() -> None:

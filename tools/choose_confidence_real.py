@@ -15,7 +15,7 @@ import argparse
 from pathlib import Path
 
 from rgbd_rs.fusion.calibrate import best_score, calibrate_stereo_power, write_calibrated
-from rgbd_rs.fusion.real_scenes import real_samples
+from rgbd_rs.fusion.real_scenes import dense_protocol_samples, real_samples
 from rgbd_rs.nn.confidence import WEIGHTS, ConfidenceEstimator
 
 
@@ -24,8 +24,15 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("out/conf_real"))
     ap.add_argument("--laws", type=int, default=3, help="fixed ToF laws per val scene (3)")
     ap.add_argument("--powers", type=float, nargs="+", default=[1.0, 1.5, 2.0, 3.0])
+    ap.add_argument(
+        "--dense-protocol",
+        action="store_true",
+        help="also the val scenes with the dense protocol's ToF (tools/eval_fusion_dense_tof.py)",
+    )
     a = ap.parse_args()
     samples = list(real_samples("val", a.laws))
+    if a.dense_protocol:
+        samples += list(dense_protocol_samples("val"))
     shipped = ConfidenceEstimator.load()
     candidates: dict[str, tuple[Path | None, ConfidenceEstimator]] = {
         f"shipped (trained on {shipped.matcher})": (None, shipped),
@@ -56,7 +63,9 @@ def main() -> None:
     path = next(p for s, p in scored if s is best)
     chosen = write_calibrated(path, best.power, a.out / "chosen.pt")
     text = (
-        f"Real validation cases: {len(samples)} ({a.laws} ToF laws per val scene)\n\n"
+        f"Real validation cases: {len(samples)} ({a.laws} ToF laws per val scene"
+        + (", and each val scene with the dense protocol's ToF" if a.dense_protocol else "")
+        + ")\n\n"
         + "\n".join(rows)
         + f"\n\nChosen: {path.stem}, power {best.power:g} -> {chosen}\n"
     )

@@ -26,6 +26,13 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("out/conf_real"))
     ap.add_argument("--laws", type=int, default=4, help="ToF laws per training scene (4)")
     ap.add_argument("--val-laws", type=int, default=2, help="ToF laws per val scene (2)")
+    ap.add_argument(
+        "--dense-laws",
+        type=int,
+        default=0,
+        help="laws of the dense family (a ToF as fine as the colour camera) per training "
+        "scene, added to the pool (0; rgbd_rs.fusion.real_scenes.DENSE_TOF_SCALE)",
+    )
     ap.add_argument("--matcher", default="census", choices=("census", "opencv"))
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--per-scene", type=int, default=100, help="crops per case and epoch")
@@ -45,7 +52,10 @@ def main() -> None:
     a = ap.parse_args()
     cache = a.out / f"cache_{a.matcher}"
     train = prepare(
-        real_samples("train", a.laws), cache / "train", matcher=a.matcher, quiet=a.quiet
+        real_samples("train", a.laws, dense_laws=a.dense_laws),
+        cache / "train",  # one file per case name: a dense law's name differs
+        matcher=a.matcher,
+        quiet=a.quiet,
     )
     val = prepare(real_samples("val", a.val_laws), cache / "val", matcher=a.matcher, quiet=a.quiet)
     recipe = Recipe(width=a.width, per_scene=a.per_scene)

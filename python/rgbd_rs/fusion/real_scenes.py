@@ -10,6 +10,10 @@ ToF sensor is coarser than the colour camera beside it), and dark dropouts (blob
 ToF returns nothing, 0-3 % of its pixels, as on dark or glossy surfaces; the scenes' untextured
 IR albedo would otherwise never drop a pixel).
 
+For training pools there is also a *dense* family (``dense=True``): the same sensor draws with
+the ToF as fine as the colour camera or finer (:data:`DENSE_TOF_SCALE`), the regime of a
+Kinect-class ToF beside a stereo pair, where the ToF is often far better than the stereo map.
+
 The rig is virtual (the 2005 sets' focal scaled with the width, 160 mm baseline, the ToF 4 cm
 below the left camera, reference = left view, where the ground truth lives), as in
 :func:`~rgbd_rs.fusion.evaluate.middlebury_sample`. Validation and test cases use fixed seeds
@@ -33,6 +37,14 @@ from rgbd_rs.fusion.evaluate import Sample, simulate_tof
 
 #: The ToF camera's width as a fraction of the colour camera's (uniform).
 TOF_SCALE = (0.25, 0.5)
+#: The same for the *dense* laws (``dense=True``): a ToF as fine as the colour camera or finer,
+#: as the old three-scene protocol's 512 x 424 sensor on the ~450 px wide images
+#: (``tools/eval_fusion_dense_tof.py``). Training pools only: the benchmark's laws stay coarse.
+DENSE_TOF_SCALE = (0.9, 1.4)
+#: The dense *protocol* of ``tools/eval_fusion_dense_tof.py`` (the old three-scene protocol's
+#: simulation): a ToF of this many (columns, rows) and the default sensor, this seed.
+DENSE_PROTOCOL_SIZE = (512, 424)
+DENSE_PROTOCOL_SEED = 0
 #: Fraction of ToF pixels lost to dark dropouts (uniform) and the blobs' size (ToF pixels).
 DROPOUT_FRACTION = (0.0, 0.03)
 DROPOUT_BLOB = 6.0
@@ -47,16 +59,17 @@ class Law:
     dropout: float
 
 
-def _seed(name: str, law: int, epoch: int | None) -> int:
-    """A stable seed of (scene, law, epoch): independent of Python's hash randomisation."""
-    key = f"{name}/{law}/{'fixed' if epoch is None else epoch}".encode()
-    return int.from_bytes(hashlib.sha256(key).digest()[:8], "little")
+def _seed(name: str, law: int, epoch: int | None, dense: bool = False) -> int:
+    """A stable seed of (scene, law, epoch): independent of Python's hash randomisation (the
+    dense family's keys differ, so its draws are not the coarse laws')."""
+    key = f"{name}/{law}/{'fixed' if epoch is None else epoch}{'/dense' if dense else ''}"
+    return int.from_bytes(hashlib.sha256(key.encode()).digest()[:8], "little")
 
 
-def _draw_law(rng: np.random.Generator, width: int, height: int) -> Law:
-    """A sensor for a ``width x height`` colour camera."""
+def _draw_law(rng: np.random.Generator, width: int, height: int, dense: bool = False) -> Law:
+    """A sensor for a ``width x height`` colour camera (``dense``: :data:`DENSE_TOF_SCALE`)."""
     variation = tof_variation.random_variation(rng)
-    scale = float(rng.uniform(*TOF_SCALE))
+    scale = float(rng.uniform(*(DENSE_TOF_SCALE if dense else TOF_SCALE)))
     tw = max(16, round(width * scale))
     th = max(16, round(height * scale))
     return Law(variation, (tw, th), float(rng.uniform(*DROPOUT_FRACTION)))
@@ -74,32 +87,63 @@ def _dropouts(depth: np.ndarray, fraction: float, rng: np.random.Generator) -> n
     return out
 
 
-def real_sample(scene: StereoScene, law: int = 0, *, epoch: int | None = None) -> Sample:
+def real_sample(
+    scene: StereoScene, law: int = 0, *, epoch: int | None = None, dense: bool = False
+) -> Sample:
     """Scene ``scene`` with the ToF frame of its law ``law`` (``epoch=None``: the fixed law of
-    validation and test; an epoch number: that epoch's training draw). The sample's name is
-    ``<scene>_law<k>``."""
+    validation and test; an epoch number: that epoch's training draw). ``dense`` draws from the
+    dense family instead (:data:`DENSE_TOF_SCALE`; its own seeds). The sample's name is
+    ``<scene>_law<k>`` (``<scene>_dense<k>``)."""
     law = _validate.integer("law", law, minimum=0)
     if epoch is not None:
         epoch = _validate.integer("epoch", epoch, minimum=0)
-    rng = np.random.default_rng(_seed(scene.name, law, epoch))
+    dense = _validate.flag("dense", dense)
+    rng = np.random.default_rng(_seed(scene.name, law, epoch, dense))
     h, w = scene.left.shape[:2]
-    drawn = _draw_law(rng, w, h)
+    drawn = _draw_law(rng, w, h, dense)
     gt = scene.disparity_left
     depth, amplitude, rig = simulate_tof(
         gt, drawn.tof_size, drawn.variation.model, int(rng.integers(2**31))
     )
     depth, amplitude = tof_variation.apply(depth, amplitude, drawn.variation, rng)
     depth = _dropouts(depth, drawn.dropout, rng)
-    return Sample(f"{scene.name}_law{law}", scene.left, scene.right, depth, amplitude, rig, gt)
+    kind = "dense" if dense else "law"
+    return Sample(f"{scene.name}_{kind}{law}", scene.left, scene.right, depth, amplitude, rig, gt)
 
 
 def real_samples(
-    split: str, laws: int = 2, *, epoch: int | None = None, root: str | None = None
+    split: str,
+    laws: int = 2,
+    *,
+    epoch: int | None = None,
+    root: str | None = None,
+    dense_laws: int = 0,
 ) -> Iterator[Sample]:
-    """Every scene of ``split`` under ``laws`` sensor laws each (scene-major order)."""
+    """Every scene of ``split`` under ``laws`` sensor laws each, then ``dense_laws`` laws of the
+    dense family (scene-major order)."""
     _validate.choice("split", split, SPLITS)
     laws = _validate.integer("laws", laws, minimum=1, maximum=64)
+    dense_laws = _validate.integer("dense_laws", dense_laws, minimum=0, maximum=64)
     for name in scene_names(split, root):
         scene = load_stereo_scene(name, root)
         for k in range(laws):
             yield real_sample(scene, k, epoch=epoch)
+        for k in range(dense_laws):
+            yield real_sample(scene, k, epoch=epoch, dense=True)
+
+
+def dense_protocol_samples(split: str, root: str | None = None) -> Iterator[Sample]:
+    """Every scene of ``split`` with the dense protocol's ToF frame (:data:`DENSE_PROTOCOL_SIZE`
+    of the default :class:`~rgbd_rs.render.ToFModel`, seed :data:`DENSE_PROTOCOL_SEED`): finer
+    than the ~450 px wide colour images and far more precise than the stereo map. Named
+    ``<scene>_dense``."""
+    from rgbd_rs.render import ToFModel
+
+    _validate.choice("split", split, SPLITS)
+    for name in scene_names(split, root):
+        scene = load_stereo_scene(name, root)
+        gt = scene.disparity_left
+        depth, amplitude, rig = simulate_tof(
+            gt, DENSE_PROTOCOL_SIZE, ToFModel(), DENSE_PROTOCOL_SEED
+        )
+        yield Sample(f"{name}_dense", scene.left, scene.right, depth, amplitude, rig, gt)
