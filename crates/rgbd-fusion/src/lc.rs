@@ -177,28 +177,37 @@ struct Hyp {
 }
 
 /// Target rows resampled at quarter-pixel positions: `4 (W - 1) + 1` RGB samples per row.
+///
+/// Sample `4 x + k` is the linear interpolation `((4 - k) a + k b) / 4` of pixels x and x + 1,
+/// rounded half up: in integers, the exact value of the f32 expression
+/// `((1 - k/4) a + (k/4) b).round()` (tested against it for every a, b and k).
 pub fn quarter_rows(target: &[u8], width: usize, height: usize) -> Vec<[u8; 3]> {
-    let len = PHASES as usize * (width - 1) + 1;
+    let p = PHASES as usize;
+    let len = p * (width - 1) + 1;
     let mut out = vec![[0u8; 3]; height * len];
     out.par_chunks_mut(len).enumerate().for_each(|(y, row)| {
         let src = &target[y * width * 3..(y + 1) * width * 3];
         for (k, px) in row.iter_mut().enumerate() {
-            let (x0, f) = (
-                k / PHASES as usize,
-                (k % PHASES as usize) as f32 / PHASES as f32,
-            );
+            let (x0, f) = (k / p, (k % p) as u16);
             for (c, v) in px.iter_mut().enumerate() {
-                let a = f32::from(src[3 * x0 + c]);
-                let b = if f > 0.0 {
-                    f32::from(src[3 * x0 + 3 + c])
+                let a = u16::from(src[3 * x0 + c]);
+                let b = if f > 0 {
+                    u16::from(src[3 * x0 + 3 + c])
                 } else {
                     a
                 };
-                *v = ((1.0 - f) * a + f * b).round() as u8;
+                *v = quarter_mix(a, b, f);
             }
         }
     });
     out
+}
+
+/// `((4 - k) a + k b) / 4` rounded half up, for bytes `a`, `b` and a phase `k` in 0..4.
+#[inline]
+fn quarter_mix(a: u16, b: u16, k: u16) -> u8 {
+    // At most (4 * 255 + 2) / 4 = 255.
+    ((((PHASES as u16) - k) * a + k * b + 2) / PHASES as u16) as u8
 }
 
 /// Global disparity range of all valid hypotheses, or None when there is none.

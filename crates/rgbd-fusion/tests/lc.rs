@@ -18,6 +18,27 @@ fn target_at(target: &[u8], w: usize, y: usize, pos: i64, c: usize) -> u8 {
     ((1.0 - f) * a + f * b).round() as u8
 }
 
+/// The integer resampling equals the f32 definition for every pair of bytes and every phase.
+#[test]
+fn quarter_rows_equal_the_float_definition_for_every_byte_pair() {
+    // Row a * 256 + b holds the pixels (a, b, 255 - a) and (b, a, 255 - b).
+    let (w, h) = (2usize, 256 * 256);
+    let mut img = Vec::with_capacity(w * h * 3);
+    for a in 0..=255u8 {
+        for b in 0..=255u8 {
+            img.extend_from_slice(&[a, b, 255 - a, b, a, 255 - b]);
+        }
+    }
+    let rows = rgbd_fusion::lc::quarter_rows(&img, w, h);
+    let len = 4 * (w - 1) + 1;
+    for y in 0..h {
+        for pos in 0..len {
+            let want: [u8; 3] = std::array::from_fn(|c| target_at(&img, w, y, pos as i64, c));
+            assert_eq!(rows[y * len + pos], want, "row {y}, position {pos}");
+        }
+    }
+}
+
 fn dist(a: [u8; 3], b: [u8; 3], trunc: f64) -> f64 {
     let s: f64 = (0..3)
         .map(|c| (f64::from(a[c]) - f64::from(b[c])).abs())
