@@ -68,15 +68,31 @@ def test_the_dense_family_is_its_own_fine_tof_and_leaves_the_coarse_laws_alone(
         dense.tof_depth, real_sample(scene, 0, epoch=2, dense=True).tof_depth, equal_nan=True
     )
     # The coarse laws are what they were before the family existed (the benchmark's cases):
-    # their seeds are still the hash of "<scene>/<law>/fixed".
+    # their seeds are still the hash of "<scene>/<law>/fixed", and the frames are the ones the
+    # code before it drew (size, valid count and sums taken from that code).
     old = int.from_bytes(hashlib.sha256(b"Tsukuba/0/fixed").digest()[:8], "little")
     assert REAL._seed("Tsukuba", 0, None) == old != REAL._seed("Tsukuba", 0, None, True)
-    assert coarse.tof_depth.shape[1] <= TOF_SCALE[1] * w + 1
+    for s, size, valid, depth_sum, amp_sum in (
+        (coarse, (123, 164), 6343, 112367.40469622612, 79691776.3356266),
+        (real_sample(scene, 1), (125, 167), 18145, 484302.462182045, 34341311.654881),
+    ):
+        assert s.tof_depth.shape == size and int(np.isfinite(s.tof_depth).sum()) == valid
+        assert np.nansum(s.tof_depth.astype(np.float64)) == pytest.approx(depth_sum, rel=1e-9)
+        assert np.nansum(s.tof_amplitude.astype(np.float64)) == pytest.approx(amp_sum, rel=1e-9)
     names = [s.name for s in real_samples("val", 2, dense_laws=1)]
     assert names[:3] == ["Baby1_law0", "Baby1_law1", "Baby1_dense0"] and len(names) == 18
-    with pytest.raises(InvalidArgumentError, match=r"^dense_laws"):
-        next(real_samples("val", 1, dense_laws=-1))
-    with pytest.raises(InvalidArgumentError, match=r"^dense"):
+    assert [s.name for s in real_samples("val", 0, dense_laws=1)][:2] == [
+        "Baby1_dense0",
+        "Books_dense0",
+    ]
+    # Bad arguments fail at the call, before a scene is read.
+    with pytest.raises(InvalidArgumentError, match=r"^dense_laws:"):
+        real_samples("val", 1, dense_laws=-1)
+    with pytest.raises(InvalidArgumentError, match=r"^laws: got 0 laws and 0 dense_laws"):
+        real_samples("val", 0)
+    with pytest.raises(InvalidArgumentError, match=r"^epoch:"):
+        real_samples("val", 1, epoch=-1)
+    with pytest.raises(InvalidArgumentError, match=r"^dense:"):
         real_sample(scene, 0, dense="yes")  # type: ignore[arg-type]
 
 
@@ -87,7 +103,7 @@ def test_the_dense_protocol_is_the_default_sensor_at_512_by_424(shared_data: Pat
     again = next(dense_protocol_samples("val"))
     np.testing.assert_array_equal(cases[0].tof_depth, again.tof_depth)
     with pytest.raises(InvalidArgumentError, match=r"^split"):
-        next(dense_protocol_samples("dev"))
+        dense_protocol_samples("dev")
 
 
 def test_scores_say_what_the_fusion_did() -> None:

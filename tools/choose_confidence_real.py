@@ -1,12 +1,14 @@
-"""Choose the confidence ConvNet's epoch and stereo power on the real validation cases (issue
-29): every ``OUT/epN.pt`` of ``tools/train_confidence_real.py`` (and the shipped network, on
-the census matcher and on the one it was trained on) fuses the val split's scenes under
-``--laws`` fixed ToF laws with ``P_S ** p`` for each power; the choice is the lowest mean fused
-/ better input among the (epoch, power) pairs that keep every good input within 5 %
-(``rgbd_rs.fusion.calibrate.best_score``), else the least damaging pair. The test split is
-never read. Writes ``OUT/chosen.pt`` (the power stored in it) and ``OUT/choice.md``.
+"""Choose the confidence ConvNet's epoch and stereo power on the real validation cases (issue 29):
+every ``OUT/epN.pt`` of ``tools/train_confidence_real.py`` (and the shipped network, on the
+census matcher and on the one it was trained on) fuses the val split's scenes under ``--laws``
+fixed ToF laws (with ``--dense-protocol``, also each val scene with the dense protocol's ToF,
+``tools/eval_fusion_dense_tof.py``) with ``P_S ** p`` for each power; the choice is the lowest
+mean fused / better input among the (epoch, power) pairs that keep every good input within 5 %
+(``rgbd_rs.fusion.calibrate.best_score``), else the least damaging pair. The test split is never
+read. Writes ``OUT/chosen.pt`` (the power stored in it) and ``OUT/choice.md``.
 
     python tools/choose_confidence_real.py --out out/conf_real --laws 3
+    python tools/choose_confidence_real.py --out out/conf_dense --laws 3 --dense-protocol
 """
 
 from __future__ import annotations

@@ -1,14 +1,15 @@
-"""The default fusion on the real Middlebury split with a *dense, precise* ToF: the old
-three-scene protocol's simulation (`rgbd_rs.fusion.evaluate.middlebury_sample`: a 512 x 424 ToF
-of the default `ToFModel`, finer than the ~450 px wide colour images, one fixed seed) instead of
-the drawn laws of `rgbd eval fusion --real` (a ToF at 1/4-1/2 of the colour width). A regime the
-confidence ConvNet was not trained on: it shows whether the fusion damages a ToF that is much
-better than the stereo map.
+"""The fusion on the real Middlebury split with a *dense, precise* ToF: the dense protocol
+(`rgbd_rs.fusion.real_scenes.dense_protocol_samples`: the old three-scene protocol's 512 x 424
+ToF of the default `ToFModel`, finer than the ~450 px wide colour images, one fixed seed) instead
+of the drawn laws of `rgbd eval fusion --real` (a ToF at 1/4-1/2 of the colour width). It shows
+whether the fusion damages a ToF that is much better than the stereo map (the shipped network
+saw the dense law family in training, not these cases; the chooser reads the val split's).
 
     python tools/eval_fusion_dense_tof.py --split train --out out/eval_fusion_dense
+    python tools/eval_fusion_dense_tof.py --split val --weights out/conf_dense/chosen.pt
 
-Writes OUT/<split>/table.md and figure.png (the `rgbd eval fusion --real` layout) and prints the
-table.
+Writes OUT/<split>/table.md and figure.png (the `rgbd eval fusion --real` layout; with
+``--weights W``: OUT/<split>_<W's stem>/) and prints the table.
 """
 
 from __future__ import annotations
@@ -27,14 +28,23 @@ def main() -> None:
     ap.add_argument("--split", choices=SPLITS, default="train")
     ap.add_argument("--out", type=Path, default=Path("out/eval_fusion_dense"))
     ap.add_argument(
-        "--weights", type=Path, default=None, help="confidence ConvNet (default: the shipped one)"
+        "--weights",
+        type=Path,
+        default=None,
+        help="confidence ConvNet checkpoint (default: the shipped one); its stored stereo power "
+        "is used, so pass a chooser's chosen.pt rather than an epN.pt (power 1)",
     )
     ap.add_argument("--quiet", action="store_true")
     a = ap.parse_args()
     title = f"real {a.split} split, dense 512x424 ToF"
-    est = None if a.weights is None else ConfidenceEstimator.load(a.weights)
+    folder = a.out / a.split
+    est = None
+    if a.weights is not None:
+        est = ConfidenceEstimator.load(a.weights)
+        title += f", {a.weights.name}"
+        folder = a.out / f"{a.split}_{a.weights.stem}"
     scores = evaluate_real(
-        dense_protocol_samples(a.split), a.out / a.split, title=title, estimator=est, quiet=a.quiet
+        dense_protocol_samples(a.split), folder, title=title, estimator=est, quiet=a.quiet
     )
     print(markdown(scores, title))
 

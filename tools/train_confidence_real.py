@@ -1,11 +1,13 @@
 """Train the confidence ConvNet on real scenes (issue 29): clue caches of the Middlebury train
-split (``../shared/data/stereo``) under ``--laws`` simulated ToF laws per scene (a fixed pool,
-the same every epoch) with the
-``--matcher``'s stereo disparities, the val split's fixed laws for the validation loss (for
-monitoring only: the epoch is chosen by ``tools/choose_confidence_real.py`` on what the fusion
-gives), one checkpoint per epoch kept.
+split (``../shared/data/stereo``) under ``--laws`` simulated ToF laws per scene and
+``--dense-laws`` of the dense family (a ToF as fine as the colour camera; a fixed pool, the same
+every epoch) with the ``--matcher``'s stereo disparities, the val split's fixed laws for the
+validation loss (for monitoring only: the epoch is chosen by ``tools/choose_confidence_real.py``
+on what the fusion gives), one checkpoint per epoch kept.
 
     python tools/train_confidence_real.py --out out/conf_real --laws 4 --epochs 6
+    python tools/train_confidence_real.py --out out/conf_dense --laws 4 --dense-laws 2 \
+        --epochs 4 --target-t 1 --lr 5e-4 --init python/rgbd_rs/nn/weights/confidence.pt
 
 Resumable: caches are skipped when present and ``train`` resumes from the last checkpoint.
 """

@@ -203,11 +203,14 @@ pub fn quarter_rows(target: &[u8], width: usize, height: usize) -> Vec<[u8; 3]> 
     out
 }
 
-/// `((4 - k) a + k b) / 4` rounded half up, for bytes `a`, `b` and a phase `k` in 0..4.
+/// `((P - k) a + k b) / P` rounded half up (`P` = [`PHASES`]), for bytes `a`, `b` and a
+/// phase `k` in `0..P`.
 #[inline]
 fn quarter_mix(a: u16, b: u16, k: u16) -> u8 {
-    // At most (4 * 255 + 2) / 4 = 255.
-    ((((PHASES as u16) - k) * a + k * b + 2) / PHASES as u16) as u8
+    // floor(v / P + 1/2) = (2 v + P) / (2 P) for v = (P - k) a + k b, any P; with P = 4 at most
+    // (2 * 1020 + 4) / 8 = 255.
+    let p = PHASES as u16;
+    ((2 * ((p - k) * a + k * b) + p) / (2 * p)) as u8
 }
 
 /// Global disparity range of all valid hypotheses, or None when there is none.

@@ -33,6 +33,7 @@ import numpy as np
 from rgbd_rs import _validate
 from rgbd_rs.data import tof_variation
 from rgbd_rs.data.stereo_scenes import SPLITS, StereoScene, load_stereo_scene, scene_names
+from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion.evaluate import Sample, simulate_tof
 
 #: The ToF camera's width as a fraction of the colour camera's (uniform).
@@ -120,30 +121,47 @@ def real_samples(
     dense_laws: int = 0,
 ) -> Iterator[Sample]:
     """Every scene of ``split`` under ``laws`` sensor laws each, then ``dense_laws`` laws of the
-    dense family (scene-major order)."""
+    dense family (scene-major order; at least one law in all). The arguments are checked at the
+    call, the scenes read as the iterator is consumed."""
     _validate.choice("split", split, SPLITS)
-    laws = _validate.integer("laws", laws, minimum=1, maximum=64)
+    laws = _validate.integer("laws", laws, minimum=0, maximum=64)
     dense_laws = _validate.integer("dense_laws", dense_laws, minimum=0, maximum=64)
-    for name in scene_names(split, root):
-        scene = load_stereo_scene(name, root)
-        for k in range(laws):
-            yield real_sample(scene, k, epoch=epoch)
-        for k in range(dense_laws):
-            yield real_sample(scene, k, epoch=epoch, dense=True)
+    if laws + dense_laws == 0:
+        raise InvalidArgumentError(
+            "laws: got 0 laws and 0 dense_laws, expected at least one law per scene"
+        )
+    if epoch is not None:
+        epoch = _validate.integer("epoch", epoch, minimum=0)
+    names = scene_names(split, root)
+
+    def cases() -> Iterator[Sample]:
+        for name in names:
+            scene = load_stereo_scene(name, root)
+            for k in range(laws):
+                yield real_sample(scene, k, epoch=epoch)
+            for k in range(dense_laws):
+                yield real_sample(scene, k, epoch=epoch, dense=True)
+
+    return cases()
 
 
-def dense_protocol_samples(split: str, root: str | None = None) -> Iterator[Sample]:
+def dense_protocol_samples(split: str, *, root: str | None = None) -> Iterator[Sample]:
     """Every scene of ``split`` with the dense protocol's ToF frame (:data:`DENSE_PROTOCOL_SIZE`
     of the default :class:`~rgbd_rs.render.ToFModel`, seed :data:`DENSE_PROTOCOL_SEED`): finer
     than the ~450 px wide colour images and far more precise than the stereo map. Named
-    ``<scene>_dense``."""
+    ``<scene>_dense``; ``split`` is checked at the call."""
     from rgbd_rs.render import ToFModel
 
     _validate.choice("split", split, SPLITS)
-    for name in scene_names(split, root):
-        scene = load_stereo_scene(name, root)
-        gt = scene.disparity_left
-        depth, amplitude, rig = simulate_tof(
-            gt, DENSE_PROTOCOL_SIZE, ToFModel(), DENSE_PROTOCOL_SEED
-        )
-        yield Sample(f"{name}_dense", scene.left, scene.right, depth, amplitude, rig, gt)
+    names = scene_names(split, root)
+
+    def cases() -> Iterator[Sample]:
+        for name in names:
+            scene = load_stereo_scene(name, root)
+            gt = scene.disparity_left
+            depth, amplitude, rig = simulate_tof(
+                gt, DENSE_PROTOCOL_SIZE, ToFModel(), DENSE_PROTOCOL_SEED
+            )
+            yield Sample(f"{name}_dense", scene.left, scene.right, depth, amplitude, rig, gt)
+
+    return cases()
