@@ -224,6 +224,19 @@ def test_cli_eval_fusion_on_real_cases(
     assert "worst fused / good input" in capsys.readouterr().out
 
 
+def test_cli_eval_fusion_with_the_dense_protocol(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["eval", "fusion", "--real", "val", "--dense", "--limit", "1", "--quiet"]
+    assert main([*args, "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "real_val_dense" / "table.md").read_text()
+    assert "Baby1_dense" in text and "Books" not in text and "_law" not in text
+    assert "dense 512x424 ToF" in capsys.readouterr().out
+    # Only with --real: one error line naming the flag.
+    assert main(["eval", "fusion", "--middlebury", "--dense", "--out", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: --dense: got it without --real")
+
+
 def test_tof_depth_from_across_an_edge_gets_no_confidence(shared_data: Path) -> None:
     # Barn2 (train split) under its fixed law 1: a sparse ToF whose upsampling gives background
     # pixels beside the near planes the planes' depth. Those pixels match the colour of no

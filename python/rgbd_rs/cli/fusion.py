@@ -177,6 +177,12 @@ def register(commands: Commands) -> None:
     ef.add_argument(
         "--laws", type=integer(1, 64), default=2, help="fixed ToF laws per real scene (2)"
     )
+    ef.add_argument(
+        "--dense",
+        action="store_true",
+        help="with --real: the dense protocol instead of the laws (a 512x424 ToF of the default "
+        "sensor, finer than the colour images and far more precise than the stereo map)",
+    )
     ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes / real cases only")
     ef.add_argument(
         "--stride",
@@ -416,6 +422,8 @@ def run_eval(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(
             "--synth/--middlebury/--real: got none of them, expected at least one"
         )
+    if args.dense and args.real is None:
+        raise InvalidArgumentError("--dense: got it without --real, expected --real SPLIT too")
     params = LcParams(stride=args.stride, cross_check=args.cross_check)
     estimator = None
     if not args.no_convnet:
@@ -437,12 +445,19 @@ def run_eval(args: argparse.Namespace) -> int:
         print(markdown_table(res, f"synthetic {args.split} set ({len(res)} scenes)"))
     if args.real is not None:
         from rgbd_rs.fusion.evaluate_real import evaluate_real, markdown
-        from rgbd_rs.fusion.real_scenes import real_samples
+        from rgbd_rs.fusion.real_scenes import dense_protocol_samples, real_samples
 
-        title = f"real {args.real} split ({args.laws} ToF laws per scene)"
+        if args.dense:
+            title = f"real {args.real} split, dense 512x424 ToF"
+            samples = dense_protocol_samples(args.real)
+            folder = args.out / f"real_{args.real}_dense"
+        else:
+            title = f"real {args.real} split ({args.laws} ToF laws per scene)"
+            samples = real_samples(args.real, args.laws)
+            folder = args.out / f"real_{args.real}"
         cases = evaluate_real(
-            islice(real_samples(args.real, args.laws), args.limit),
-            args.out / f"real_{args.real}",
+            islice(samples, args.limit),
+            folder,
             title=title,
             estimator=estimator,
             confidence="heuristic" if args.no_convnet else "convnet",
