@@ -449,14 +449,14 @@ def run_eval(args: argparse.Namespace) -> int:
 
         if args.dense:
             title = f"real {args.real} split, dense 512x424 ToF"
-            samples = dense_protocol_samples(args.real)
+            real_cases = dense_protocol_samples(args.real)
             folder = args.out / f"real_{args.real}_dense"
         else:
             title = f"real {args.real} split ({args.laws} ToF laws per scene)"
-            samples = real_samples(args.real, args.laws)
+            real_cases = real_samples(args.real, args.laws)
             folder = args.out / f"real_{args.real}"
         cases = evaluate_real(
-            islice(samples, args.limit),
+            islice(real_cases, args.limit),
             folder,
             title=title,
             estimator=estimator,
