@@ -94,6 +94,11 @@ def test_the_dense_family_is_its_own_fine_tof_and_leaves_the_coarse_laws_alone(
         real_samples("val", 1, epoch=-1)
     with pytest.raises(InvalidArgumentError, match=r"^dense:"):
         real_sample(scene, 0, dense="yes")  # type: ignore[arg-type]
+    # A scene's name is read for the caller; anything else is refused naming the argument.
+    by_name = real_sample("Tsukuba", 0, dense=True)
+    np.testing.assert_array_equal(by_name.tof_depth, dense.tof_depth)
+    with pytest.raises(InvalidArgumentError, match=r"^scene: got NoneType"):
+        real_sample(None)  # type: ignore[arg-type]
 
 
 def test_the_dense_protocol_is_the_default_sensor_at_512_by_424(shared_data: Path) -> None:
@@ -221,7 +226,8 @@ def test_cli_eval_fusion_on_real_cases(
     assert "Baby1_law0" in text and "Books_law0" in text and "Midd1" not in text
     assert "mean fused / better input" in text and "coverage" in text
     assert (tmp_path / "real_val" / "figure.png").stat().st_size > 10_000
-    assert "worst fused / good input" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "worst fused / good input" in out and "(1 ToF law per scene)" in out
 
 
 def test_cli_eval_fusion_with_the_dense_protocol(
@@ -233,8 +239,9 @@ def test_cli_eval_fusion_with_the_dense_protocol(
     assert "Baby1_dense" in text and "Books" not in text and "_law" not in text
     assert "dense 512x424 ToF" in capsys.readouterr().out
     # Only with --real: one error line naming the flag.
-    assert main(["eval", "fusion", "--middlebury", "--dense", "--out", str(tmp_path)]) == 2
-    assert capsys.readouterr().err.startswith("rgbd: error: --dense: got it without --real")
+    for other in (["--middlebury"], []):
+        assert main(["eval", "fusion", *other, "--dense", "--out", str(tmp_path)]) == 2
+        assert capsys.readouterr().err.startswith("rgbd: error: --dense: got it without --real")
 
 
 def test_tof_depth_from_across_an_edge_gets_no_confidence(shared_data: Path) -> None:

@@ -180,8 +180,9 @@ def register(commands: Commands) -> None:
     ef.add_argument(
         "--dense",
         action="store_true",
-        help="with --real: the dense protocol instead of the laws (a 512x424 ToF of the default "
-        "sensor, finer than the colour images and far more precise than the stereo map)",
+        help="with --real: the dense protocol instead of the --laws laws (a 512x424 ToF of the "
+        "default sensor, finer than the colour images and far more precise than the stereo map; "
+        "written to OUT/real_SPLIT_dense/)",
     )
     ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes / real cases only")
     ef.add_argument(
@@ -418,12 +419,12 @@ def run_eval(args: argparse.Namespace) -> int:
     from rgbd_rs.fusion import LcParams
     from rgbd_rs.fusion.evaluate import evaluate, markdown_table, middlebury_samples, synth_samples
 
+    if args.dense and args.real is None:
+        raise InvalidArgumentError("--dense: got it without --real, expected --real SPLIT too")
     if args.synth is None and not args.middlebury and args.real is None:
         raise InvalidArgumentError(
             "--synth/--middlebury/--real: got none of them, expected at least one"
         )
-    if args.dense and args.real is None:
-        raise InvalidArgumentError("--dense: got it without --real, expected --real SPLIT too")
     params = LcParams(stride=args.stride, cross_check=args.cross_check)
     estimator = None
     if not args.no_convnet:
@@ -452,7 +453,8 @@ def run_eval(args: argparse.Namespace) -> int:
             real_cases = dense_protocol_samples(args.real)
             folder = args.out / f"real_{args.real}_dense"
         else:
-            title = f"real {args.real} split ({args.laws} ToF laws per scene)"
+            per = "1 ToF law" if args.laws == 1 else f"{args.laws} ToF laws"
+            title = f"real {args.real} split ({per} per scene)"
             real_cases = real_samples(args.real, args.laws)
             folder = args.out / f"real_{args.real}"
         cases = evaluate_real(

@@ -89,12 +89,23 @@ def _dropouts(depth: np.ndarray, fraction: float, rng: np.random.Generator) -> n
 
 
 def real_sample(
-    scene: StereoScene, law: int = 0, *, epoch: int | None = None, dense: bool = False
+    scene: StereoScene | str,
+    law: int = 0,
+    *,
+    epoch: int | None = None,
+    dense: bool = False,
 ) -> Sample:
-    """Scene ``scene`` with the ToF frame of its law ``law`` (``epoch=None``: the fixed law of
-    validation and test; an epoch number: that epoch's training draw). ``dense`` draws from the
-    dense family instead (:data:`DENSE_TOF_SCALE`; its own seeds). The sample's name is
-    ``<scene>_law<k>`` (``<scene>_dense<k>``)."""
+    """Scene ``scene`` (a :class:`~rgbd_rs.data.stereo_scenes.StereoScene`, or a scene's name,
+    read by :func:`~rgbd_rs.data.stereo_scenes.load_stereo_scene`) with the ToF frame of its law
+    ``law`` (``epoch=None``: the fixed law of validation and test; an epoch number: that epoch's
+    training draw). ``dense`` draws from the dense family instead (:data:`DENSE_TOF_SCALE`; its
+    own seeds). The sample's name is ``<scene>_law<k>`` (``<scene>_dense<k>``)."""
+    if isinstance(scene, str):
+        scene = load_stereo_scene(scene)
+    elif not isinstance(scene, StereoScene):
+        raise InvalidArgumentError(
+            f"scene: got {type(scene).__name__}, expected a StereoScene or a scene's name"
+        )
     law = _validate.integer("law", law, minimum=0)
     if epoch is not None:
         epoch = _validate.integer("epoch", epoch, minimum=0)
