@@ -2,7 +2,7 @@
 every ``OUT/epN.pt`` of ``tools/train_confidence_real.py`` (and the shipped network, on the
 census matcher and on the one it was trained on) fuses the val split's scenes under ``--laws``
 fixed ToF laws (with ``--dense-protocol``, also each val scene with the dense protocol's ToF,
-``tools/eval_fusion_dense_tof.py``) with ``P_S ** p`` for each power; the choice is the lowest
+``rgbd eval fusion --dense``) with ``P_S ** p`` for each power; the choice is the lowest
 mean fused / better input among the (epoch, power) pairs that keep every good input within 5 %
 (``rgbd_rs.fusion.calibrate.best_score``), else the least damaging pair. The test split is never
 read. Writes ``OUT/chosen.pt`` (the power stored in it) and ``OUT/choice.md``.
@@ -29,7 +29,7 @@ def main() -> None:
     ap.add_argument(
         "--dense-protocol",
         action="store_true",
-        help="also the val scenes with the dense protocol's ToF (tools/eval_fusion_dense_tof.py)",
+        help="also the val scenes with the dense protocol's ToF (rgbd eval fusion --dense)",
     )
     a = ap.parse_args()
     samples = list(real_samples("val", a.laws))

@@ -40,9 +40,10 @@ from rgbd_rs.fusion.evaluate import Sample, simulate_tof
 TOF_SCALE = (0.25, 0.5)
 #: The same for the *dense* laws (``dense=True``): a ToF as fine as the colour camera or finer,
 #: as the old three-scene protocol's 512 x 424 sensor on the ~450 px wide images
-#: (``tools/eval_fusion_dense_tof.py``). Training pools only: the benchmark's laws stay coarse.
+#: (``rgbd eval fusion --real SPLIT --dense``). Training pools only: the benchmark's laws stay
+#: coarse.
 DENSE_TOF_SCALE = (0.9, 1.4)
-#: The dense *protocol* of ``tools/eval_fusion_dense_tof.py`` (the old three-scene protocol's
+#: The dense *protocol* of ``rgbd eval fusion --real SPLIT --dense`` (the old three-scene protocol's
 #: simulation): a ToF of this many (columns, rows) and the default sensor, this seed.
 DENSE_PROTOCOL_SIZE = (512, 424)
 DENSE_PROTOCOL_SEED = 0
