@@ -54,6 +54,8 @@ MIDDLEBURY_FOCAL_PER_WIDTH = 3740.0 / 1390.0
 MIDDLEBURY_BASELINE = 0.16
 #: The ToF sees slightly more than the colour camera (its focal is this much shorter).
 TOF_FOV_MARGIN = 1.1
+#: The protocol's ToF camera, (columns, rows): Kinect v2's 512 x 424.
+PROTOCOL_TOF_SIZE = (512, 424)
 #: The virtual ToF camera sits this far below the left camera (metres).
 TOF_OFFSET_Y = 0.04
 #: Mesh triangles spanning a depth ratio above this are depth edges and are dropped.
@@ -131,7 +133,9 @@ def middlebury_sample(folder: str | Path, seed: int = 0, model: ToFModel | None 
     dropout) from a 512x424 ToF camera 4 cm below the left camera whose field of view covers it.
     """
     pair = load_middlebury(folder)
-    depth, amplitude, rig = simulate_tof(pair.disparity_left, (512, 424), model or ToFModel(), seed)
+    depth, amplitude, rig = simulate_tof(
+        pair.disparity_left, PROTOCOL_TOF_SIZE, model or ToFModel(), seed
+    )
     return Sample(pair.name, pair.left, pair.right, depth, amplitude, rig, pair.disparity_left)
 
 

@@ -34,7 +34,7 @@ from rgbd_rs import _validate
 from rgbd_rs.data import tof_variation
 from rgbd_rs.data.stereo_scenes import SPLITS, StereoScene, load_stereo_scene, scene_names
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion.evaluate import Sample, simulate_tof
+from rgbd_rs.fusion.evaluate import PROTOCOL_TOF_SIZE, Sample, simulate_tof
 
 #: The ToF camera's width as a fraction of the colour camera's (uniform).
 TOF_SCALE = (0.25, 0.5)
@@ -45,7 +45,7 @@ TOF_SCALE = (0.25, 0.5)
 DENSE_TOF_SCALE = (0.9, 1.4)
 #: The dense *protocol* of ``rgbd eval fusion --real SPLIT --dense`` (the old three-scene protocol's
 #: simulation): a ToF of this many (columns, rows) and the default sensor, this seed.
-DENSE_PROTOCOL_SIZE = (512, 424)
+DENSE_PROTOCOL_SIZE = PROTOCOL_TOF_SIZE
 DENSE_PROTOCOL_SEED = 0
 #: Fraction of ToF pixels lost to dark dropouts (uniform) and the blobs' size (ToF pixels).
 DROPOUT_FRACTION = (0.0, 0.03)
