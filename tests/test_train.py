@@ -106,7 +106,11 @@ def test_loss_decreases_and_checkpoint_holds_everything(
     assert len(losses) == 6 and losses[-1] < 0.3 * losses[0], losses
     assert [h.lr for h in result.history] == pytest.approx([2e-2] * 3 + [1e-2] * 3)
     assert result.best_checkpoint == tmp_path / "best.pt" and result.best_checkpoint.is_file()
-    assert capfd.readouterr().err == ""  # stderr is not a terminal: no progress bar
+    # stderr is not a terminal: no bar, one line per epoch
+    lines = capfd.readouterr().err.splitlines()
+    assert [line.split(",")[0] for line in lines] == [f"epoch {k}/6" for k in range(1, 7)], lines
+    assert all("val loss" in line and line.endswith(" s") for line in lines), lines
+    assert f"train loss {losses[-1]:.4g}," in lines[-1] and ", lr 0.01," in lines[-1], lines
 
     last = load_checkpoint(result.last_checkpoint, arch=ARCH, normalisation_keys=["mean"])
     assert (last.epoch, last.step, last.world_size) == (6, 0, 1)
@@ -140,6 +144,13 @@ def test_progress_bar_on_a_terminal_only(tmp_path: Path, monkeypatch: pytest.Mon
         run(tmp_path / str(quiet), config, quiet=quiet)
         text = sys.stderr.getvalue()  # type: ignore[attr-defined]
         assert ("epoch 1/1" in text and "loss=" in text and "val=" in text) == shown, text
+
+
+def test_quiet_prints_nothing_off_a_terminal(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    run(tmp_path, TrainConfig(**{**CONFIG.to_dict(), "epochs": 1}), quiet=True)
+    assert capfd.readouterr().err == ""
 
 
 def test_same_seed_gives_identical_weights(tmp_path: Path) -> None:

@@ -30,7 +30,9 @@ def test_the_gpu_script_runs_its_steps_at_toy_size(shared_data: Path) -> None:
         assert ckpt["arch_config"]["width"] == 8
         assert ckpt["arch_config"]["view_resolution"] == 32
         assert (out / "curve.png").stat().st_size > 0
-        assert "training finished" in (out / "log.txt").read_text()
+        log = (out / "log.txt").read_text()
+        assert "training finished" in log
+        assert "epoch 1/1, train loss" in log, log  # one line per epoch in the log
     finally:
         shutil.rmtree(out.parent, ignore_errors=True)
 

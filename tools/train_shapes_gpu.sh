@@ -67,13 +67,14 @@ train() {
         --representations depth,volume,curvature --scale-copies "$COPIES" --quiet \
         2>&1 | tee -a "$out/log.txt"
     local left=$((BUDGET_S - SECONDS))
+    du -sh "$work/cache" | tee -a "$out/log.txt"
     echo "cache done at $SECONDS s; training for at most $left s" | tee -a "$out/log.txt"
     ((left > 30)) || { echo "train_shapes_gpu: no time left to train" >&2; exit 3; }
     local rc=0
     timeout --signal=INT --kill-after=30 "$left" "$py" -m rgbd_rs.cli train shapes --cache "$work/cache" \
         --out "$work/run" --width "$WIDTH" --epochs "$EPOCHS" --batch-size "$BATCH" \
         --schedule cosine --lr "$LR" --batch-norm --dropout 0.5 --label-smoothing 0.1 \
-        --seed "$SEED" --workers "$WORKERS" --quiet 2>&1 | tee -a "$out/log.txt" || rc=$?
+        --seed "$SEED" --workers "$WORKERS" 2>&1 | tee -a "$out/log.txt" || rc=$?
     local how="finished"
     ((rc == 0)) || how="stopped (exit $rc; 124: the budget)"
     echo "training $how at $SECONDS s" | tee -a "$out/log.txt"
@@ -101,6 +102,15 @@ run() {
         --target /tmp/site "$gpu"/*.whl
     export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
     nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
+    # Data-loader workers hand batches over in /dev/shm (~240 MB a batch at 320 px, two batches
+    # in flight per worker): where it is small, load in the main process instead.
+    local shm_mb
+    shm_mb=$(df -Pm /dev/shm 2>/dev/null | awk 'NR == 2 {print $4}')
+    echo "cores $(nproc), /dev/shm free ${shm_mb:-?} MB, workers $WORKERS"
+    if ((WORKERS > 0)) && ((${shm_mb:-0} < 2 * WORKERS * 600)); then
+        WORKERS=0
+        echo "train_shapes_gpu: /dev/shm too small for data-loader workers: loading in the main process"
+    fi
     train python3 "$pack" /tmp/shapes_gpu "$OUT"
 }
 

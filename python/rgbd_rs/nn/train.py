@@ -26,6 +26,7 @@ import math
 import os
 import random
 import sys
+import time
 from collections.abc import Callable, Mapping, Sized
 from dataclasses import dataclass
 from pathlib import Path
@@ -235,6 +236,16 @@ def split(dataset: Dataset[Any], fraction: float, seed: int = 0) -> tuple[Subset
     return Subset(dataset, sorted(order[n_val:])), Subset(dataset, sorted(order[:n_val]))
 
 
+def _epoch_line(entry: Mapping[str, Any], epochs: int, seconds: float) -> str:
+    """One epoch's summary, for output that is not a terminal."""
+    parts = [f"epoch {entry['epoch']}/{epochs}", f"train loss {entry['train_loss']:.4g}"]
+    for key, name in (("train_metric", "train metric"), ("val_loss", "val loss"),
+                      ("val_metric", "val metric")):  # fmt: skip
+        if entry.get(key) is not None:
+            parts.append(f"{name} {entry[key]:.4g}")
+    return ", ".join(parts) + f", lr {entry['lr']:.3g}, {seconds:.1f} s"
+
+
 def _length(name: str, dataset: object) -> int:
     if not isinstance(dataset, Dataset) or not isinstance(dataset, Sized):
         raise InvalidArgumentError(
@@ -371,8 +382,8 @@ def train(
     ``config.epochs`` trains further); any other difference in arch, arch_config, normalisation
     or the fields that shape training raises :class:`RgbdError` listing what differs.
     ``resume=False`` starts afresh and overwrites ``out_dir``'s checkpoints. Under torchrun every
-    process calls this; only rank 0 writes files and shows the progress bar (also hidden when
-    ``quiet`` or stderr is not a terminal). See the module docstring for the calling convention.
+    process calls this; only rank 0 writes files and shows the progress: a bar on a terminal, one
+    line per epoch on stderr otherwise (a log file, a cluster job), nothing when ``quiet``. See the module docstring for the calling convention.
     ``metric_fn(output, batch)`` (a score, higher is better, e.g. accuracy) is recorded per
     epoch on the training batches and the validation set, and then chooses ``best.pt``: the
     epoch of the highest validation metric (ties: the lower validation loss), instead of the
@@ -517,8 +528,11 @@ def _run(
             save_checkpoint(ckpt, path)
 
     show = not quiet and main and sys.stderr.isatty()
+    # Not a terminal (a log file, a cluster job): one line per epoch instead of a bar.
+    lines = not quiet and main and not show
     net.train()
     for epoch in range(start_epoch, cfg.epochs):
+        started = time.perf_counter()
         sampler: DistributedSampler[Any] = DistributedSampler(
             train_set, num_replicas=g.world, rank=g.rank, shuffle=True, seed=cfg.seed
         )
@@ -580,6 +594,8 @@ def _run(
             save(epoch + 1, 0, {}, [last_path, best_path] if improved else [last_path])
             shown = {"loss": f"{train_loss:.4g}"} | ({} if val is None else {"val": f"{val:.4g}"})
             bar.set_postfix(shown)
+        if lines:
+            print(_epoch_line(entry, cfg.epochs, time.perf_counter() - started), file=sys.stderr)
     g.barrier()
     return TrainResult(
         history=tuple(EpochStats(**h) for h in history),
