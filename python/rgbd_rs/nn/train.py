@@ -383,7 +383,8 @@ def train(
     or the fields that shape training raises :class:`RgbdError` listing what differs.
     ``resume=False`` starts afresh and overwrites ``out_dir``'s checkpoints. Under torchrun every
     process calls this; only rank 0 writes files and shows the progress: a bar on a terminal, one
-    line per epoch on stderr otherwise (a log file, a cluster job), nothing when ``quiet``. See the module docstring for the calling convention.
+    line per epoch on stderr otherwise (a log file, a cluster job), nothing when ``quiet``.
+    See the module docstring for the calling convention.
     ``metric_fn(output, batch)`` (a score, higher is better, e.g. accuracy) is recorded per
     epoch on the training batches and the validation set, and then chooses ``best.pt``: the
     epoch of the highest validation metric (ties: the lower validation loss), instead of the
