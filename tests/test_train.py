@@ -400,3 +400,22 @@ def test_ddp_two_cpu_processes_identical_weights_and_resume(tmp_path: Path) -> N
     for r in (0, 1):
         cut = torch.load(tmp_path / "cut" / f"rank{r}.pt", weights_only=True)
         assert_same_weights(cut["state"], whole[0]["state"])
+
+
+@pytest.mark.parametrize(
+    ("device", "local", "index"),
+    [("auto", "0", 0), ("cuda", "0", 0), ("cuda", "2", 2), ("cuda:1", "0", 1)],
+)
+def test_a_gpu_device_gets_its_index(
+    device: str, local: str, index: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # torch.cuda.set_device refuses a device without an index; on a CPU machine CUDA is faked.
+    from rgbd_rs.nn import distributed
+
+    chosen: list[torch.device] = []
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "set_device", chosen.append)
+    monkeypatch.setenv("LOCAL_RANK", local)
+    monkeypatch.delenv("WORLD_SIZE", raising=False)
+    g = distributed._setup(device)
+    assert chosen == [torch.device("cuda", index)] and g.device == chosen[0]

@@ -96,7 +96,9 @@ def _setup(device: str) -> _Group:
         device = "cuda" if torch.cuda.is_available() else "cpu"
     if device.startswith("cuda") and not torch.cuda.is_available():
         raise InvalidArgumentError(f"device: got {device!r} but CUDA is not available")
-    dev = torch.device(f"cuda:{local}" if device == "cuda" and world > 1 else device)
+    # A bare "cuda" means this process's GPU, with its index: torch.cuda.set_device refuses a
+    # device without one (torch 2.11, seen on the lent H200).
+    dev = torch.device(f"cuda:{local}" if device == "cuda" else device)
     if dev.type == "cuda":
         torch.cuda.set_device(dev)
     if world <= 1:
