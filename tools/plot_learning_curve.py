@@ -36,38 +36,57 @@ def panel(
 ) -> np.ndarray:
     img = np.full((H, W, 3), 255, np.uint8)
     values = [v for _, ys, _ in series for v in ys if v is not None]
-    lo, hi = min(values), max(values)
+    # A first epoch's loss far above the rest (a fresh wide network) would flatten the others:
+    # past a ratio of 8 the loss axis is logarithmic.
+    log = not percent and min(values) > 0 and max(values) > 8 * min(values)
+    f = np.log10 if log else (lambda v: v)
+    lo, hi = float(f(min(values))), float(f(max(values)))
     pad = 0.05 * (hi - lo or 1.0)
     lo, hi = lo - pad, hi + pad
-    x0, x1, y0, y1 = M, W - 16, H - 40, 30
+    unit = " (%)" if percent else " (log axis)" if log else ""
+    x0, x1, y0 = M, W - 16, H - 40
+    # The legend sits in the title row unless the title reaches it; then in a row of its own.
+    legend_x = x1 - 250
+    two_rows = x0 + cv2.getTextSize(title + unit, FONT, 0.5, 1)[0][0] + 12 > legend_x
+    legend_y, y1 = (38, 48) if two_rows else (20, 30)
+
+    def xe(e: float) -> int:
+        return int(x0 + (e - epochs[0]) / max(epochs[-1] - epochs[0], 1) * (x1 - x0))
 
     def px(e: float, v: float) -> tuple[int, int]:
-        ex = (e - epochs[0]) / max(epochs[-1] - epochs[0], 1)
-        return int(x0 + ex * (x1 - x0)), int(y0 + (v - lo) / (hi - lo) * (y1 - y0))
+        return xe(e), int(y0 + (float(f(v)) - lo) / (hi - lo) * (y1 - y0))
 
-    for t in _ticks(lo, hi):
+    ticks = (
+        [float(10.0**k * m) for k in range(int(np.floor(lo)), int(np.ceil(hi)) + 1)
+         for m in (1, 2, 5) if lo <= np.log10(10.0**k * m) <= hi]
+        if log else _ticks(lo, hi)
+    )  # fmt: skip
+    # Percent labels keep a decimal where the ticks fall between whole numbers (87.5, 92.5).
+    digits = 0 if all(abs(100 * t - round(100 * t)) < 1e-6 for t in ticks) else 1
+    for t in ticks:
         _, y = px(epochs[0], t)
         cv2.line(img, (x0, y), (x1, y), (225, 225, 225), 1)
-        label = f"{100 * t:.0f}" if percent else f"{t:.2g}"
+        label = f"{100 * t:.{digits}f}" if percent else f"{t:.2g}"
         cv2.putText(img, label, (4, y + 4), FONT, 0.4, (60, 60, 60), 1, cv2.LINE_AA)
     for e in epochs:
-        x, _ = px(e, lo)
+        x = xe(e)
         cv2.putText(img, str(e), (x - 4, y0 + 16), FONT, 0.4, (60, 60, 60), 1, cv2.LINE_AA)
     cv2.rectangle(img, (x0, y1), (x1, y0), (0, 0, 0), 1)
     if best is not None:
-        x, _ = px(best, lo)
+        x = xe(best)
         cv2.line(img, (x, y1), (x, y0), BEST, 1)
         cv2.putText(img, "chosen", (x - 54, y0 - 6), FONT, 0.4, BEST, 1, cv2.LINE_AA)
-    for k, (name, ys, color) in enumerate(series):
+    # A series with no value (no validation set) is neither drawn nor named.
+    drawn = [(name, ys, color) for name, ys, color in series if any(v is not None for v in ys)]
+    for k, (name, ys, color) in enumerate(drawn):
         pts = [px(e, v) for e, v in zip(epochs, ys, strict=True) if v is not None]
         if len(pts) > 1:
             cv2.polylines(img, [np.array(pts, np.int32)], False, color, 2, cv2.LINE_AA)
         for p in pts:
             cv2.circle(img, p, 3, color, -1, cv2.LINE_AA)
-        lx = x1 - 250 + 90 * k  # legend in the title row, clear of the curves
-        cv2.line(img, (lx, 16), (lx + 16, 16), color, 2, cv2.LINE_AA)
-        cv2.putText(img, name, (lx + 20, 20), FONT, 0.45, color, 1, cv2.LINE_AA)
-    unit = " (%)" if percent else ""
+        lx = legend_x + 90 * k  # clear of the curves
+        cv2.line(img, (lx, legend_y - 4), (lx + 16, legend_y - 4), color, 2, cv2.LINE_AA)
+        cv2.putText(img, name, (lx + 20, legend_y), FONT, 0.45, color, 1, cv2.LINE_AA)
     cv2.putText(img, title + unit, (x0, 20), FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(img, "epoch", (W // 2 - 20, H - 6), FONT, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
     return img
