@@ -232,3 +232,21 @@ def test_disagreement_weighted_loss() -> None:
     torch.testing.assert_close(DisagreementMSE(4.0)(out, batch), expected)
     with pytest.raises(InvalidArgumentError, match="weight"):
         DisagreementMSE(-1.0)
+
+
+def test_float32_on_cuda_switches_tf32_off_for_the_pass() -> None:
+    # cuDNN runs float32 convolutions in TF32 by default (~1e-3 off the CPU's result); predict's
+    # float32 pass on CUDA turns that off and restores it. The flags need no GPU to be read.
+    from rgbd_rs.nn.confidence import _exact_float32
+
+    before = torch.backends.cudnn.allow_tf32
+    torch.backends.cudnn.allow_tf32 = True
+    try:
+        with _exact_float32(torch.device("cuda", 0), half=False):
+            assert torch.backends.cudnn.allow_tf32 is False
+        assert torch.backends.cudnn.allow_tf32 is True
+        for device, half in ((torch.device("cpu"), False), (torch.device("cuda", 0), True)):
+            with _exact_float32(device, half):
+                assert torch.backends.cudnn.allow_tf32 is True
+    finally:
+        torch.backends.cudnn.allow_tf32 = before

@@ -414,8 +414,30 @@ def test_a_gpu_device_gets_its_index(
 
     chosen: list[torch.device] = []
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 4)
     monkeypatch.setattr(torch.cuda, "set_device", chosen.append)
     monkeypatch.setenv("LOCAL_RANK", local)
     monkeypatch.delenv("WORLD_SIZE", raising=False)
     g = distributed._setup(device)
     assert chosen == [torch.device("cuda", index)] and g.device == chosen[0]
+
+
+def test_a_gpu_device_is_checked_against_the_machine(monkeypatch: pytest.MonkeyPatch) -> None:
+    from rgbd_rs.nn import distributed
+
+    chosen: list[torch.device] = []
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 2)
+    monkeypatch.setattr(torch.cuda, "set_device", chosen.append)
+    monkeypatch.delenv("WORLD_SIZE", raising=False)
+    monkeypatch.setenv("LOCAL_RANK", "0")
+    with pytest.raises(InvalidArgumentError, match=r"device: got 'cuda:5', expected one of .* 2"):
+        distributed._setup("cuda:5")
+    monkeypatch.setenv("LOCAL_RANK", "3")  # more processes than GPUs
+    with pytest.raises(InvalidArgumentError, match=r"'cuda:3' \(LOCAL_RANK=3\)"):
+        distributed._setup("cuda")
+    # Under torchrun each process takes GPU LOCAL_RANK: a fixed index would put all on one GPU.
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    with pytest.raises(InvalidArgumentError, match=r"'cuda:0' with WORLD_SIZE=2"):
+        distributed._setup("cuda:0")
+    assert chosen == []

@@ -10,6 +10,7 @@ confidence P_T, channel 1 the stereo confidence P_S; training regresses them wit
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any, Literal, cast
 
@@ -80,9 +81,10 @@ class ConfidenceNet(nn.Module):
         return y
 
 
-#: :func:`predict`'s arithmetic: ``"float32"``; ``"bfloat16"`` (convolutions in bfloat16 with
-#: float32 accumulation, ~2x faster where the CPU has native bfloat16 instructions; the
-#: confidences move by < 0.01); ``"auto"``: bfloat16 where the CPU has them, else float32.
+#: :func:`predict`'s arithmetic: ``"float32"`` (on CUDA too: TF32 is switched off);
+#: ``"bfloat16"`` (convolutions in bfloat16 with float32 accumulation, ~2x faster where the CPU
+#: has native bfloat16 instructions; the confidences move by < 0.01); ``"auto"``: bfloat16 where
+#: the CPU has them, else float32.
 PRECISIONS = ("auto", "float32", "bfloat16")
 Precision = Literal["auto", "float32", "bfloat16"]
 #: What :class:`ConfidenceEstimator` (and so :func:`~rgbd_rs.fusion.fuse`) uses by default.
@@ -135,7 +137,7 @@ def predict(
     # exactly what the whole-image pass would see.
     padded = np.pad(x, ((0, 0), (PAD, PAD), (PAD, PAD)), mode="edge")
     net.eval()
-    with torch.inference_mode():
+    with torch.inference_mode(), _exact_float32(device, half):
         for y0 in range(0, h, t):
             for x0 in range(0, w, t):
                 y1, x1 = min(h, y0 + t), min(w, x0 + t)
@@ -148,6 +150,14 @@ def predict(
                     y = net.body(inp)
                 out[:, y0:y1, x0:x1] = y[0].float().clamp(0, 1).cpu().numpy()
     return out[0], out[1]
+
+
+def _exact_float32(device: torch.device, half: bool) -> contextlib.AbstractContextManager[Any]:
+    """float32 on CUDA means float32: cuDNN would otherwise run the convolutions in TF32 (its
+    default), whose outputs differ from the CPU's by ~1e-3."""
+    if device.type == "cuda" and not half:
+        return torch.backends.cudnn.flags(enabled=True, allow_tf32=False)
+    return contextlib.nullcontext()
 
 
 #: The shipped checkpoint (trained by ``rgbd train confidence``; README: training recipe).

@@ -100,6 +100,18 @@ def _setup(device: str) -> _Group:
     # device without one (torch 2.11, seen on the lent H200).
     dev = torch.device(f"cuda:{local}" if device == "cuda" else device)
     if dev.type == "cuda":
+        if world > 1 and device != "cuda":
+            raise InvalidArgumentError(
+                f"device: got {device!r} with WORLD_SIZE={world}, expected 'cuda' or 'auto' "
+                "(each process takes GPU LOCAL_RANK)"
+            )
+        count = torch.cuda.device_count()
+        if dev.index is None or dev.index >= count:
+            where = f" (LOCAL_RANK={local})" if device == "cuda" else ""
+            raise InvalidArgumentError(
+                f"device: got {str(dev)!r}{where}, expected one of this machine's {count} CUDA "
+                f"device(s), cuda:0 to cuda:{count - 1}"
+            )
         torch.cuda.set_device(dev)
     if world <= 1:
         return _Group(0, 1, dev)

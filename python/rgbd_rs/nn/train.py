@@ -14,9 +14,12 @@ is a permutation seeded with (seed, epoch) (``DistributedSampler``, which also s
 the processes), so a resumed run sees the same batches; ``out_dir/last.pt`` (written after
 every epoch and every ``checkpoint_steps`` steps) holds the optimizer, scheduler and every
 process's RNG states, so interrupted + resumed training ends with the same weights as
-uninterrupted training. Datasets that draw random augmentations should draw them from the
-global generators in the main process (``num_workers=0``) or derive them from the item index,
-for the resumption to be exact (worker processes are seeded per epoch, not per item).
+uninterrupted training, on CPU (on CUDA several backward kernels, cuDNN's among them, are not
+deterministic: runs agree closely, not bit for bit). Datasets that draw random augmentations
+should draw them from the global generators in the main process (``num_workers=0``) or derive
+them from the item index, for the resumption to be exact (worker processes are seeded per
+epoch, not per item). Datasets yield CPU tensors: the trainer moves each batch to the device
+(from pinned memory on CUDA).
 """
 
 from __future__ import annotations

@@ -29,7 +29,8 @@ settings (size, cue function, seed) is refused.
 **Dataset** (:meth:`SemanticCache.dataset`): items ``(cues float32 9 x h x w, labels int64
 h x w)``; ``augment=True`` mirrors an item left-right with probability 1/2, drawn from numpy's
 global generator, which :func:`rgbd_rs.nn.train.train` seeds from its config's seed and stores in
-its checkpoints: training is deterministic by that seed, also when resumed.
+its checkpoints: training is deterministic by that seed, also when resumed (on CPU; see
+:mod:`rgbd_rs.nn.train` for CUDA).
 """
 
 from __future__ import annotations
