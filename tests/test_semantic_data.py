@@ -273,10 +273,12 @@ def test_commands_parse_and_run(tmp_path: Path, capsys: pytest.CaptureFixture[st
     build_semantic_cache(frames(4), tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
     t = p.parse_args(
         ["train", "semantic", "--cache", str(tmp_path / "c"), "--out", str(tmp_path / "o"),
-         "--width", "8", "--epochs", "2", "--device", "cpu", "--val-fraction", "0.25", "--quiet"]
+         "--width", "8", "--epochs", "2", "--device", "auto", "--val-fraction", "0.25", "--quiet",
+         "--val-cache", str(tmp_path / "c")]
     )  # fmt: skip
     assert t.run(t) == 0
     assert (tmp_path / "o" / "best.pt").is_file()
+    assert f"validation ({tmp_path / 'c'}): " in capsys.readouterr().out  # scored where trained
     s = p.parse_args(
         ["semantic", "score", "--cache", str(tmp_path / "c"), "--checkpoint",
          str(tmp_path / "o" / "best.pt")]

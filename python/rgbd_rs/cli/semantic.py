@@ -241,6 +241,8 @@ def _train(commands: Commands) -> None:
 
 
 def run_train(args: argparse.Namespace) -> int:
+    import torch
+
     from rgbd_rs.nn.train import is_main_process
     from rgbd_rs.segmentation.semantic_data import SemanticCache
     from rgbd_rs.segmentation.semantic_train import (
@@ -252,8 +254,6 @@ def run_train(args: argparse.Namespace) -> int:
     )
 
     if args.threads is not None:
-        import torch
-
         torch.set_num_threads(args.threads)
     cache = named("--cache", lambda: SemanticCache(args.cache))
     val = None
@@ -284,7 +284,11 @@ def run_train(args: argparse.Namespace) -> int:
         return 0
     print(f"best checkpoint: {best} ({time.perf_counter() - t0:.0f} s)")
     if val is not None:
-        print(f"validation ({args.val_cache}): {score(best, val).summary()}")
+        # Scored where it trained ("auto": the GPU when there is one).
+        device = args.device
+        if device == "auto":
+            device = "cuda" if torch.cuda.is_available() else "cpu"
+        print(f"validation ({args.val_cache}): {score(best, val, device=device).summary()}")
     if args.ship:
         print(f"shipped weights: {ship(best)}")
     return 0
