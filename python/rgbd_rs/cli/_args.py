@@ -271,4 +271,8 @@ def training_run_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="start afresh, overwriting --out's checkpoints (default: resume from its last.pt)",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress (a bar on a terminal, otherwise one line per epoch on stderr)",
+    )

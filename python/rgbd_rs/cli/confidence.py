@@ -70,7 +70,11 @@ def register(commands: Commands) -> None:
         action="store_true",
         help="start afresh in OUT, overwriting its checkpoints (default: resume from OUT/last.pt)",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress (a bar on a terminal, otherwise one line per epoch on stderr)",
+    )
     register_calibration(commands)
 
 
