@@ -239,14 +239,16 @@ def test_float32_on_cuda_switches_tf32_off_for_the_pass() -> None:
     # float32 pass on CUDA turns that off and restores it. The flags need no GPU to be read.
     from rgbd_rs.nn.confidence import _exact_float32
 
-    before = torch.backends.cudnn.allow_tf32
-    torch.backends.cudnn.allow_tf32 = True
+    cudnn = torch.backends.cudnn
+    before = (cudnn.allow_tf32, cudnn.deterministic, cudnn.benchmark)
+    cudnn.allow_tf32, cudnn.deterministic, cudnn.benchmark = True, True, True
     try:
         with _exact_float32(torch.device("cuda", 0), half=False):
-            assert torch.backends.cudnn.allow_tf32 is False
+            # Only TF32 changes: a user's deterministic / benchmark settings stay.
+            assert (cudnn.allow_tf32, cudnn.deterministic, cudnn.benchmark) == (False, True, True)
         assert torch.backends.cudnn.allow_tf32 is True
         for device, half in ((torch.device("cpu"), False), (torch.device("cuda", 0), True)):
             with _exact_float32(device, half):
                 assert torch.backends.cudnn.allow_tf32 is True
     finally:
-        torch.backends.cudnn.allow_tf32 = before
+        cudnn.allow_tf32, cudnn.deterministic, cudnn.benchmark = before

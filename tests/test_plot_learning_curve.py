@@ -46,3 +46,16 @@ def test_loss_axis_is_logarithmic_past_a_ratio_of_eight() -> None:
     # 1.2 of 0.6..12: 5 % of the height on a linear axis (~27 px with the padding), 23 % on the
     # log axis (~69 px).
     assert above_bottom > 50, above_bottom
+
+
+def test_tick_labels_are_exact_and_missing_values_are_not_drawn() -> None:
+    t = _tool()
+    assert t._labels([87.5, 90.0, 92.5]) == ["87.5", "90.0", "92.5"]
+    assert t._labels([90.0, 90.25, 90.5]) == ["90.00", "90.25", "90.50"]
+    assert t._labels([0.5, 1.0, 2.0]) == ["0.5", "1.0", "2.0"]
+    assert t._labels([90.0, 95.0]) == ["90", "95"]
+    # No value at all (a run without a metric) and a NaN metric: a panel, not a crash.
+    empty = t.panel("accuracy", [1, 2], [("train", [None, None], t.TRAIN)], None, percent=True)
+    assert empty.shape == (t.H, t.W, 3) and not _rows_with(empty, t.TRAIN)
+    nan = t.panel("accuracy", [1, 2], [("train", [0.9, float("nan")], t.TRAIN)], 1, True)
+    assert _rows_with(nan, t.TRAIN)

@@ -287,6 +287,37 @@ def test_commands_parse_and_run(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert "pixel accuracy" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize(
+    ("flag", "cuda", "expected"), [("auto", True, "cuda"), ("cpu", True, "cpu")]
+)
+def test_validation_is_scored_where_the_network_trained(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, flag: str, cuda: bool, expected: str
+) -> None:
+    # "auto" trains on the GPU when there is one; the validation score after it runs there too.
+    from rgbd_rs.segmentation import semantic_train
+
+    build_semantic_cache(frames(2), tmp_path / "c", size=(16, 12), cues=fake_cues, quiet=True)
+    scored: list[str] = []
+
+    class Scores:
+        def summary(self) -> str:
+            return "pixel accuracy 1"
+
+    def fake_score(checkpoint: Any, cache: Any, *, device: str = "cpu") -> Scores:
+        scored.append(device)
+        return Scores()
+
+    monkeypatch.setattr(semantic_train, "train_semantic", lambda *a, **k: tmp_path / "best.pt")
+    monkeypatch.setattr(semantic_train, "score", fake_score)
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: cuda)
+    c = str(tmp_path / "c")
+    t = _parser().parse_args(
+        ["train", "semantic", "--cache", c, "--out", str(tmp_path / "o"), "--val-cache", c,
+         "--device", flag, "--quiet"]
+    )  # fmt: skip
+    assert t.run(t) == 0 and scored == [expected]
+
+
 def test_split_default_follows_the_source(tmp_path: Path) -> None:
     # --split defaults to train for sources with splits and to all for other folders (the only
     # split they have): `semantic cache --frames DIR` used to fail on a flag never given.

@@ -144,6 +144,16 @@ def test_progress_bar_on_a_terminal_only(tmp_path: Path, monkeypatch: pytest.Mon
         run(tmp_path / str(quiet), config, quiet=quiet)
         text = sys.stderr.getvalue()  # type: ignore[attr-defined]
         assert ("epoch 1/1" in text and "loss=" in text and "val=" in text) == shown, text
+        assert "train loss" not in text  # a terminal gets the bar, not the per-epoch lines
+
+
+def test_epoch_line_says_when_the_epoch_was_resumed() -> None:
+    from rgbd_rs.nn.train import _epoch_line
+
+    entry = {"epoch": 2, "train_loss": 0.5, "val_loss": None, "lr": 0.01, "val_metric": 0.9}
+    line = _epoch_line(entry, 5, 12.34)
+    assert line == "epoch 2/5, train loss 0.5, val metric 0.9, lr 0.01, 12.3 s", line
+    assert _epoch_line(entry, 5, 3.0, resumed=7).endswith("3.0 s (resumed after step 7)")
 
 
 def test_quiet_prints_nothing_off_a_terminal(

@@ -27,6 +27,14 @@ def _ticks(lo: float, hi: float, n: int = 5) -> list[float]:
     return [float(v) for v in np.arange(np.ceil(lo / step) * step, hi + 1e-12, step)]
 
 
+def _labels(values: list[float]) -> list[str]:
+    """The values with the fewest decimals that print each of them exactly (87.5, not 88)."""
+    for d in range(5):
+        if all(abs(round(v, d) - v) <= 1e-6 * max(1.0, abs(v)) for v in values):
+            break
+    return [f"{v:.{d}f}" for v in values]
+
+
 def panel(
     title: str,
     epochs: list[int],
@@ -35,7 +43,15 @@ def panel(
     percent: bool,
 ) -> np.ndarray:
     img = np.full((H, W, 3), 255, np.uint8)
+    # Missing and non-finite values (no validation set, a NaN metric) are not drawn.
+    series = [
+        (name, [v if v is not None and np.isfinite(v) else None for v in ys], color)
+        for name, ys, color in series
+    ]
     values = [v for _, ys, _ in series for v in ys if v is not None]
+    if not values:
+        cv2.putText(img, f"{title}: no values", (M, 20), FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        return img
     # A first epoch's loss far above the rest (a fresh wide network) would flatten the others:
     # past a ratio of 8 the loss axis is logarithmic.
     log = not percent and min(values) > 0 and max(values) > 8 * min(values)
@@ -61,12 +77,9 @@ def panel(
          for m in (1, 2, 5) if lo <= np.log10(10.0**k * m) <= hi]
         if log else _ticks(lo, hi)
     )  # fmt: skip
-    # Percent labels keep a decimal where the ticks fall between whole numbers (87.5, 92.5).
-    digits = 0 if all(abs(100 * t - round(100 * t)) < 1e-6 for t in ticks) else 1
-    for t in ticks:
+    for t, label in zip(ticks, _labels([100 * t if percent else t for t in ticks]), strict=True):
         _, y = px(epochs[0], t)
         cv2.line(img, (x0, y), (x1, y), (225, 225, 225), 1)
-        label = f"{100 * t:.{digits}f}" if percent else f"{t:.2g}"
         cv2.putText(img, label, (4, y + 4), FONT, 0.4, (60, 60, 60), 1, cv2.LINE_AA)
     for e in epochs:
         x = xe(e)

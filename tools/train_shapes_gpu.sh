@@ -105,12 +105,15 @@ run() {
         --target /tmp/site "$gpu"/*.whl
     export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
     nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
-    # Data-loader workers hand batches over in /dev/shm (~240 MB a batch at 320 px, two batches
-    # in flight per worker): where it is small, load in the main process instead.
-    local shm_mb
+    # Data-loader workers hand batches over in /dev/shm: BATCH shapes of 18 float32 maps of
+    # RES x RES (6 depth views, 6 two-channel curvature views; the volumes are small), two
+    # batches in flight per worker, twice that for headroom (240 MB a batch at the defaults).
+    # Where it is smaller, load in the main process instead.
+    local shm_mb batch_mb
     shm_mb=$(df -Pm /dev/shm 2>/dev/null | awk 'NR == 2 {print $4}')
-    echo "cores $(nproc), /dev/shm free ${shm_mb:-?} MB, workers $WORKERS"
-    if ((WORKERS > 0)) && ((${shm_mb:-0} < 2 * WORKERS * 600)); then
+    batch_mb=$((BATCH * 18 * RES * RES * 4 / 1000000 + 1))
+    echo "cores $(nproc), /dev/shm free ${shm_mb:-?} MB, workers $WORKERS, ${batch_mb} MB a batch"
+    if ((WORKERS > 0)) && ((${shm_mb:-0} < 4 * WORKERS * batch_mb)); then
         WORKERS=0
         echo "train_shapes_gpu: /dev/shm too small for data-loader workers: loading in the main process"
     fi

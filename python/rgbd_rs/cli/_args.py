@@ -260,7 +260,7 @@ def training_run_options(p: argparse.ArgumentParser) -> None:
         type=device(auto=True),
         default="auto",
         metavar="DEV",
-        help="auto, cpu, cuda or cuda:N (auto)",
+        help="auto, cpu, cuda or cuda:N (auto; under torchrun auto or cuda: GPU LOCAL_RANK)",
     )
     p.add_argument(
         "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"

@@ -11,6 +11,7 @@ confidence P_T, channel 1 the stereo confidence P_S; training regresses them wit
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal, cast
 
@@ -152,12 +153,20 @@ def predict(
     return out[0], out[1]
 
 
-def _exact_float32(device: torch.device, half: bool) -> contextlib.AbstractContextManager[Any]:
+@contextlib.contextmanager
+def _exact_float32(device: torch.device, half: bool) -> Iterator[None]:
     """float32 on CUDA means float32: cuDNN would otherwise run the convolutions in TF32 (its
-    default), whose outputs differ from the CPU's by ~1e-3."""
-    if device.type == "cuda" and not half:
-        return torch.backends.cudnn.flags(enabled=True, allow_tf32=False)
-    return contextlib.nullcontext()
+    default), whose outputs differ from the CPU's by ~1e-3. Only that flag changes, and it is
+    restored afterwards."""
+    if device.type != "cuda" or half:
+        yield
+        return
+    before = torch.backends.cudnn.allow_tf32
+    torch.backends.cudnn.allow_tf32 = False
+    try:
+        yield
+    finally:
+        torch.backends.cudnn.allow_tf32 = before
 
 
 #: The shipped checkpoint (trained by ``rgbd train confidence``; README: training recipe).

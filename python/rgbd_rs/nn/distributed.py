@@ -97,7 +97,7 @@ def _setup(device: str) -> _Group:
     if device.startswith("cuda") and not torch.cuda.is_available():
         raise InvalidArgumentError(f"device: got {device!r} but CUDA is not available")
     # A bare "cuda" means this process's GPU, with its index: torch.cuda.set_device refuses a
-    # device without one (torch 2.11, seen on the lent H200).
+    # device without one (found on the first run on a GPU).
     dev = torch.device(f"cuda:{local}" if device == "cuda" else device)
     if dev.type == "cuda":
         if world > 1 and device != "cuda":

@@ -95,7 +95,8 @@ class TrainConfig:
     SGD only. ``checkpoint_steps > 0`` also writes ``last.pt`` every that many optimizer steps
     within an epoch, so an interrupted epoch loses at most that many steps. ``grad_clip`` clips
     the gradients' global L2 norm.
-    ``device``: ``"auto"`` (CUDA when available, else CPU), ``"cpu"``, ``"cuda"``, ``"cuda:N"``.
+    ``device``: ``"auto"`` (CUDA when available, else CPU), ``"cpu"``, ``"cuda"``, ``"cuda:N"``
+    (under torchrun ``"auto"`` or ``"cuda"`` only: each process takes GPU ``LOCAL_RANK``).
     ``optimizer``: ``"sgd"``, ``"adam"`` or ``"adamw"`` (decoupled weight decay).
     ``schedule="cosine"`` anneals the lr from ``lr`` to 0 over ``epochs``, once per step (the
     ``lr_*`` fields must then be 0); a cosine run cannot be resumed with another ``epochs``.
@@ -239,14 +240,16 @@ def split(dataset: Dataset[Any], fraction: float, seed: int = 0) -> tuple[Subset
     return Subset(dataset, sorted(order[n_val:])), Subset(dataset, sorted(order[:n_val]))
 
 
-def _epoch_line(entry: Mapping[str, Any], epochs: int, seconds: float) -> str:
-    """One epoch's summary, for output that is not a terminal."""
+def _epoch_line(entry: Mapping[str, Any], epochs: int, seconds: float, resumed: int = 0) -> str:
+    """One epoch's summary, for output that is not a terminal (``resumed``: the step this
+    process resumed the epoch after; its seconds count from there)."""
     parts = [f"epoch {entry['epoch']}/{epochs}", f"train loss {entry['train_loss']:.4g}"]
     for key, name in (("train_metric", "train metric"), ("val_loss", "val loss"),
                       ("val_metric", "val metric")):  # fmt: skip
         if entry.get(key) is not None:
             parts.append(f"{name} {entry[key]:.4g}")
-    return ", ".join(parts) + f", lr {entry['lr']:.3g}, {seconds:.1f} s"
+    took = f"{seconds:.1f} s" + (f" (resumed after step {resumed})" if resumed else "")
+    return ", ".join(parts) + f", lr {entry['lr']:.3g}, {took}"
 
 
 def _length(name: str, dataset: object) -> int:
@@ -599,7 +602,8 @@ def _run(
             shown = {"loss": f"{train_loss:.4g}"} | ({} if val is None else {"val": f"{val:.4g}"})
             bar.set_postfix(shown)
         if lines:
-            print(_epoch_line(entry, cfg.epochs, time.perf_counter() - started), file=sys.stderr)
+            took = time.perf_counter() - started
+            print(_epoch_line(entry, cfg.epochs, took, skip), file=sys.stderr)
     g.barrier()
     return TrainResult(
         history=tuple(EpochStats(**h) for h in history),
