@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tarfile
 from pathlib import Path
 
 import pytest
@@ -33,6 +34,27 @@ def test_the_gpu_script_runs_its_steps_at_toy_size(shared_data: Path) -> None:
         log = (out / "log.txt").read_text()
         assert "training finished" in log
         assert "epoch 1/1, train loss" in log, log  # one line per epoch in the log
+    finally:
+        shutil.rmtree(out.parent, ignore_errors=True)
+
+
+@pytest.mark.skipif(shutil.which("bash") is None, reason="needs bash")
+def test_the_gpu_scripts_cross_validation_runs_at_toy_size(shared_data: Path) -> None:
+    # Two folds of the 20 toy training shapes, two seeds each: every shape read once, by the
+    # networks that never trained on it.
+    env = {**os.environ, "RGBD_DATA": str(shared_data), "PYTHON": sys.executable}
+    run = subprocess.run(
+        ["bash", str(SCRIPT), "smoke", "cv"], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    out = Path(run.stdout.strip().splitlines()[-1].split("(")[-1].rstrip(")"))
+    try:
+        log = (out / "log.txt").read_text()
+        assert log.count("all 2 folds: ") == 2 and "% of 20 shapes" in log, log
+        folds = [(out.parent / f"fold{i}.txt").read_text().split() for i in (0, 1)]
+        assert len(folds[0]) == len(folds[1]) == 10 and not set(folds[0]) & set(folds[1])
+        with tarfile.open(out / "cv.tgz") as tar:
+            assert {"cv0.npz", "cv1.npz", "fold0.txt"} <= set(tar.getnames())
     finally:
         shutil.rmtree(out.parent, ignore_errors=True)
 

@@ -10,14 +10,23 @@ on a ModelNet10 cache) is read on the cache's classes: its probabilities of thos
 renormalised. ``--write-names F`` writes the validation shapes' names, one a line (what
 ``rgbd train shapes --exclude-names`` reads, so another cache's run never trains on them).
 
+**K-fold validation** (when the held-out 10 % no longer tells candidates apart): ``--folds K
+--fold I`` replaces the trainer's split by fold I of K, a seeded partition of every original
+training shape. Train fold I's networks with ``--val-fraction 0 --exclude-names FI`` (its
+names, from ``--write-names FI``), read them on fold I with ``--save F.npz``, and ``--combine
+F0.npz ... FK-1.npz`` gives the accuracy over all the training shapes, each read by networks
+that never trained on it (``tools/train_shapes_gpu.sh cv`` runs the whole loop).
+
     python tools/eval_shapes_val.py --cache C --checkpoint A.pt [B.pt ...] [--seed 1]
-        [--val-fraction 0.1] [--mirror] [--write-names F]
+        [--val-fraction 0.1 | --folds K --fold I] [--mirror] [--write-names F] [--save F.npz]
+    python tools/eval_shapes_val.py --combine F0.npz F1.npz ...
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -25,6 +34,7 @@ import torch
 from rgbd_rs.shapes.augment import _mirror_pair
 from rgbd_rs.shapes.classify import ShapeClassifier
 from rgbd_rs.shapes.dataset import ShapeCache
+from rgbd_rs.shapes.scaling import original_rows
 from rgbd_rs.shapes.train import _split_by_shape
 
 
@@ -36,21 +46,51 @@ def class_columns(clf: ShapeClassifier, cache: ShapeCache) -> list[int]:
     return [clf.classes.index(c) for c in cache.classes]
 
 
-def validation_names(cache: ShapeCache, seed: int, fraction: float) -> list[str]:
-    """The names of the trainer's validation shapes (original shapes only)."""
+def fold_positions(data: Any, cache: ShapeCache, folds: int, fold: int, seed: int) -> list[int]:
+    """Positions in ``data`` (the cache's training dataset) of fold ``fold`` of ``folds``: the
+    original training shapes permuted by ``seed`` (as the trainer's split draws), cut into
+    ``folds`` parts of near-equal size. Scaled copies belong to no fold."""
+    if not 2 <= folds <= 100 or not 0 <= fold < folds:
+        raise SystemExit(f"--folds/--fold: got {folds}/{fold}, expected 2 <= K <= 100, 0 <= I < K")
+    rows = np.asarray(data.indices, np.int64)
+    origin = original_rows(cache.meta.get("augmentation"), cache.splits)[rows]
+    originals = np.flatnonzero(origin == rows)
+    order = torch.randperm(len(originals), generator=torch.Generator().manual_seed(seed))
+    part = np.array_split(order.numpy(), folds)[fold]
+    return sorted(int(originals[j]) for j in part)
+
+
+def held_out(
+    cache: ShapeCache, data: Any, seed: int, fraction: float, fold: tuple[int, int] | None
+) -> torch.utils.data.Subset[Any]:
+    """The shapes to read: the trainer's validation split, or fold ``(K, I)``."""
+    if fold is None:
+        return _split_by_shape(cache, data, fraction, seed)[1]
+    return torch.utils.data.Subset(data, fold_positions(data, cache, *fold, seed))
+
+
+def validation_names(
+    cache: ShapeCache, seed: int, fraction: float, fold: tuple[int, int] | None = None
+) -> list[str]:
+    """The names of the trainer's validation shapes (original shapes only), or of a fold's."""
     data = cache.dataset("train", cache.spec.representations)
-    _, val = _split_by_shape(cache, data, fraction, seed)
+    val = held_out(cache, data, seed, fraction, fold)
     rows = np.asarray(data.indices)[val.indices]
     return [cache.names[int(r)] for r in rows]
 
 
 def validation_probabilities(
-    clf: ShapeClassifier, cache: ShapeCache, seed: int, fraction: float, mirror: bool
+    clf: ShapeClassifier,
+    cache: ShapeCache,
+    seed: int,
+    fraction: float,
+    mirror: bool,
+    fold: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(N x K probabilities over the cache's K classes, N labels) of ``clf`` on the trainer's
-    validation shapes."""
+    validation shapes (or on fold ``(K, I)``)."""
     data = cache.dataset("train", clf.spec.representations)
-    _, val = _split_by_shape(cache, data, fraction, seed)
+    val = held_out(cache, data, seed, fraction, fold)
     loader = torch.utils.data.DataLoader(val, batch_size=128, shuffle=False)
     cols = class_columns(clf, cache)
     probs, labels = [], []
@@ -63,9 +103,25 @@ def validation_probabilities(
     return np.concatenate(probs), np.concatenate(labels)
 
 
+def combine(files: list[Path]) -> None:
+    """The accuracy over the folds saved by ``--save``: each file one fold's shapes."""
+    names: list[str] = []
+    right = total = 0
+    for f in files:
+        with np.load(f) as z:
+            probs, labels = z["probabilities"], z["labels"]
+            names += [str(n) for n in z["names"]]
+        ok = int((probs.argmax(1) == labels).sum())
+        print(f"{f}: {100 * ok / len(labels):.2f} % of {len(labels)} shapes")
+        right, total = right + ok, total + len(labels)
+    if len(set(names)) != len(names):
+        raise SystemExit("--combine: a shape is in two of the files (folds of one K and seed?)")
+    print(f"all {len(files)} folds: {100 * right / total:.2f} % of {total} shapes")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--cache", type=Path, required=True)
+    p.add_argument("--cache", type=Path)
     p.add_argument("--checkpoint", type=Path, nargs="*", default=[])
     p.add_argument(
         "--seed", type=int, default=1, help="the runs' --split-seed, else their --seed (1)"
@@ -73,19 +129,33 @@ def main() -> None:
     p.add_argument("--val-fraction", type=float, default=0.1, help="the runs' (0.1)")
     p.add_argument("--mirror", action="store_true", help="also mirror-averaged")
     p.add_argument("--write-names", type=Path, help="write the validation shapes' names here")
+    p.add_argument("--folds", type=int, help="K: read fold --fold of K instead of the split")
+    p.add_argument("--fold", type=int, help="I, 0 <= I < K")
+    p.add_argument("--save", type=Path, help="write the averaged probabilities here (.npz)")
+    p.add_argument("--combine", type=Path, nargs="+", help="the accuracy over --save files")
     a = p.parse_args()
+    if a.combine:
+        combine(a.combine)
+        return
+    if a.cache is None:
+        p.error("expected --cache (or --combine)")
     if not a.checkpoint and a.write_names is None:
         p.error("expected --checkpoint, --write-names or both")
+    if (a.folds is None) != (a.fold is None):
+        p.error("--folds and --fold go together")
+    fold = None if a.folds is None else (a.folds, a.fold)
     cache = ShapeCache(a.cache)
     if a.write_names is not None:
-        names = validation_names(cache, a.seed, a.val_fraction)
+        names = validation_names(cache, a.seed, a.val_fraction, fold)
         a.write_names.write_text("".join(f"{n}\n" for n in names), encoding="utf-8")
         print(f"{a.write_names}: {len(names)} validation shape names")
     for mirror in (False, True) if a.mirror else (False,):
         total = None
         for ckpt in a.checkpoint:
             clf = ShapeClassifier.load(ckpt)
-            probs, labels = validation_probabilities(clf, cache, a.seed, a.val_fraction, mirror)
+            probs, labels = validation_probabilities(
+                clf, cache, a.seed, a.val_fraction, mirror, fold
+            )
             acc = float((probs.argmax(1) == labels).mean())
             tag = " mirror-averaged" if mirror else ""
             print(f"{ckpt}{tag}: {100 * acc:.2f} % of {len(labels)} validation shapes")
@@ -96,6 +166,10 @@ def main() -> None:
                 f"average of {len(a.checkpoint)}{' mirror-averaged' if mirror else ''}: "
                 f"{100 * acc:.2f} %"
             )
+        if a.save is not None and total is not None and not mirror:
+            names = validation_names(cache, a.seed, a.val_fraction, fold)
+            np.savez(a.save, probabilities=total / len(a.checkpoint), labels=labels, names=names)
+            print(f"{a.save}: the average's probabilities of {len(labels)} shapes")
 
 
 if __name__ == "__main__":
