@@ -145,8 +145,10 @@ def main() -> None:
         p.error("--folds and --fold go together")
     fold = None if a.folds is None else (a.folds, a.fold)
     cache = ShapeCache(a.cache)
-    if a.write_names is not None:
+    names = None
+    if a.write_names is not None or a.save is not None:
         names = validation_names(cache, a.seed, a.val_fraction, fold)
+    if a.write_names is not None and names is not None:
         a.write_names.write_text("".join(f"{n}\n" for n in names), encoding="utf-8")
         print(f"{a.write_names}: {len(names)} validation shape names")
     for mirror in (False, True) if a.mirror else (False,):
@@ -167,7 +169,6 @@ def main() -> None:
                 f"{100 * acc:.2f} %"
             )
         if a.save is not None and total is not None and not mirror:
-            names = validation_names(cache, a.seed, a.val_fraction, fold)
             np.savez(a.save, probabilities=total / len(a.checkpoint), labels=labels, names=names)
             print(f"{a.save}: the average's probabilities of {len(labels)} shapes")
 
