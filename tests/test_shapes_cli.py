@@ -145,7 +145,23 @@ def test_bad_runs_end_in_one_line(
     argv = ["shapes", "cache", "--data", str(pack), "--out", str(ok), "--quiet"]
     assert main([*argv, "--representations", "volume", "--normalisation", "standardize"]) == 0
     train = ["train", "shapes", "--cache", str(ok), "--out", str(tmp_path / "r")]
-    assert main([*train, "--width", "2", "--epochs", "1", "--quiet", "--val-fraction", "0"]) == 0
+    # a cache whose build was cut short trains or scores nothing until it is finished
+    part = tmp_path / "part"
+    part_argv = ["shapes", "cache", "--data", str(pack), "--out", str(part), "--quiet"]
+    assert main([*part_argv, "--representations", "volume", "--shard", "0/3"]) == 0
+    capsys.readouterr()
+    small = ["--width", "2", "--epochs", "1", "--quiet", "--val-fraction", "0"]
+    part_out = tmp_path / "p"
+    assert main(["train", "shapes", "--cache", str(part), "--out", str(part_out), *small]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --cache: {part}: ") and "not computed yet" in err
+    assert not (part_out / "last.pt").exists()
+    assert main([*train, *small]) == 0
+    capsys.readouterr()
+    ck = str(tmp_path / "r" / "last.pt")
+    assert main(["eval", "shapes", "--cache", str(part), "--checkpoint", ck]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --cache: {part}: ") and "split 'test'" in err
     capsys.readouterr()
     assert main(["classify", str(junk), "--checkpoint", str(tmp_path / "r" / "last.pt")]) == 2
     err = capsys.readouterr().err

@@ -173,6 +173,16 @@ def test_cache_is_sharded_and_resumable(
     out = tmp_path / "c"
     build_cache(mini_pack, out, spec=VOLUME, shard=(1, 3), quiet=True)
     assert list(np.flatnonzero(ShapeCache(out).done)) == [1, 4, 7, 10]
+    # a cache with shapes still to compute is refused, not read as if it were the dataset
+    part = ShapeCache(out)
+    with pytest.raises(RgbdError, match=r"6 of the 8 shapes of split 'train' not computed yet"):
+        part.dataset("train")
+    with pytest.raises(RgbdError, match=r"2 of the 4 shapes of split 'test'.*rgbd shapes cache"):
+        part.dataset("test")
+    with pytest.raises(RgbdError, match=r"8 of the 12 shapes of split 'all'"):
+        part.dataset("all")
+    assert len(part.dataset("train", partial=True)) == 2
+    assert len(part.dataset("train", indices=[1, 4])) == 2, "chosen rows: the caller's choice"
     # a run killed after 5 shapes keeps every chunk it flushed
     calls = {"n": 0}
     real = D._inputs

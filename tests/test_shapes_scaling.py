@@ -220,3 +220,37 @@ def test_exclude_refuses_a_name_that_names_two_shapes(pack: Path, tmp_path: Path
     cfg = TrainConfig(epochs=1, batch_size=2, device="cpu")
     with pytest.raises(InvalidArgumentError, match=r"^exclude: '.*' names 2 training shapes"):
         train_shapes(cache, tmp_path / "r", recipe=recipe, config=cfg, quiet=True)
+
+
+def test_cli_scale_range(pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`rgbd shapes cache --scale-range LOW HIGH`: the copies' factors come from it and the cache
+    records it (a resume with another range is refused); a bad range names the flag."""
+    from rgbd_rs.cli import main
+
+    out = tmp_path / "c"
+    argv = ["shapes", "cache", "--data", str(pack), "--out", str(out), "--quiet"]
+    argv += ["--representations", "volume", "--normalisation", NORM, "--workers", "1"]
+    copies = ["--scale-copies", "2"]
+    assert main([*argv, *copies, "--scale-range", "0.9", "1.1"]) == 0
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["augmentation"]["scale_range"] == [0.9, 1.1]
+    src = ScaledCopies(PointCloudSet(pack), 2, scale_range=(0.9, 1.1))
+    factors = np.array([src.scale(i) for i in range(10, len(src))])
+    assert ((factors >= 0.9) & (factors <= 1.1)).all()
+    vol = D.ShapeCache(out).array("volume")
+    ref = build_cache(src, tmp_path / "ref", spec=VOLUME, workers=1, quiet=True).array("volume")
+    np.testing.assert_array_equal(vol, ref)
+    capsys.readouterr()
+    assert main([*argv, *copies]) == 2, "a resume must repeat the range"
+    assert "augmentation" in capsys.readouterr().err
+    bad = tmp_path / "bad"
+    bad_argv = ["shapes", "cache", "--data", str(pack), "--out", str(bad), "--quiet"]
+    assert main([*bad_argv, *copies, "--scale-range", "2", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--scale-range: got (2.0, 1.0), expected 0.001 <= low <= high" in err
+    assert main([*bad_argv, "--scale-range", "0.8", "1.25"]) == 2
+    assert "--scale-range: got 0.8 1.25 without --scale-copies" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # argparse's own refusal
+        main([*bad_argv, *copies, "--scale-range", "0", "1"])
+    assert exc.value.code == 2
+    assert "--scale-range: got 0, expected a number >= 0.001" in capsys.readouterr().err

@@ -128,7 +128,7 @@ def _cache(commands: Commands) -> None:
         "representation. Resumable (re-run to continue; done shapes are skipped) and sharded: "
         "--shard i/n computes every n-th shape from i, so n scheduler tasks fill one cache. "
         "A re-run must repeat the first run's settings (--resolution, --representations, "
-        "--scale-copies, --scale-seed, ...).",
+        "--scale-copies, --scale-range, --scale-seed, ...).",
     )
     p.set_defaults(run=run_cache)
     p.add_argument(
@@ -170,8 +170,16 @@ def _cache(commands: Commands) -> None:
         type=integer(0, 64),
         default=0,
         metavar="K",
-        help="also cache K copies of every training shape with each axis scaled by U(2/3, 3/2) "
-        "(point-cloud augmentation; rows NAME#s1..K; test shapes never copied; 0 = none)",
+        help="also cache K copies of every training shape with each axis scaled by a factor "
+        "drawn from U(LOW, HIGH) of --scale-range (point-cloud augmentation; rows NAME#s1..K; "
+        "test shapes never copied; 0 = none)",
+    )
+    p.add_argument(
+        "--scale-range",
+        type=real(1e-3, 1e3, low_open=False),
+        nargs=2,
+        metavar=("LOW", "HIGH"),
+        help="range of each axis' factor (default 0.6667 1.5, DGCNN's; only with --scale-copies)",
     )
     p.add_argument(
         "--scale-seed",
@@ -199,10 +207,21 @@ def run_cache(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(
             f"--scale-seed: got {args.scale_seed} without --scale-copies, expected both or neither"
         )
-    if args.scale_copies:
-        from rgbd_rs.shapes.scaling import ScaledCopies
+    if args.scale_range is not None and not args.scale_copies:
+        from rgbd_rs.errors import InvalidArgumentError
 
-        src = ScaledCopies(src, args.scale_copies, seed=args.scale_seed)
+        low, high = args.scale_range
+        raise InvalidArgumentError(
+            f"--scale-range: got {low:g} {high:g} without --scale-copies, expected both or neither"
+        )
+    if args.scale_copies:
+        from rgbd_rs.shapes.scaling import SCALE_RANGE, ScaledCopies
+
+        rng = SCALE_RANGE if args.scale_range is None else tuple(args.scale_range)
+        src = flagged(
+            {"scale_range": "--scale-range"},
+            lambda: ScaledCopies(src, args.scale_copies, scale_range=rng, seed=args.scale_seed),
+        )
     extra = {} if args.representations is None else {"representations": args.representations}
     spec = InputSpec(
         view_resolution=args.resolution,
@@ -349,6 +368,7 @@ def run_train(args: argparse.Namespace) -> int:
     from rgbd_rs.shapes.train import ShapeRecipe, ship, train_ablation, train_shapes
 
     cache = named("--cache", lambda: ShapeCache(args.cache))
+    named("--cache", lambda: cache.require_complete("train"))
     config = TrainConfig(
         epochs=args.epochs,
         batch_size=args.batch_size,
@@ -471,6 +491,7 @@ def run_eval(args: argparse.Namespace) -> int:
     if args.label is not None and args.ablation is None:
         raise RgbdError("--label: given without --ablation, expected it only with --ablation")
     cache = named("--cache", lambda: ShapeCache(args.cache))
+    named("--cache", lambda: cache.require_complete(args.split))
     if args.ablation is not None:
         found = sorted(args.ablation.glob("*/best.pt")) or sorted(args.ablation.glob("*/last.pt"))
         if not found:

@@ -896,6 +896,20 @@ class ShapeCache:
             raise RgbdError(f"{file}: shape {arr.shape}, expected {want}")
         return np.asarray(arr) if not isinstance(arr, np.ndarray) else arr
 
+    def require_complete(self, split: str = "all") -> None:
+        """Raise :class:`RgbdError` if any shape of ``split`` (``"train"``, ``"test"`` or
+        ``"all"``) is still to compute; shapes that failed count as done."""
+        split = _validate.choice("split", split, (*SPLITS, "all"))
+        rows = self.splits == SPLITS[split] if split in SPLITS else np.ones(len(self), bool)
+        todo = int((rows & (self.done == TODO)).sum())
+        if todo:
+            raise RgbdError(
+                f"{self.path}: {todo} of the {int(rows.sum())} shapes of split {split!r} not "
+                "computed yet (the cache build was interrupted, is still running or misses a "
+                "shard), expected a complete cache: finish it with `rgbd shapes cache` and the "
+                "same settings"
+            )
+
     def indices(self, split: str = "train") -> npt.NDArray[np.int64]:
         """Done shapes of ``split`` (``"train"``, ``"test"`` or ``"all"``), in order."""
         sp = _validate.choice("split", split, (*SPLITS, "all"))
@@ -910,10 +924,16 @@ class ShapeCache:
         representations: Iterable[str] | str | None = None,
         *,
         indices: npt.ArrayLike | None = None,
+        partial: bool = False,
     ) -> CachedShapes:
         """A torch Dataset of ``split``'s done shapes (or of ``indices``) yielding
         ``(packed float32 inputs, int64 label)`` (:func:`rgbd_rs.nn.shapes.pack` layout) for the
-        chosen ``representations`` (default: every cached one)."""
+        chosen ``representations`` (default: every cached one).
+
+        A split with shapes still to compute (a build interrupted, still running, or missing a
+        shard) raises :class:`RgbdError` saying how many, unless ``partial=True``: training or
+        scoring on part of a dataset without a word would report a figure about other data.
+        Shapes that failed (``done == 2``) are left out either way; the build reported them."""
         reps = (
             self.spec.representations
             if representations is None
@@ -927,6 +947,8 @@ class ShapeCache:
             )
         if indices is None:
             idx = self.indices(split)
+            if not _validate.flag("partial", partial):
+                self.require_complete(split)
         else:
             idx = _validate.array("indices", indices, shape=(None,), dtype=np.int64)
             if idx.min() < 0 or idx.max() >= len(self):
