@@ -106,7 +106,9 @@ def test_cache_contents(tmp_path: Path) -> None:
     assert y.dtype == torch.int64 and y.shape == (12, 16)
 
 
-def test_resume_and_shards_give_the_same_cache(tmp_path: Path) -> None:
+def test_resume_and_shards_give_the_same_cache(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     fs = frames(5)
     whole = build_semantic_cache(fs, tmp_path / "whole", size=(16, 12), cues=fake_cues, quiet=True)
     calls = []
@@ -122,6 +124,16 @@ def test_resume_and_shards_give_the_same_cache(tmp_path: Path) -> None:
         build_semantic_cache(fs, tmp_path / "resumed", size=(16, 12), cues=interrupted, quiet=True)
     part = SemanticCache(tmp_path / "resumed")
     assert part.done.tolist() == [1, 1, 0, 0, 0]
+    # an interrupted cache is refused for training and scoring, unless asked for in part
+    with pytest.raises(RgbdError, match=r"3 of its 5 frames not computed yet.*rgbd semantic cache"):
+        part.dataset()
+    assert len(part.dataset(partial=True)) == 2 and len(part.dataset([0, 1])) == 2
+    from rgbd_rs.cli import main
+
+    argv = ["semantic", "score", "--cache", str(tmp_path / "resumed")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --cache: {tmp_path / 'resumed'}: 3 of its 5 frames")
     calls.clear()
     calls.extend([1, 1, 1])  # never interrupt again
     build_semantic_cache(fs, tmp_path / "resumed", size=(16, 12), cues=interrupted, quiet=True)

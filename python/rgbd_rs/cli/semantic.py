@@ -156,6 +156,7 @@ def run_score(args: argparse.Namespace) -> int:
     from rgbd_rs.segmentation.semantic_train import score
 
     cache = named("--cache", lambda: SemanticCache(args.cache))
+    named("--cache", cache.require_complete)
     ckpt = args.checkpoint if args.checkpoint is not None else _weights_path()
     res = named("--checkpoint", lambda: score(ckpt, cache, device=args.device))
     print(f"{ckpt} on {args.cache} ({len(cache.indices())} frames): {res.summary()}")
@@ -256,9 +257,11 @@ def run_train(args: argparse.Namespace) -> int:
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     cache = named("--cache", lambda: SemanticCache(args.cache))
+    named("--cache", cache.require_complete)
     val = None
     if args.val_cache is not None:
         val = named("--val-cache", lambda: SemanticCache(args.val_cache))
+        named("--val-cache", val.require_complete)
     config = default_config(
         epochs=args.epochs,
         batch_size=args.batch_size,

@@ -634,13 +634,32 @@ class SemanticCache:
         """The done frames, in order."""
         return np.flatnonzero(self.done == DONE).astype(np.int64)
 
+    def require_complete(self) -> None:
+        """Raise :class:`RgbdError` if any frame is still to compute; failed frames count as
+        done."""
+        todo = int((self.done == TODO).sum())
+        if todo:
+            raise RgbdError(
+                f"{self.path}: {todo} of its {len(self)} frames not computed yet (the cache build "
+                "was interrupted, is still running or misses a shard), expected a complete "
+                "cache: finish it with `rgbd semantic cache` and the same settings"
+            )
+
     def dataset(
-        self, indices: npt.ArrayLike | None = None, *, augment: bool = False
+        self,
+        indices: npt.ArrayLike | None = None,
+        *,
+        augment: bool = False,
+        partial: bool = False,
     ) -> SemanticFrames:
         """A torch Dataset of the done frames (or of ``indices``) yielding ``(cues, labels)``;
-        ``augment`` mirrors items left-right at random (module docstring)."""
+        ``augment`` mirrors items left-right at random (module docstring). Without ``indices``,
+        a cache with frames still to compute raises :class:`RgbdError` unless ``partial=True``
+        (then: its computed frames)."""
         if indices is None:
             idx = self.indices()
+            if not _validate.flag("partial", partial):
+                self.require_complete()
         else:
             idx = _validate.array("indices", indices, shape=(None,), dtype=np.int64)
             if idx.min() < 0 or idx.max() >= len(self):
