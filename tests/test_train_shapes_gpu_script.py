@@ -4,6 +4,7 @@ keeps working while no device is lent. No GPU is used or needed."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -43,6 +44,7 @@ def test_the_gpu_scripts_cross_validation_runs_at_toy_size(shared_data: Path) ->
     # Two folds of the 20 toy training shapes, two seeds each: every shape read once, by the
     # networks that never trained on it.
     env = {**os.environ, "RGBD_DATA": str(shared_data), "PYTHON": sys.executable}
+    env["SCALE_RANGE_CV"] = "0.8 1.25"
     run = subprocess.run(
         ["bash", str(SCRIPT), "smoke", "cv"], env=env, capture_output=True, text=True, timeout=600
     )
@@ -51,6 +53,9 @@ def test_the_gpu_scripts_cross_validation_runs_at_toy_size(shared_data: Path) ->
     try:
         log = (out / "log.txt").read_text()
         assert log.count("all 2 folds: ") == 2 and "% of 20 shapes" in log, log
+        assert log.count("weighted by --class-counts: ") == 2, log
+        meta = json.loads((out.parent / "cache" / "meta.json").read_text())
+        assert meta["augmentation"]["scale_range"] == [0.8, 1.25]
         folds = [(out.parent / f"fold{i}.txt").read_text().split() for i in (0, 1)]
         assert len(folds[0]) == len(folds[1]) == 10 and not set(folds[0]) & set(folds[1])
         with tarfile.open(out / "cv.tgz") as tar:
