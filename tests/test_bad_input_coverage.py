@@ -60,6 +60,7 @@ EXEMPT: dict[str, str] = {
     "SemanticCache.cues": "no arguments",
     "SemanticCache.indices": "no arguments",
     "SemanticCache.labels": "no arguments",
+    "SemanticCache.require_complete": "no arguments",
     "SemanticCues": "result container built by cue_maps",
     "SemanticCues.stack": "no arguments",
     "SemanticScores": "result container built by score",

@@ -293,6 +293,12 @@ ALL_CASES: list[Case] = [
     ),
     Case(
         "SemanticCache.dataset",
+        lambda: CACHE.dataset([0], partial="yes"),  # type: ignore[arg-type]
+        ARG,
+        r"^partial: got 'yes'",
+    ),
+    Case(
+        "SemanticCache.dataset",
         lambda: CACHE.dataset(augment=1),  # type: ignore[arg-type]
         ARG,
         r"^augment: got 1",

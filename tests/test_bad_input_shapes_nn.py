@@ -407,10 +407,22 @@ ALL_CASES: list[Case] = [
     Case("ShapeCache.array", lambda: CACHE.array("depth"), ARG, r"^representation: got 'depth'"),
     Case("ShapeCache.indices", lambda: CACHE.indices("val"), ARG, r"^split: got 'val'"),
     Case(
+        "ShapeCache.require_complete",
+        lambda: CACHE.require_complete("val"),
+        ARG,
+        r"^split: got 'val'",
+    ),
+    Case(
         "ShapeCache.dataset",
         lambda: CACHE.dataset("train", "depth"),
         ARG,
         r"^representations: got \['depth'\] not in the cache",
+    ),
+    Case(
+        "ShapeCache.dataset",
+        lambda: CACHE.dataset(indices=[0], partial=1),  # type: ignore[arg-type]
+        ARG,
+        r"^partial: got 1",
     ),
     Case(
         "ShapeCache.dataset",

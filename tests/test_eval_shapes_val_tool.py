@@ -37,6 +37,13 @@ def test_combine_per_class_and_weighted(tmp_path: Path) -> None:
     plain = _run("--combine", str(a), str(b))
     assert plain.stdout.splitlines()[-1] == lines[-1] and "class 0" not in plain.stdout
     bad = _run("--combine", str(a), str(b), "--class-counts", "1,1")
-    assert bad.returncode != 0 and "expected 3 non-negative" in bad.stderr
+    assert bad.returncode != 0 and "got 2 counts, expected 3" in bad.stderr
+    neg = _run("--combine", str(a), "--class-counts", "1,-1,2")
+    assert "expected non-negative counts" in neg.stderr and not neg.stdout, "checked first"
+    assert "positive sum" in _run("--combine", str(a), "--class-counts", "0,0,0").stderr
+    c = _fold(tmp_path / "c.npz", [0, 1], [0, 1], ["c0", "c1"])
+    assert "class 2 has a count" in _run("--combine", str(c), "--class-counts", "1,1,1").stderr
+    alone = _run("--cache", str(tmp_path), "--class-counts", "1,1,1")
+    assert alone.returncode == 2 and "goes with --combine" in alone.stderr
     assert _run("--combine", str(a), str(a)).returncode != 0, "a shape in two folds"
     assert "expected N1,N2" in _run("--combine", str(a), "--class-counts", "x").stderr

@@ -112,6 +112,11 @@ def combine(files: list[Path], counts: list[int] | None = None) -> None:
     """The accuracy over the folds saved by ``--save``: each file one fold's shapes. With
     ``counts`` (one per class), also each class' accuracy and the accuracy a set of those class
     counts would read (each class' accuracy weighted by its count), before the last line."""
+    if counts is not None and (min(counts) < 0 or sum(counts) == 0):
+        raise SystemExit(
+            f"--class-counts: got {','.join(map(str, counts))}, expected non-negative counts "
+            "with a positive sum"
+        )
     names: list[str] = []
     right = total = 0
     preds, truth = [], []
@@ -129,18 +134,19 @@ def combine(files: list[Path], counts: list[int] | None = None) -> None:
     if counts is not None:
         pred, lab = np.concatenate(preds), np.concatenate(truth)
         k = int(probs.shape[1])
-        if len(counts) != k or min(counts) < 0 or sum(counts) == 0:
-            raise SystemExit(
-                f"--class-counts: got {len(counts)} counts, expected {k} non-negative ones"
-            )
+        if len(counts) != k:
+            raise SystemExit(f"--class-counts: got {len(counts)} counts, expected {k}, one a class")
         acc = np.array(
             [(pred[lab == c] == c).mean() if (lab == c).any() else np.nan for c in range(k)]
         )
         for c in range(k):
             print(f"class {c}: {100 * acc[c]:.2f} % of {int((lab == c).sum())} shapes")
         w = np.asarray(counts, np.float64)
-        if np.isnan(acc[w > 0]).any():
-            raise SystemExit("--class-counts: a counted class has no shape in the folds")
+        empty = [c for c in range(k) if w[c] > 0 and np.isnan(acc[c])]
+        if empty:
+            raise SystemExit(
+                f"--class-counts: class {empty[0]} has a count but no shape in the folds"
+            )
         weighted = float((w[w > 0] * acc[w > 0]).sum() / w.sum())
         print(f"weighted by --class-counts: {100 * weighted:.2f} %")
     print(f"all {len(files)} folds: {100 * right / total:.2f} % of {total} shapes")
@@ -178,6 +184,8 @@ def main() -> None:
     if a.combine:
         combine(a.combine, a.class_counts)
         return
+    if a.class_counts is not None:
+        p.error("--class-counts goes with --combine")
     if a.cache is None:
         p.error("expected --cache (or --combine)")
     if not a.checkpoint and a.write_names is None:

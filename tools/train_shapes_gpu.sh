@@ -22,9 +22,10 @@
 #              gives the accuracy over all 3991 training shapes of the first seed alone and of
 #              the seeds averaged (each also weighted to TEST_COUNTS, ModelNet10's test-split
 #              class counts from the thesis' Table 5.4), and cv.tgz the per-fold probabilities.
-#              SCALE_RANGE_CV="LOW HIGH" draws the copies' factors from another range. When the held-out 10 %
-#              saturates (issue 31: 96.2-97.5 % whatever is tried), this tells recipes apart on
-#              ten times as many shapes. Not yet run on a device.
+#              SCALE_RANGE_CV="LOW HIGH" draws the copies' factors from another range;
+#              TEST_COUNTS="" leaves the weighting out. When the held-out 10 % saturates (issue
+#              31: 96.2-97.5 % whatever is tried), this tells recipes apart on ten times as many
+#              shapes. Not yet run on a device.
 #   here:    tools/train_shapes_gpu.sh cv-here DIR
 #              the same K-fold loop with this machine's Python into DIR (hours on 2 CPU cores)
 #   here:    tools/train_shapes_gpu.sh smoke [cv]
@@ -57,7 +58,7 @@ SEEDS=${SEEDS:-1 2}
 SPLIT_SEED=${SPLIT_SEED:-1}
 PARALLEL=${PARALLEL:-10}
 TRAIN_ARGS=${TRAIN_ARGS:-}
-TEST_COUNTS=${TEST_COUNTS:-50,100,100,86,86,100,86,100,100,100}
+TEST_COUNTS=${TEST_COUNTS-50,100,100,86,86,100,86,100,100,100}
 SCALE_RANGE_CV=${SCALE_RANGE_CV:-}
 
 prepare() {
@@ -88,11 +89,8 @@ pip_version() {
 train() {
     local py=$1 pack=$2 work=$3 out=$4
     mkdir -p "$work" "$out"
-    local -a range=()
-    # shellcheck disable=SC2206 # two numbers, LOW HIGH
-    [[ -n "$SCALE_RANGE_CV" ]] && range=(--scale-range $SCALE_RANGE_CV)
     "$py" -m rgbd_rs.cli shapes cache --data "$pack" --out "$work/cache" --resolution "$RES" \
-        --representations depth,volume,curvature --scale-copies "$COPIES" "${range[@]}" --quiet \
+        --representations depth,volume,curvature --scale-copies "$COPIES" --quiet \
         2>&1 | tee -a "$out/log.txt"
     local left=$((BUDGET_S - SECONDS))
     du -sh "$work/cache" | tee -a "$out/log.txt"
@@ -134,7 +132,7 @@ cv_loop() {
     # shellcheck disable=SC2206 # two numbers, LOW HIGH
     [[ -n "$SCALE_RANGE_CV" ]] && range=(--scale-range $SCALE_RANGE_CV)
     "$py" -m rgbd_rs.cli shapes cache --data "$pack" --out "$work/cache" --resolution "$RES" \
-        --representations depth,volume,curvature --scale-copies "$COPIES" "${range[@]}" --quiet \
+        --representations depth,volume,curvature --scale-copies "$COPIES" ${range[@]+"${range[@]}"} --quiet \
         2>&1 | tee -a "$out/log.txt"
     echo "cache done at $SECONDS s" | tee -a "$out/log.txt"
     local i s
@@ -176,13 +174,16 @@ cv_loop() {
         saved+=("$work/cv$i.npz")
         first+=("$work/cv${i}_first.npz")
     done
+    # The per-fold probabilities first: a bad TEST_COUNTS must not lose them.
+    tar -czf "$out/cv.tgz" -C "$work" $(cd "$work" && ls cv*.npz fold*.txt)
+    local -a counts=()
+    [[ -n "$TEST_COUNTS" ]] && counts=(--class-counts "$TEST_COUNTS")
     echo "== the first seed alone" | tee -a "$out/log.txt"
-    "$py" "$tool" --combine "${first[@]}" --class-counts "$TEST_COUNTS" | tail -2 |
+    "$py" "$tool" --combine "${first[@]}" ${counts[@]+"${counts[@]}"} | tail -2 |
         tee -a "$out/log.txt"
     echo "== the seeds ($SEEDS) averaged" | tee -a "$out/log.txt"
-    "$py" "$tool" --combine "${saved[@]}" --class-counts "$TEST_COUNTS" | tail -2 |
+    "$py" "$tool" --combine "${saved[@]}" ${counts[@]+"${counts[@]}"} | tail -2 |
         tee -a "$out/log.txt"
-    tar -czf "$out/cv.tgz" -C "$work" $(cd "$work" && ls cv*.npz fold*.txt)
     echo "cross-validation done at $SECONDS s" | tee -a "$out/log.txt"
 }
 

@@ -656,9 +656,10 @@ class SemanticCache:
         ``augment`` mirrors items left-right at random (module docstring). Without ``indices``,
         a cache with frames still to compute raises :class:`RgbdError` unless ``partial=True``
         (then: its computed frames)."""
+        partial = _validate.flag("partial", partial)
         if indices is None:
             idx = self.indices()
-            if not _validate.flag("partial", partial):
+            if not partial:
                 self.require_complete()
         else:
             idx = _validate.array("indices", indices, shape=(None,), dtype=np.int64)

@@ -166,7 +166,8 @@ def train_semantic(
     validation). ``init`` starts from a checkpoint's weights (fine-tuning: same class count,
     input size and width). ``val_cache`` validates on another cache's frames instead of a
     ``val_fraction`` of ``cache``'s. Re-running resumes from ``out/last.pt`` (see
-    :func:`rgbd_rs.nn.train.train`)."""
+    :func:`rgbd_rs.nn.train.train`). A cache (or ``val_cache``) with frames still to compute
+    raises :class:`RgbdError`."""
     from rgbd_rs.nn.train import TrainConfig, seed_everything, split, train
 
     quiet = _validate.flag("quiet", quiet)
@@ -284,8 +285,9 @@ def score(
     device: str = "cpu",
     batch_size: int = 4,
 ) -> SemanticScores:
-    """Accuracy of ``checkpoint`` on ``cache``'s done frames (or ``indices``) at the cache's
-    resolution: the argmax of the upsampled PDFs against the cached labels."""
+    """Accuracy of ``checkpoint`` on ``cache``'s frames (or ``indices``) at the cache's
+    resolution: the argmax of the upsampled PDFs against the cached labels. Without
+    ``indices``, a cache with frames still to compute raises :class:`RgbdError`."""
     from rgbd_rs.metrics import confusion_matrix
     from rgbd_rs.segmentation.labeling import SemanticLabeler
 

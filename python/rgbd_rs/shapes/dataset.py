@@ -945,9 +945,10 @@ class ShapeCache:
                 f"representations: got {absent} not in the cache {self.path} (it holds "
                 f"{list(self.spec.representations)})"
             )
+        partial = _validate.flag("partial", partial)
         if indices is None:
             idx = self.indices(split)
-            if not _validate.flag("partial", partial):
+            if not partial:
                 self.require_complete(split)
         else:
             idx = _validate.array("indices", indices, shape=(None,), dtype=np.int64)

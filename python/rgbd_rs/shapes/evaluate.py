@@ -244,7 +244,8 @@ def evaluate(
     (:mod:`rgbd_rs.shapes.augment`); ``mirror``: average them over the shape and its mirror image
     in x (both: over all eight). ``quiet=False`` shows a progress bar over the shapes.
     A cache computed with other inputs (resolution, normalisation, classes, missing
-    representations) raises :class:`RgbdError` naming both."""
+    representations) raises :class:`RgbdError` naming both, as does one with shapes of
+    ``split`` still to compute."""
     clf = (
         checkpoint
         if isinstance(checkpoint, ShapeClassifier)

@@ -190,7 +190,8 @@ def train_shapes(
     """Train on ``cache``'s training split; return the best checkpoint's path: the epoch of the
     highest validation accuracy (ties: the lower validation loss); the last one without
     validation. ``init`` starts from a checkpoint's weights (fine-tuning). Re-running
-    resumes from ``out/last.pt`` (see :func:`rgbd_rs.nn.train.train`)."""
+    resumes from ``out/last.pt`` (see :func:`rgbd_rs.nn.train.train`). A cache with training
+    shapes still to compute raises :class:`RgbdError` (:meth:`ShapeCache.dataset`)."""
     from rgbd_rs.nn.train import TrainConfig, seed_everything, train
 
     quiet = _validate.flag("quiet", quiet)
