@@ -11,10 +11,10 @@ import numpy as np
 TOOL = Path(__file__).resolve().parents[1] / "tools" / "eval_shapes_val.py"
 
 
-def _fold(path: Path, labels: list[int], preds: list[int], names: list[str]) -> Path:
+def _fold(path: Path, labels: list[int], preds: list[int], names: list[str], **where: int) -> Path:
     probs = np.full((len(labels), 3), 0.1, np.float32)
     probs[np.arange(len(labels)), preds] = 0.8
-    np.savez(path, probabilities=probs, labels=np.array(labels), names=np.array(names))
+    np.savez(path, probabilities=probs, labels=np.array(labels), names=np.array(names), **where)
     return path
 
 
@@ -47,3 +47,18 @@ def test_combine_per_class_and_weighted(tmp_path: Path) -> None:
     assert alone.returncode == 2 and "goes with --combine" in alone.stderr
     assert _run("--combine", str(a), str(a)).returncode != 0, "a shape in two folds"
     assert "expected N1,N2" in _run("--combine", str(a), "--class-counts", "x").stderr
+
+
+def test_combine_wants_every_fold(tmp_path: Path) -> None:
+    """Files saved with their fold (``--save`` with ``--folds``): a missing or foreign fold is
+    refused, not averaged over fewer shapes."""
+    f0 = _fold(tmp_path / "0.npz", [0, 1], [0, 1], ["a", "b"], folds=3, fold=0)
+    f1 = _fold(tmp_path / "1.npz", [2, 1], [2, 1], ["c", "d"], folds=3, fold=1)
+    f2 = _fold(tmp_path / "2.npz", [0, 2], [0, 0], ["e", "f"], folds=3, fold=2)
+    ok = _run("--combine", str(f0), str(f1), str(f2))
+    assert ok.returncode == 0 and ok.stdout.splitlines()[-1] == "all 3 folds: 83.33 % of 6 shapes"
+    short = _run("--combine", str(f0), str(f2))
+    assert short.returncode != 0 and "folds [1] of 3 missing" in short.stderr
+    other = _fold(tmp_path / "x.npz", [0], [0], ["g"], folds=2, fold=1)
+    mixed = _run("--combine", str(f0), str(f1), str(f2), str(other))
+    assert mixed.returncode != 0 and "[2, 3] folds mixed" in mixed.stderr

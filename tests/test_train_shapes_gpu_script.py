@@ -68,3 +68,26 @@ def test_the_gpu_script_explains_itself_without_a_step() -> None:
     run = subprocess.run(["bash", str(SCRIPT)], capture_output=True, text=True, timeout=30)
     assert run.returncode == 2
     assert "prepare" in run.stdout and "carry" in run.stdout
+
+
+@pytest.mark.skipif(shutil.which("bash") is None, reason="needs bash")
+def test_the_cross_validation_stops_at_a_failed_run(shared_data: Path, tmp_path: Path) -> None:
+    """A fold's run that fails after writing a last.pt (killed part-way) stops the loop with
+    its fold and status: its checkpoint is never read as a finished network."""
+    fake = tmp_path / "python"
+    fake.write_text(
+        "#!/bin/bash\n"
+        'if [[ "$*" == *"train shapes"* ]]; then\n'
+        '  out=$(printf "%s\\n" "$@" | grep -A1 -x -- --out | tail -1)\n'
+        '  mkdir -p "$out" && echo partial > "$out/last.pt"; exit 9\n'
+        "fi\n"
+        f'exec "{sys.executable}" "$@"\n'
+    )
+    fake.chmod(0o755)
+    env = {**os.environ, "RGBD_DATA": str(shared_data), "PYTHON": str(fake)}
+    run = subprocess.run(
+        ["bash", str(SCRIPT), "smoke", "cv"], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert run.returncode == 3, run.stdout[-2000:] + run.stderr[-2000:]
+    assert "train_shapes_gpu: fold 0 seed 1 failed (status 9)" in run.stderr
+    assert "all 2 folds" not in run.stdout

@@ -120,10 +120,13 @@ def combine(files: list[Path], counts: list[int] | None = None) -> None:
     names: list[str] = []
     right = total = 0
     preds, truth = [], []
+    seen: dict[int, set[int]] = {}
     for f in files:
         with np.load(f) as z:
             probs, labels = z["probabilities"], z["labels"]
             names += [str(n) for n in z["names"]]
+            if "folds" in z.files:
+                seen.setdefault(int(z["folds"]), set()).add(int(z["fold"]))
         ok = int((probs.argmax(1) == labels).sum())
         print(f"{f}: {100 * ok / len(labels):.2f} % of {len(labels)} shapes")
         right, total = right + ok, total + len(labels)
@@ -131,6 +134,12 @@ def combine(files: list[Path], counts: list[int] | None = None) -> None:
         truth.append(labels)
     if len(set(names)) != len(names):
         raise SystemExit("--combine: a shape is in two of the files (folds of one K and seed?)")
+    if len(seen) > 1:
+        raise SystemExit(f"--combine: files of {sorted(seen)} folds mixed, expected one K")
+    for k, got in seen.items():
+        if got != set(range(k)):
+            missing = sorted(set(range(k)) - got)
+            raise SystemExit(f"--combine: folds {missing} of {k} missing, expected all {k}")
     if counts is not None:
         pred, lab = np.concatenate(preds), np.concatenate(truth)
         k = int(probs.shape[1])
@@ -218,7 +227,14 @@ def main() -> None:
                 f"{100 * acc:.2f} %"
             )
         if a.save is not None and total is not None and not mirror:
-            np.savez(a.save, probabilities=total / len(a.checkpoint), labels=labels, names=names)
+            where = {} if fold is None else {"folds": fold[0], "fold": fold[1]}
+            np.savez(
+                a.save,
+                probabilities=total / len(a.checkpoint),
+                labels=labels,
+                names=names,
+                **where,
+            )
             print(f"{a.save}: the average's probabilities of {len(labels)} shapes")
 
 

@@ -143,6 +143,7 @@ cv_loop() {
         for s in $SEEDS; do jobs+=("$i $s"); done
     done
     local job n=0
+    local -a pids=() names=() logs=()
     for job in "${jobs[@]}"; do
         read -r i s <<<"$job"
         # shellcheck disable=SC2086 # TRAIN_ARGS is a list of flags
@@ -151,10 +152,28 @@ cv_loop() {
             --lr "$LR" --batch-norm --dropout 0.5 --label-smoothing 0.1 --seed "$s" \
             --val-fraction 0 --exclude-names "$work/fold$i.txt" --workers "$WORKERS" --quiet \
             $TRAIN_ARGS >"$work/f${i}_s$s.log" 2>&1 &
+        pids+=("$!")
+        names+=("fold $i seed $s")
+        logs+=("$work/f${i}_s$s.log")
         n=$((n + 1))
-        if ((n % PARALLEL == 0)); then wait; fi
+        if ((n % PARALLEL == 0)) || ((n == ${#jobs[@]})); then
+            # Each run's own exit status: a run that failed or was killed part-way leaves a
+            # last.pt of an earlier epoch, which must not be read as a finished network.
+            local k rc
+            for k in "${!pids[@]}"; do
+                rc=0
+                wait "${pids[$k]}" || rc=$?
+                if ((rc != 0)); then
+                    tail -5 "${logs[$k]}" >&2 || true
+                    echo "train_shapes_gpu: ${names[$k]} failed (status $rc)" >&2
+                    exit 3
+                fi
+            done
+            pids=()
+            names=()
+            logs=()
+        fi
     done
-    wait
     echo "training done at $SECONDS s" | tee -a "$out/log.txt"
     local -a saved=() first=()
     for ((i = 0; i < FOLDS; i++)); do
