@@ -4,6 +4,7 @@ their bad runs ending in one ``rgbd: error`` line."""
 
 from __future__ import annotations
 
+import shutil
 import warnings
 from pathlib import Path
 
@@ -74,6 +75,29 @@ def test_ablation_cli(pack: Path, tmp_path: Path, capsys: pytest.CaptureFixture[
     table = (tmp_path / "rep" / "ablation.md").read_text()
     assert "| representation | ModelNet10 | thesis ModelNet10 |" in table
     assert "| volume |" in table and "92.2%" in table
+    # an unfinished row is refused, not scored half-trained
+    import torch
+
+    last = tmp_path / "abl" / "volume" / "last.pt"
+    ck = torch.load(last, map_location="cpu", weights_only=False)
+    torch.save({**ck, "epoch": 0, "step": 1}, last)
+    capsys.readouterr()
+    assert main([*ev, "--out", str(tmp_path / "rep2")]) == 2
+    err = capsys.readouterr().err
+    assert "--ablation: " in err and "volume: epoch 0 of 1, an unfinished run" in err
+    # a row missing from a two-representation ablation is refused too
+    two = tmp_path / "cache2"
+    argv2 = ["shapes", "cache", "--data", str(pack), "--out", str(two), "--quiet"]
+    assert main([*argv2, "--representations", "depth,volume", "--resolution", "16"]) == 0
+    train2 = ["train", "shapes", "--cache", str(two), "--out", str(tmp_path / "abl2")]
+    assert main([*train2, "--ablation", "--width", "2", "--epochs", "1", "--quiet"]) == 0
+    ev2 = ["eval", "shapes", "--cache", str(two), "--ablation", str(tmp_path / "abl2")]
+    assert main([*ev2, "--out", str(tmp_path / "rep3")]) == 0
+    assert "| depth+volume |" in (tmp_path / "rep3" / "ablation.md").read_text()
+    shutil.rmtree(tmp_path / "abl2" / "volume")
+    capsys.readouterr()
+    assert main([*ev2, "--out", str(tmp_path / "rep4")]) == 2
+    assert "rows ['volume'] missing" in capsys.readouterr().err
 
 
 def test_train_regularised_recipe_flags(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from functools import partial
 from pathlib import Path
 
 from rgbd_rs.cli._args import (
@@ -447,7 +448,10 @@ def _eval(commands: Commands) -> None:
         help="checkpoint file(s) (default: the shipped weights of the cache's dataset)",
     )
     group.add_argument(
-        "--ablation", type=Path, metavar="DIR", help="folder of `rgbd train shapes --ablation`"
+        "--ablation",
+        type=Path,
+        metavar="DIR",
+        help="folder of `rgbd train shapes --ablation` (every row finished)",
     )
     p.add_argument("--split", choices=("test", "train", "all"), default="test", help="(test)")
     p.add_argument(
@@ -483,6 +487,43 @@ def _eval(commands: Commands) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def _ablation_checkpoints(folder: Path) -> list[Path]:
+    """The checkpoint of every row of ``rgbd train shapes --ablation``'s ``folder``: each row's
+    ``best.pt`` (``last.pt`` without validation), once every row's run has finished and no row
+    of the table is missing (an ablation interrupted, or still training, is refused: its table
+    would hold fewer rows, or half-trained ones, without a word)."""
+    from rgbd_rs.errors import RgbdError
+    from rgbd_rs.nn.checkpoint import load_checkpoint
+    from rgbd_rs.shapes.train import COMBINED, ablation_rows
+
+    rows = sorted(p.parent for p in folder.glob("*/last.pt"))
+    if not rows:
+        raise RgbdError(
+            f"--ablation: {folder}: no <row>/last.pt, expected `rgbd train shapes "
+            "--ablation`'s output folder"
+        )
+    reps: dict[str, tuple[str, ...]] = {}
+    for row in rows:
+        ck = named("--ablation", partial(load_checkpoint, row / "last.pt"))
+        epochs = int(ck.config.get("epochs", 0))
+        if ck.epoch < epochs:
+            raise RgbdError(
+                f"--ablation: {row}: epoch {ck.epoch} of {epochs}, an unfinished run; finish it "
+                "(re-run the same `rgbd train shapes ... --ablation`: it resumes) or read it "
+                "with --checkpoint"
+            )
+        reps[row.name] = tuple(ck.normalisation.get("spec", {}).get("representations", ()))
+    every = reps.get(COMBINED) or tuple(r for name in reps for r in reps[name])
+    want = set(ablation_rows(every)) if every else set()
+    missing = sorted(want - set(reps))
+    if missing:
+        raise RgbdError(
+            f"--ablation: {folder}: rows {missing} missing (an interrupted ablation?), expected "
+            f"{sorted(want)}"
+        )
+    return [row / "best.pt" if (row / "best.pt").is_file() else row / "last.pt" for row in rows]
+
+
 def run_eval(args: argparse.Namespace) -> int:
     from rgbd_rs.errors import RgbdError
     from rgbd_rs.shapes.dataset import ShapeCache
@@ -493,10 +534,7 @@ def run_eval(args: argparse.Namespace) -> int:
     cache = named("--cache", lambda: ShapeCache(args.cache))
     named("--cache", lambda: cache.require_complete(args.split))
     if args.ablation is not None:
-        found = sorted(args.ablation.glob("*/best.pt")) or sorted(args.ablation.glob("*/last.pt"))
-        if not found:
-            raise RgbdError(f"--ablation: {args.ablation}: no <row>/best.pt or <row>/last.pt")
-        checkpoints = found
+        checkpoints = _ablation_checkpoints(args.ablation)
     elif args.checkpoint:
         checkpoints = list(args.checkpoint)
     else:
