@@ -214,6 +214,13 @@ ALL_CASES: list[Case] = [
     Case(
         "SyntheticFrames", lambda: SyntheticFrames(TMP / "empty"), RgbdError, r"empty: no complete"
     ),
+    Case(
+        "SyntheticFrames",
+        lambda: SyntheticFrames(TMP / "empty", partial=1),  # type: ignore[arg-type]
+        ARG,
+        r"^partial: got 1",
+        "partial",
+    ),
     # -- the cache
     Case(
         "build_semantic_cache",

@@ -23,6 +23,7 @@ from rgbd_rs.data.synth_indoor import (
 from rgbd_rs.data.synth_indoor_objects import CEILING, FLOOR, WALL, Part
 from rgbd_rs.data.synth_indoor_scene import IndoorScene
 from rgbd_rs.data.synth_indoor_sensor import _kinect_depth
+from rgbd_rs.errors import RgbdError
 from rgbd_rs.meshes import quad
 from rgbd_rs.render import Material, Scene
 
@@ -72,6 +73,13 @@ def test_resume_skips_complete_frames_and_refuses_another_seed(tmp_path: Path) -
     good = redo.read_bytes()
     redo.unlink()  # an interrupted frame: incomplete, so not listed and redone
     assert IndoorFrames(tmp_path).indices == [0, 2]
+    assert IndoorFrames(tmp_path).requested == 3 and IndoorFrames(tmp_path).missing == [1]
+    # ... and a reader of the frames for training refuses the folder until it is finished
+    from rgbd_rs.segmentation.semantic_data import SyntheticFrames, open_frames
+
+    with pytest.raises(RgbdError, match=r"1 of the 3 frames asked for not complete \(frames 1:"):
+        open_frames(tmp_path)
+    assert SyntheticFrames(tmp_path, partial=True).names == ("000000", "000002")
     os.utime(keep, ns=(before - 10**9, before - 10**9))
     generate_indoor(tmp_path, 3, seed=0, width=32, height=24, quiet=True)
     assert keep.stat().st_mtime_ns == before - 10**9  # not rewritten
@@ -192,7 +200,7 @@ def test_cli_writes_frames_preview_and_stats(
     out = tmp_path / "d"
     common = ["--out", str(out), "--width", "32", "--height", "24", "--quiet"]
     assert _cli("synth-indoor", *common, "--count", "3", "--shard", "1/2", "--seed", "4") == 0
-    assert IndoorFrames(out).indices == [1]
+    assert IndoorFrames(out).indices == [1] and IndoorFrames(out).missing == [0, 2]
     assert _cli("synth-indoor", *common, "--count", "2", "--seed", "4", "--stats") == 0
     text = capsys.readouterr().out
     assert "wall" in text and "synthetic (2)" in text

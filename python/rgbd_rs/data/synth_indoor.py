@@ -40,7 +40,7 @@ from rgbd_rs.data.nyuv2 import DEPTH_PNG_PER_METRE, LABEL13_NAMES
 from rgbd_rs.data.synth_indoor_scene import IndoorScene, _random_indoor_scene
 from rgbd_rs.data.synth_indoor_sensor import _kinect_color, _kinect_depth
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.io import _bytes_writer, _create_once, read_json, read_png, write_png
+from rgbd_rs.io import _bytes_writer, _create_once, read_json, read_png, write_json, write_png
 from rgbd_rs.viz import class_picture, grid, image_panel, map_panel, save_png
 
 __all__ = [
@@ -63,6 +63,8 @@ MAX_FRAMES = 1_000_000
 MIN_SIDE, MAX_SIDE = 16, 4096
 #: Name of the file recording how a folder's frames were made (checked when resuming).
 MANIFEST = "indoor.json"
+#: The most frames any run asked for (written before a run's frames, so a reader sees them due).
+REQUESTED = "requested.json"
 #: Version of the generator; frames of another version are not mixed into one folder.
 VERSION = 4
 #: RGB colours (0-255) of the 13 classes (index = label; 0 unlabeled is black), for previews.
@@ -227,6 +229,8 @@ def generate_indoor(
 
     folder.mkdir(parents=True, exist_ok=True)
     _check_manifest(folder, s, w, h)
+    if n_frames > (_requested(folder) or 0):
+        write_json(folder / REQUESTED, {"count": n_frames})
     mine = list(range(i, n_frames, n))
     todo = [k for k in mine if not _complete(folder, k)]
     for k in tqdm(todo, desc="synth-indoor", unit="frame", disable=True if quiet else None):
@@ -234,9 +238,24 @@ def generate_indoor(
     return mine
 
 
+def _requested(folder: Path) -> int | None:
+    """The most frames a run asked ``folder`` for (None: a folder written before it was kept)."""
+    path = folder / REQUESTED
+    if not path.is_file():
+        return None
+    got = read_json(path)
+    count = got.get("count") if isinstance(got, dict) else None
+    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+        raise RgbdError(f'{path}: got {got!r}, expected {{"count": N}} with N >= 0')
+    return count
+
+
 class IndoorFrames:
     """The complete frames of a folder written by :func:`generate_indoor`, in index order:
-    ``len(frames)``, ``frames[k]`` (an :class:`IndoorFrame`) and ``frames.indices``."""
+    ``len(frames)``, ``frames[k]`` (an :class:`IndoorFrame`) and ``frames.indices``.
+    ``requested`` is the most frames a run asked for (None for a folder written before this
+    was recorded) and ``missing`` the frames below it that are not complete: a run
+    interrupted, still running, or a shard not run."""
 
     def __init__(self, folder: str | Path) -> None:
         if not isinstance(folder, (str, Path)) or not str(folder):
@@ -248,6 +267,9 @@ class IndoorFrames:
             int(p.name[7:13]) for p in self.folder.glob("camera_[0-9]*.json") if len(p.name) == 18
         )
         self.indices = [k for k in found if _complete(self.folder, k)]
+        self.requested = _requested(self.folder)
+        have = set(self.indices)
+        self.missing = [k for k in range(self.requested or 0) if k not in have]
 
     def __len__(self) -> int:
         return len(self.indices)

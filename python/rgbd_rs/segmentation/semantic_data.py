@@ -218,13 +218,24 @@ class FrameFolder(Sequence[LabeledFrame]):
 class SyntheticFrames:
     """The synthetic indoor frames of ``folder`` (:class:`rgbd_rs.data.synth_indoor.
     IndoorFrames`: ``NNNNNN_{rgb,depth,label13}.png`` and ``camera_NNNNNN.json``), with their
-    ``names`` known without loading them."""
+    ``names`` known without loading them. A folder missing frames that a run asked for (it was
+    interrupted, is still running, or a shard was not run) raises :class:`RgbdError` unless
+    ``partial=True`` (then: its complete frames)."""
 
-    def __init__(self, folder: str | os.PathLike[str]) -> None:
+    def __init__(self, folder: str | os.PathLike[str], *, partial: bool = False) -> None:
         from rgbd_rs.data.synth_indoor import IndoorFrames
 
+        partial = _validate.flag("partial", partial)
         self.frames = IndoorFrames(_validate.path("folder", folder))
         self.folder = self.frames.folder
+        missing = self.frames.missing
+        if missing and not partial:
+            shown = ", ".join(str(k) for k in missing[:5]) + (", ..." if len(missing) > 5 else "")
+            raise RgbdError(
+                f"{self.folder}: {len(missing)} of the {self.frames.requested} frames asked for "
+                f"not complete (frames {shown}: a `rgbd synth-indoor` run interrupted, still "
+                "running or a --shard not run), expected all: finish them with the same command"
+            )
         if len(self.frames) == 0:
             raise RgbdError(f"{self.folder}: no complete synthetic frame")
         self.names = tuple(f"{k:06d}" for k in self.frames.indices)
