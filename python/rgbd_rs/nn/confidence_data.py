@@ -16,6 +16,7 @@ training sigma (eq. 3.3-3.6), targets 0 and mask 0 where undefined.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -71,6 +72,18 @@ def _scene_arrays(s: Sample, matcher: str = "opencv") -> dict[str, np.ndarray]:
     }
 
 
+def _fingerprint(s: Sample, matcher: str) -> str:
+    """What a scene's cached clues were computed from: its images, ToF, ground truth, rig and
+    the matcher (a re-run into the same folder with other data or another matcher must not
+    reuse them)."""
+    h = hashlib.sha256(f"{matcher}|{s.rig!r}".encode())
+    for a in (s.left, s.right, s.tof_depth, s.tof_amplitude, s.gt_disparity):
+        arr = np.ascontiguousarray(a)
+        h.update(f"{arr.shape}{arr.dtype}".encode())
+        h.update(arr.tobytes())
+    return h.hexdigest()[:32]
+
+
 def prepare(
     samples: Iterator[Sample] | Sequence[Sample],
     out: str | Path,
@@ -82,6 +95,9 @@ def prepare(
     """Cache every sample's arrays as ``out/<sample.name>.npz``; returns the files of this shard.
 
     Existing files are kept (resume); ``shard = (i, n)`` takes samples i, i+n, i+2n, ...
+    Each file records a fingerprint of its sample and ``matcher``: an existing file of the same
+    name made from other data or with another matcher raises :class:`RgbdError` instead of
+    being reused (files written before the fingerprint was kept are reused unchecked).
     """
     from tqdm import tqdm
 
@@ -94,8 +110,18 @@ def prepare(
         if k % n != i:
             continue
         path = folder / f"{s.name}.npz"
+        fp = _fingerprint(s, matcher)
         if not path.is_file():
-            write_npz(path, _scene_arrays(s, matcher))
+            stamp = np.frombuffer(bytes.fromhex(fp), np.uint8)
+            write_npz(path, {**_scene_arrays(s, matcher), "fingerprint": stamp})
+        else:
+            had = read_npz(path).get("fingerprint")
+            if had is not None and np.asarray(had, np.uint8).tobytes().hex() != fp:
+                raise RgbdError(
+                    f"{path}: cached from other data or another matcher than this run's "
+                    f"(scene {s.name!r}, matcher {matcher!r}), expected the same; use another "
+                    "output folder or delete that one"
+                )
         written.append(path)
     return written
 
