@@ -31,7 +31,20 @@ def main() -> None:
         action="store_true",
         help="also the val scenes with the dense protocol's ToF (rgbd eval fusion --dense)",
     )
+    ap.add_argument(
+        "--epochs",
+        type=int,
+        help="the training run's --epochs: refuse to choose while epN.pt of any of 1..N is "
+        "missing (a run interrupted or still training); without it, epochs 1..max must be there",
+    )
     a = ap.parse_args()
+    kept = sorted(int(q.stem[2:]) for q in a.out.glob("ep*.pt") if q.stem[2:].isdigit())
+    want = list(range(1, (a.epochs if a.epochs is not None else max(kept, default=0)) + 1))
+    if missing := sorted(set(want) - set(kept)):
+        raise SystemExit(
+            f"{a.out}: ep{missing[0]}.pt missing ({len(missing)} of epochs 1..{len(want)}): "
+            "finish tools/train_confidence_real.py (it resumes) before choosing"
+        )
     samples = list(real_samples("val", a.laws))
     if a.dense_protocol:
         samples += list(dense_protocol_samples("val"))
@@ -44,7 +57,8 @@ def main() -> None:
             None,
             ConfidenceEstimator(shipped.net, shipped.sigmas, str(WEIGHTS), matcher="census"),
         )
-    for p in sorted(a.out.glob("ep*.pt"), key=lambda q: int(q.stem[2:])):
+    for k in kept:
+        p = a.out / f"ep{k}.pt"
         candidates[p.stem] = (p, ConfidenceEstimator.load(p))
     rows = ["| network | power | mean fused RMS px | mean fused / better | worst fused / good |"]
     rows.append("|---|---:|---:|---:|---:|")
