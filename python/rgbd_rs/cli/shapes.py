@@ -199,18 +199,15 @@ def _cache(commands: Commands) -> None:
 
 
 def run_cache(args: argparse.Namespace) -> int:
+    from rgbd_rs.errors import InvalidArgumentError
     from rgbd_rs.shapes.dataset import InputSpec, build_cache, open_shapes
 
     src = named("--data", lambda: open_shapes(args.data))
     if args.scale_seed and not args.scale_copies:
-        from rgbd_rs.errors import InvalidArgumentError
-
         raise InvalidArgumentError(
             f"--scale-seed: got {args.scale_seed} without --scale-copies, expected both or neither"
         )
     if args.scale_range is not None and not args.scale_copies:
-        from rgbd_rs.errors import InvalidArgumentError
-
         low, high = args.scale_range
         raise InvalidArgumentError(
             f"--scale-range: got {low:g} {high:g} without --scale-copies, expected both or neither"

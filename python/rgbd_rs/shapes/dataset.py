@@ -896,11 +896,15 @@ class ShapeCache:
             raise RgbdError(f"{file}: shape {arr.shape}, expected {want}")
         return np.asarray(arr) if not isinstance(arr, np.ndarray) else arr
 
+    def _rows(self, split: str) -> npt.NDArray[np.bool_]:
+        """Which rows belong to ``split`` (``"train"``, ``"test"`` or ``"all"``)."""
+        sp = _validate.choice("split", split, (*SPLITS, "all"))
+        return np.ones(len(self), bool) if sp == "all" else self.splits == SPLITS[sp]
+
     def require_complete(self, split: str = "all") -> None:
         """Raise :class:`RgbdError` if any shape of ``split`` (``"train"``, ``"test"`` or
         ``"all"``) is still to compute; shapes that failed count as done."""
-        split = _validate.choice("split", split, (*SPLITS, "all"))
-        rows = self.splits == SPLITS[split] if split in SPLITS else np.ones(len(self), bool)
+        rows = self._rows(split)
         todo = int((rows & (self.done == TODO)).sum())
         if todo:
             raise RgbdError(
@@ -912,11 +916,7 @@ class ShapeCache:
 
     def indices(self, split: str = "train") -> npt.NDArray[np.int64]:
         """Done shapes of ``split`` (``"train"``, ``"test"`` or ``"all"``), in order."""
-        sp = _validate.choice("split", split, (*SPLITS, "all"))
-        ok = self.done == DONE
-        if sp != "all":
-            ok &= self.splits == SPLITS[sp]
-        return np.flatnonzero(ok).astype(np.int64)
+        return np.flatnonzero(self._rows(split) & (self.done == DONE)).astype(np.int64)
 
     def dataset(
         self,
