@@ -77,3 +77,61 @@ def test_api_coverage_reports_a_public_name_without_an_entry(tmp_path: Path) -> 
         (tmp_path / page).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / page).write_text("\n".join(ids))
     assert api_coverage.missing(tmp_path) == ["api/fusion/index.html: rgbd_rs.fusion.lc_fuse"]
+
+
+_SPAN = re.compile(r"`([^`\n]+)`")
+_FLAG = re.compile(r"(?<![\w-])--([a-z][a-z0-9-]*)")
+
+
+def _commands(text: str) -> list[str]:
+    """Every shell command the page shows: inline code spans and fenced lines (continuations
+    joined), split at ``&&``, ``;`` and pipes."""
+    out: list[str] = []
+    fenced, block = False, []
+    for line in text.splitlines():
+        if line.lstrip().startswith("```"):
+            if fenced:
+                out += " ".join(block).replace("\\ ", " ").splitlines()
+            fenced, block = not fenced, []
+            continue
+        if fenced:
+            block.append(
+                line.split("#", 1)[0].rstrip() + ("" if line.rstrip().endswith("\\") else "\n")
+            )
+        else:
+            out += _SPAN.findall(line)
+    return [piece for cmd in out for piece in re.split(r"&&|\|\|?|;", cmd)]
+
+
+def test_documented_cli_flags_exist() -> None:
+    """Every ``rgbd <command> --flag`` the README and the docs show is an option of that command
+    (the docs cannot drift from the parsers)."""
+    sys.path.insert(0, str(ROOT / "tools" / "mkdocs_hooks"))
+    try:
+        import cli_reference
+    finally:
+        sys.path.pop(0)
+    from rgbd_rs.cli import build_parser
+
+    options: dict[tuple[str, ...], set[str]] = {}
+    for path, parser in cli_reference._walk(build_parser(), ()):
+        options[path] = {s for a in parser._actions for s in a.option_strings}
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    wrong, checked = [], 0
+    for page in pages:
+        for cmd in _commands(page.read_text()):
+            words = cmd.split()
+            if "rgbd" not in words:
+                continue
+            rest = words[words.index("rgbd") + 1 :]
+            path: tuple[str, ...] = ()
+            while rest and any(p[: len(path) + 1] == (*path, rest[0]) for p in options):
+                path, rest = (*path, rest[0]), rest[1:]
+            if path not in options:
+                continue
+            for flag in _FLAG.findall(" ".join(rest)):
+                checked += 1
+                if f"--{flag}" not in options[path]:
+                    wrong.append(f"{page.relative_to(ROOT)}: rgbd {' '.join(path)} --{flag}")
+    assert checked > 100, checked
+    assert not wrong, "\n".join(wrong)

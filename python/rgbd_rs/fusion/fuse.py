@@ -125,7 +125,7 @@ class FusionResult:
     #: are flying pixels or beyond what the pair can confirm).
     tof_fused: F32
     #: The stereo matcher that made ``stereo_disparity`` (``"census"`` or ``"opencv"``).
-    stereo_matcher: str = "opencv"
+    stereo_matcher: str = "census"
     #: Where each pixel of ``disparity`` comes from: :data:`SOURCE_LC` (the fusion),
     #: :data:`SOURCE_TOF` / :data:`SOURCE_STEREO` (LC left it empty and that input measured it:
     #: its value, and its confidence as ``plausibility``; the ToF where both did),

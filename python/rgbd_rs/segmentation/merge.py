@@ -73,7 +73,7 @@ class MergeResult:
     #: ``"similarity"`` (Algorithm 1 with PDFs) or ``"fit"`` (fit-only baseline).
     mode: str
     #: ``H x W`` int32 class of each final segment (by the ``pooling`` of :func:`merge_regions`:
-    #: the majority of its pixels' argmax by default), -1 = none; None without PDFs.
+    #: the argmax of its mean PDF by default), -1 = none; None without PDFs.
     semantic: np.ndarray | None = None
 
     @property
