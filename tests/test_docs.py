@@ -60,7 +60,7 @@ def test_docstring_roles_become_code() -> None:
 
 
 def test_api_coverage_reports_a_public_name_without_an_entry(tmp_path: Path) -> None:
-    import importlib
+    import importlib.util
 
     sys.path.insert(0, str(ROOT / "tools" / "mkdocs_hooks"))
     try:
@@ -134,4 +134,27 @@ def test_documented_cli_flags_exist() -> None:
                 if f"--{flag}" not in options[path]:
                     wrong.append(f"{page.relative_to(ROOT)}: rgbd {' '.join(path)} --{flag}")
     assert checked > 100, checked
+    assert not wrong, "\n".join(wrong)
+
+
+_IMPORT = re.compile(r"^\s*from (rgbd_rs[\w.]*) import (\([^)]*\)|[^\n#]+)", re.M)
+
+
+def test_documented_imports_exist() -> None:
+    """Every ``from rgbd_rs... import ...`` the README and the docs show imports."""
+    import importlib.util
+
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    wrong, checked = [], 0
+    for page in pages:
+        for module, names in _IMPORT.findall(page.read_text()):
+            mod = importlib.import_module(module)
+            for name in names.strip("()").replace("\n", " ").split(","):
+                name = name.split(" as ")[0].strip()
+                if not name:
+                    continue
+                checked += 1
+                if not hasattr(mod, name) and importlib.util.find_spec(f"{module}.{name}") is None:
+                    wrong.append(f"{page.relative_to(ROOT)}: from {module} import {name}")
+    assert checked > 30, checked
     assert not wrong, "\n".join(wrong)
