@@ -176,7 +176,7 @@ def test_what_one_input_measured_is_not_left_blank(shared_data: Path) -> None:
         px = out.source == code
         np.testing.assert_array_equal(d[px], src[px])
         np.testing.assert_array_equal(out.plausibility[px], conf[px])
-    assert set(np.unique(out.source)) <= {0, 1, 2, 3}
+    assert set(np.unique(out.source)) <= {0, 1, 2, 3, 4}
     # The two-view cross-check's rejections stand: nothing is filled back.
     checked = fuse(
         s.left,
@@ -315,3 +315,52 @@ def test_the_unseen_band_on_either_reference(sign: int) -> None:
     np.testing.assert_array_equal(lc[0], np.where(taken, 3.0, 5.0))
     np.testing.assert_array_equal(source[0], np.where(taken, FUSE.SOURCE_TOF, FUSE.SOURCE_LC))
     np.testing.assert_array_equal(plaus[0], np.where(taken, 0.8, 0.5).astype(np.float32))
+
+
+@pytest.mark.parametrize("sign", [-1, 1])
+def test_the_strip_before_the_first_tof_pixel_takes_its_value(sign: int) -> None:
+    # A 12-px row per case, the border the other camera cannot see on the left for a left
+    # reference (target x - d), on the right for a right one. Row 0: the first ToF pixel (4 px
+    # in, d = 6) is unseen too, so the 4 px before it take its value. Row 1: its first ToF pixel
+    # (d = 2 at 4 px in) is seen: nothing moves. Row 2: unseen but unconfirmed (confidence 0).
+    # Row 3: no ToF at all.
+    w, nan = 12, np.nan
+    tof = np.full((4, w), nan, np.float32)
+    tof[0, 4:], tof[1, 4:], tof[2, 4:] = 6.0, 2.0, 6.0
+    conf = np.full((4, w), 0.7, np.float32)
+    conf[2, 4] = 0.0
+    if sign > 0:
+        tof, conf = tof[:, ::-1].copy(), conf[:, ::-1].copy()
+    disp = np.full((4, w), 9.0, np.float32)
+    plaus = np.full((4, w), 0.9, np.float32)
+    source = np.full((4, w), FUSE.SOURCE_LC, np.uint8)
+    FUSE._carry_tof_to_border(disp, plaus, source, tof, conf, sign)
+    strip = np.zeros((4, w), bool)
+    strip[0, :4] = True
+    if sign > 0:
+        strip = strip[:, ::-1]
+    np.testing.assert_array_equal(disp, np.where(strip, 6.0, 9.0).astype(np.float32))
+    np.testing.assert_array_equal(plaus, np.where(strip, 0.7, 0.9).astype(np.float32))
+    np.testing.assert_array_equal(
+        source, np.where(strip, FUSE.SOURCE_TOF_CARRIED, FUSE.SOURCE_LC).astype(np.uint8)
+    )
+    FUSE._carry_tof_to_border(disp, plaus, source, tof, None, sign)  # uniform weights: row 2 too
+    assert (source == FUSE.SOURCE_TOF_CARRIED).sum() == 8 and (plaus[2][source[2] == 4] == 1).all()
+
+
+def test_the_border_the_other_camera_cannot_see_is_not_left_to_lc(shared_data: Path) -> None:
+    # Books (a val scene), left reference: the upsampled ToF stops a few pixels short of the
+    # left border, and there LC's window and the matcher's forced matches gave values ~25 px off
+    # with plausibility ~0.96. The strip takes the row's first ToF pixel instead.
+    s = real_sample(load_stereo_scene("Books"), 0)
+    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig)
+    assert out.source is not None and out.reference == "left"
+    x = np.arange(out.disparity.shape[1])[None, :]
+    gt = s.gt_disparity
+    with np.errstate(invalid="ignore"):
+        band = np.isfinite(gt) & (np.rint(x - gt) < 0) & np.isfinite(out.disparity)
+    carried = out.source == FUSE.SOURCE_TOF_CARRIED
+    assert carried.sum() > 500 and not carried[:, 100:].any()
+    err = np.abs(out.disparity - gt)
+    assert np.median(err[carried & band]) < 1.0
+    assert np.mean(err[band] > 2) < 0.3

@@ -401,12 +401,14 @@ def run_fuse(args: argparse.Namespace) -> int:
         f"fused {valid(out.disparity)}"
     )
     if out.source is not None:
-        from rgbd_rs.fusion.fuse import SOURCE_STEREO, SOURCE_TOF
+        from rgbd_rs.fusion.sources import SOURCE_STEREO, SOURCE_TOF, SOURCE_TOF_CARRIED
 
         tof_px, st_px = (out.source == SOURCE_TOF).mean(), (out.source == SOURCE_STEREO).mean()
+        carried = (out.source == SOURCE_TOF_CARRIED).mean()
         print(
-            f"fused pixels LC left empty, from one input: ToF {tof_px:.1%}, SGM {st_px:.1%} (its "
-            "value, its confidence as plausibility: fused.npz 'source')"
+            f"fused pixels LC left empty or cannot check, from one input: ToF {tof_px:.1%}, SGM "
+            f"{st_px:.1%}; ToF carried to the border the other camera cannot see {carried:.1%} "
+            "(fused.npz 'source': 2, 3, 4)"
         )
     print(
         f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s; wrote "

@@ -29,6 +29,16 @@ from rgbd_rs.fusion._inputs import (
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
+from rgbd_rs.fusion.sources import (
+    SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
+    SOURCE_NONE,  # noqa: F401 (re-exported: FusionResult.source)
+    SOURCE_STEREO,  # noqa: F401 (re-exported: FusionResult.source)
+    SOURCE_TOF,  # noqa: F401 (re-exported: FusionResult.source)
+    SOURCE_TOF_CARRIED,  # noqa: F401 (re-exported: FusionResult.source)
+    _carry_tof_to_border,
+    _fill_single_source,
+    _unseen_from_tof,
+)
 from rgbd_rs.fusion.stereo import (
     _predict_search_range,
     _same_search,
@@ -128,8 +138,11 @@ class FusionResult:
     stereo_matcher: str = "census"
     #: Where each pixel of ``disparity`` comes from: :data:`SOURCE_LC` (the fusion),
     #: :data:`SOURCE_TOF` / :data:`SOURCE_STEREO` (LC left it empty and that input measured it:
-    #: its value, and its confidence as ``plausibility``; the ToF where both did),
-    #: :data:`SOURCE_NONE` (nothing). With ``LcParams(cross_check=True)`` nothing is filled.
+    #: its value, and its confidence as ``plausibility``; the ToF where both did, and where the
+    #: ToF says the other camera cannot see the pixel), :data:`SOURCE_TOF_CARRIED` (along the
+    #: border the other camera cannot see, before the row's first ToF pixel: that pixel's value
+    #: and confidence), :data:`SOURCE_NONE` (nothing). With ``LcParams(cross_check=True)``
+    #: nothing is filled.
     source: npt.NDArray[np.uint8] | None = None
 
 
@@ -361,6 +374,7 @@ def fuse(
     )
     if not cross_check:
         _unseen_from_tof(disp, plaus, source, tof_disp, st_map, ct, sign)
+        _carry_tof_to_border(disp, plaus, source, tof_disp, ct, sign)
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
         disp, depth, plaus, tof, st_map, ct, cs, dmax, r.reference, tof_disp, matcher, source
@@ -374,76 +388,3 @@ def _unconfirmed_to_zero(confidence: F32, color_gap: F32 | None) -> F32:
     with np.errstate(invalid="ignore"):
         unconfirmed = color_gap > UNCONFIRMED_COLOR_GAP
     return np.where(unconfirmed, np.float32(0), confidence).astype(np.float32)
-
-
-def _unseen_from_tof(
-    disp: F32,
-    plaus: F32,
-    source: npt.NDArray[np.uint8],
-    tof: F32,
-    stereo: F32,
-    tof_confidence: F32 | None,
-    sign: int,
-) -> None:
-    """In place: the pixels whose ToF disparity puts their match outside the other image (the
-    band of columns the other camera does not see) and that the stereo matcher could not match
-    take the ToF's value and confidence. LC cannot check a hypothesis there (its photometric
-    terms need the target pixel), so it kept only the few hypotheses that happened to land
-    inside the image: wrong ones (a median error of 18-26 px on the real val scenes' bands,
-    where the ToF had 0.02-0.13 px; over the 40 train + val cases the band's median error went
-    from 25.7 to 11.6 px). Where the stereo map has a match the pixel may be seen after all and
-    the ToF's disparity is the suspect one (ToF outliers 36 px too far on Bowling1, which taking
-    every such pixel from the ToF made 1.21 x its good stereo map), so LC's answer stays. A ToF
-    pixel of confidence 0 (the caller's weights, or an unconfirmed one:
-    :data:`UNCONFIRMED_COLOR_GAP`) is not taken either."""
-    w = tof.shape[1]
-    with np.errstate(invalid="ignore"):
-        target = np.arange(w, dtype=np.float32)[None, :] + np.float32(sign) * tof
-        unseen = np.isfinite(tof) & ((target < 0) | (target > w - 1)) & ~np.isfinite(stereo)
-        if tof_confidence is not None:
-            unseen &= tof_confidence > 0
-    disp[unseen] = tof[unseen]
-    plaus[unseen] = 1.0 if tof_confidence is None else tof_confidence[unseen]
-    source[unseen] = SOURCE_TOF
-
-
-#: :attr:`FusionResult.source` values: where each fused pixel comes from.
-SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO = 0, 1, 2, 3
-
-
-def _fill_single_source(
-    lc_disparity: F32,
-    lc_plausibility: F32,
-    tof: F32,
-    stereo: F32,
-    tof_confidence: F32 | None,
-    stereo_confidence: F32 | None,
-    *,
-    keep_out_zero: bool = False,
-    cross_check: bool = False,
-) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
-    """The LC map with the pixels it leaves empty but an input measures (outside the stereo
-    overlap, stereo holes, ToF dropouts) given that input's value, with that input's confidence
-    as plausibility (1 for uniform weights; the ToF's where both measured a pixel LC left
-    empty); returns ``(disparity, plausibility, source)``. With ``keep_out_zero`` (confidences
-    the caller gave) an input whose confidence there is 0 or NaN stays out; estimated
-    confidences never hide the only measurement of a pixel, their value tells how far to trust
-    it. After LC's two-view ``cross_check`` nothing is filled: its rejections stand."""
-    disp = lc_disparity.copy()
-    plaus = lc_plausibility.copy()
-    source = np.where(np.isfinite(disp), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
-    if cross_check:
-        return disp, plaus, source
-    empty = ~np.isfinite(disp)
-    for value, conf, code in (
-        (tof, tof_confidence, SOURCE_TOF),
-        (stereo, stereo_confidence, SOURCE_STEREO),
-    ):
-        take = empty & np.isfinite(value)
-        if conf is not None and keep_out_zero:
-            take &= conf > 0  # an input the caller's weights rule out stays out
-        disp[take] = value[take]
-        plaus[take] = 1.0 if conf is None else conf[take]
-        source[take] = code
-        empty &= ~take
-    return disp, plaus, source
