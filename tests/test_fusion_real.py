@@ -129,9 +129,17 @@ def test_scores_say_what_the_fusion_did() -> None:
     # Coverage counts every ground-truth pixel (the 80 the right camera does not see too).
     assert c.coverage["union"] == 1.0 and c.coverage["fused"] == pytest.approx(1 - 1 / 320)
     assert c.coverage["stereo"] == pytest.approx(1 - 1 / 320)
+    # The 80 unseen pixels: never in the RMS, scored apart (fused: 20 of them 5 px off).
+    assert c.unseen_pixels == 80 and c.unseen_bad2["tof"] == 0.0
+    fused_off = fused.copy()
+    fused_off[:2, :10] += 5.0
+    c_off = score_maps("case", gt, -1, tof, stereo, fused_off)
+    assert c_off.rms == c.rms and c_off.unseen_bad2["fused"] == pytest.approx(20 / 80)
     m = summarize([c])
     assert m["worst_good"] == pytest.approx(1.25, rel=1e-4)
     assert m["coverage_gap"] == pytest.approx(1 / 320)
+    assert m["unseen_bad2"] == 0.0
+    assert summarize([c, c_off])["unseen_bad2"] == pytest.approx(10 / 80)
     with pytest.raises(Exception, match="no pixel is valid"):
         score_maps("empty", gt, -1, tof, stereo, np.full_like(gt, np.nan))
 

@@ -54,6 +54,12 @@ def markdown(scores: list[CaseScore], title: str) -> str:
         f"the fused map against the inputs' union {100 * m['coverage_gap']:.2f} % (target <= "
         "0.5)."
     )
+    if np.isfinite(m["unseen_bad2"]):
+        rows.append(
+            f"Pixels the other camera cannot see (never in the RMS above): fused "
+            f"{100 * m['unseen_bad2']:.1f} % off by more than 2 px, the ToF "
+            f"{100 * m['unseen_bad2_tof']:.1f} % (over the pixels each has a value for)."
+        )
     return "\n".join(rows) + "\n"
 
 

@@ -15,10 +15,12 @@ against the union of its inputs.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, views
@@ -42,6 +44,12 @@ class CaseScore:
     good: dict[str, bool]
     coverage: dict[str, float]
     pixels: int
+    #: Per map of :data:`MAPS`: the share of the pixels the other camera cannot see (their
+    #: ground truth's target lies outside its image; never in the RMS above) that the map has
+    #: off by more than 2 px, over those it has a value for (NaN where it has none).
+    unseen_bad2: dict[str, float] = dataclasses.field(default_factory=dict)
+    #: The number of those pixels (with ground truth).
+    unseen_pixels: int = 0
 
     @property
     def ratio(self) -> float:
@@ -73,7 +81,25 @@ def score_maps(name: str, gt: F32, sign: int, tof: F32, stereo: F32, fused: F32)
     n = float(known.sum())
     coverage = {k: float(v.sum()) / n for k, v in have.items()}
     coverage["union"] = float((have["tof"] | have["stereo"]).sum()) / n
-    return CaseScore(name, rms, good, coverage, int(common.sum()))
+    unseen = _unseen(gt, sign)
+    bad2 = {k: _bad2(v, gt, unseen) for k, v in maps.items()}
+    return CaseScore(name, rms, good, coverage, int(common.sum()), bad2, int(unseen.sum()))
+
+
+def _unseen(gt: F32, sign: int) -> npt.NDArray[np.bool_]:
+    """The pixels with ground truth whose target ``x + sign * d`` lies outside the image."""
+    x = np.arange(gt.shape[1], dtype=np.float32)[None, :]
+    with np.errstate(invalid="ignore"):
+        target = np.rint(x + np.float32(sign) * gt)
+        return np.isfinite(gt) & ((target < 0) | (target > gt.shape[1] - 1))
+
+
+def _bad2(disparity: F32, gt: F32, where: npt.NDArray[np.bool_]) -> float:
+    """The share of ``where``'s pixels with a value that are off by more than 2 px."""
+    have = where & np.isfinite(disparity)
+    if not have.any():
+        return float("nan")
+    return float(np.mean(np.abs(disparity[have] - gt[have]) > 2.0))
 
 
 def score_result(s: Sample, out: FusionResult) -> CaseScore:
@@ -96,4 +122,15 @@ def summarize(scores: Sequence[CaseScore] | Iterable[CaseScore]) -> dict[str, fl
         "worst_good": float(max(goods)) if goods else 0.0,
         "coverage_gap": float(max(c.coverage["union"] - c.coverage["fused"] for c in sc)),
         "mean_fused": float(np.mean([c.rms["fused"] for c in sc])),
+        "unseen_bad2": _pooled_unseen(sc, "fused"),
+        "unseen_bad2_tof": _pooled_unseen(sc, "tof"),
     }
+
+
+def _pooled_unseen(scores: list[CaseScore], key: str) -> float:
+    """The pixel-weighted share of the cases' unseen pixels ``key`` has > 2 px off (NaN: none)."""
+    pairs = [(c.unseen_bad2[key], c.unseen_pixels) for c in scores if key in c.unseen_bad2]
+    pairs = [(b, n) for b, n in pairs if np.isfinite(b) and n > 0]
+    if not pairs:
+        return float("nan")
+    return float(sum(b * n for b, n in pairs) / sum(n for _, n in pairs))
