@@ -4,6 +4,7 @@ change of the target camera's gain and bias, the cost statistics, the CLI."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -119,6 +120,25 @@ def test_cli_stereo_writes_the_maps(tmp_path: Path) -> None:
     assert np.nanmedian(d[:, 24:]) == pytest.approx(9, abs=0.5)
     assert (out / "preview.png").stat().st_size > 1000 and (out / "disparity.png").exists()
     assert main([*argv, "--max-disparity", "200", "--out", str(out)]) == 2
+
+
+def test_cli_stereo_warns_on_a_swapped_pair(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The matcher alone (no left-right check) matches every pixel of a swapped pair too, so
+    # the CLI checks the order as rgbd fuse does without a ToF.
+    from rgbd_rs.io import write_png
+
+    scene = load_stereo_scene("Tsukuba")
+    write_png(tmp_path / "l.png", scene.left)
+    write_png(tmp_path / "r.png", scene.right)
+    left, right = str(tmp_path / "l.png"), str(tmp_path / "r.png")
+    out = ["--max-disparity", "16", "--out", str(tmp_path / "out")]
+    assert main(["stereo", "--left", left, "--right", right, *out]) == 0  # no warning (an error)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # main prints it: rgbd: warning: ...
+        assert main(["stereo", "--left", right, "--right", left, *out]) == 0
+    assert "rgbd: warning: left/right: the images look swapped" in capsys.readouterr().err
 
 
 def test_cli_eval_stereo_on_val(

@@ -7,6 +7,7 @@ import argparse
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
 from rgbd_rs.errors import InvalidArgumentError
@@ -106,10 +107,30 @@ def run_stereo(args: argparse.Namespace) -> int:
     name = "census SGM (rgbd_rs)" if args.method == "census" else "OpenCV SGBM-HH 7x7"
     title = f"{name}: disparity on the {args.reference} view"
     save_png(out / "preview.png", colorize_with_bar(disp, 0.0, float(dmax), "px", title=title))
+    _warn_if_swapped(left, right, args.reference, dmax, args.method)
     cover = float(np.isfinite(disp).mean())
     print(f"{args.method} SGM on the {args.reference} view, 0..{dmax} px: {cover:.1%} matched")
     print(f"wrote {out}/disparity.npz, disparity.png, preview.png")
     return 0
+
+
+def _warn_if_swapped(left: Any, right: Any, reference: str, dmax: int, method: str) -> None:
+    """Warn when the pair looks swapped, as ``rgbd fuse`` does without a ToF: the matcher with
+    ``fuse``'s left-right check matches far more pixels with the images exchanged (the
+    matcher alone, with no check, matches every pixel of a swapped pair too)."""
+    import functools
+    import warnings
+
+    import numpy as np
+
+    from rgbd_rs.fusion.fuse import _match, _swap_warning
+
+    match = functools.partial(_match, matcher=method, width=left.shape[1])
+    checked = match(left, right, reference=reference, max_disparity=dmax)
+    none = np.full(checked.shape, np.nan, np.float32)
+    message = _swap_warning(left, right, reference, checked, none, dmax, match)
+    if message is not None:
+        warnings.warn(message, RuntimeWarning, stacklevel=2)
 
 
 def run_eval_stereo(args: argparse.Namespace) -> int:
