@@ -504,17 +504,17 @@ def test_fuse_help_documents_the_calibration_layout() -> None:
 
 
 @pytest.mark.parametrize("case", ["swapped images", "depth in millimetres"])
-def test_implausible_input_is_one_warning_line(
+def test_implausible_input_is_one_line(
     case: str, fuse_inputs: dict[str, Path], tmp_path: Path
 ) -> None:
     if case == "swapped images":
         replace = {"left": fuse_inputs["--right"], "right": fuse_inputs["--left"]}
-        needle = "rgbd: warning: --left/--right: the images look swapped"
-    else:
+        needle, status = "rgbd: warning: --left/--right: the images look swapped", 0
+    else:  # refused, as rgbd segment refuses it
         replace = {"tof_depth": _save(tmp_path / "mm.npy", np.full((424, 512), 1000.0))}
-        needle = "rgbd: warning: --tof-depth: the ToF depths look like millimetres"
+        needle, status = "rgbd: error: --tof-depth: the ToF depths look like millimetres", 2
     res = run(*_fuse_argv(fuse_inputs, out=tmp_path / "out", **replace))
-    assert res.returncode == 0, res.stderr
+    assert res.returncode == status, res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(needle), res.stderr
 

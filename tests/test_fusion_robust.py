@@ -222,11 +222,12 @@ def test_sgm_zero_and_invalid_outputs_are_nan(scene: SynthSample) -> None:
 # -- 4. implausible input warns once -------------------------------------------------------------
 
 
-def test_depth_in_millimetres_warns_once(scene: SynthSample) -> None:
-    with pytest.warns(RuntimeWarning) as record:
+def test_depth_in_millimetres_is_refused(scene: SynthSample) -> None:
+    # As segment() does: nothing useful can come of it, so before any work.
+    with pytest.raises(InvalidArgumentError, match=r"^tof_depth: the ToF depths look like milli"):
         fuse(scene.left, scene.right, scene.tof_depth * 1000, scene.tof_amplitude, RIG)
-    msg = _one_warning(record, "millimetres")
-    assert "tof_depth" in msg and "check the depth unit" in msg
+    with pytest.raises(InvalidArgumentError, match=r"look like kilometres.*check the depth unit"):
+        fuse(scene.left, scene.right, scene.tof_depth / 1000, scene.tof_amplitude, RIG)
 
 
 def test_depths_beyond_the_stereo_range_warn_once(scene: SynthSample) -> None:

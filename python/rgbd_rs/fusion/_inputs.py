@@ -93,8 +93,9 @@ IMPLAUSIBLE_SHARE = 0.99
 UNIT_MAJORITY = 0.5
 
 
-def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> str | None:
-    """What is implausible about the ToF depths (metres) for ``rig``, or None.
+def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> tuple[str, bool] | None:
+    """What is implausible about the ToF depths (metres) for ``rig`` and whether it is their
+    unit (then ``fuse`` refuses them), or None.
 
     Checked on the disparities ``b f / z`` the depths would have on the stereo pair: if almost
     all (``IMPLAUSIBLE_SHARE``) lie below ``MIN_STEREO_DISPARITY`` (beyond the stereo range) or
@@ -128,10 +129,12 @@ def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> str | None:
                 f"tof_depth: the ToF depths look like {unit}, not metres (median {med:.4g}, "
                 f"outside the stereo rig's range: {rig_text}); check the depth unit (rgbd fuse "
                 "reads .npy/.npz in metres, a 16-bit PNG in millimetres unless --depth-scale "
-                "says otherwise)"
+                "says otherwise)",
+                True,
             )
     where = "beyond" if d_med < MIN_STEREO_DISPARITY else "nearer than"
     return (
         f"tof_depth: the ToF depths lie {where} the stereo rig's range (median {med:.4g} m; "
-        f"{rig_text}); check the depth unit and the calibration's baseline and focal length"
+        f"{rig_text}); check the depth unit and the calibration's baseline and focal length",
+        False,
     )

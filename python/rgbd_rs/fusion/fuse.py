@@ -249,9 +249,10 @@ def fuse(
             :data:`DEFAULT_STEREO`.
 
     A ToF frame without any valid pixel gives the stereo-only LC result with a warning.
-    Implausible input warns once each (:class:`RuntimeWarning`), saying what to check: ToF
-    depths that look like millimetres or lie beyond the stereo range of the rig, and a
-    left/right pair that looks swapped.
+    ToF depths that look like millimetres (or kilometres) for the rig are refused
+    (:class:`~rgbd_rs.InvalidArgumentError`, before any work). Other implausible input warns
+    once each (:class:`RuntimeWarning`), saying what to check: depths beyond the stereo range
+    of the rig, and a left/right pair that looks swapped.
     """
     r = rig_arg(rig)
     if reference is not None:
@@ -303,6 +304,11 @@ def fuse(
     match = functools.partial(_match, matcher=matcher, width=w)
     if max_disparity is not None:
         max_disparity = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
+    # Depths in the wrong unit are refused before any work (as segment() does); other
+    # implausible depths warn once the result is known (below).
+    implausible = tof_depth_warning(map2d("tof_depth", tof_depth, (r.tof.height, r.tof.width)), r)
+    if implausible is not None and implausible[1]:
+        raise InvalidArgumentError(implausible[0])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         sparse = _reproject_tof(tof_depth, tof_amplitude, r)
@@ -332,10 +338,8 @@ def fuse(
     else:
         for c in caught:
             warnings.warn(c.message, c.category, stacklevel=2)
-        tof_shape = (r.tof.height, r.tof.width)
-        implausible = tof_depth_warning(map2d("tof_depth", tof_depth, tof_shape), r)
         if implausible is not None:
-            warnings.warn(implausible, RuntimeWarning, stacklevel=2)
+            warnings.warn(implausible[0], RuntimeWarning, stacklevel=2)
     swapped = _swap_warning(lft, rgt, r.reference, st_map, tof.disparity, dmax, match)
     if swapped is not None:
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)
