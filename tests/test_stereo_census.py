@@ -141,6 +141,31 @@ def test_cli_stereo_warns_on_a_swapped_pair(
     assert "rgbd: warning: left/right: the images look swapped" in capsys.readouterr().err
 
 
+def test_cli_stereo_calib_needs_only_the_stereo_pair(tmp_path: Path) -> None:
+    import json
+
+    from rgbd_rs.data import load_rig, load_stereo_rig
+    from rgbd_rs.io import write_png
+
+    left, right = _pair(w=160)
+    h = left.shape[0]
+    write_png(tmp_path / "l.png", np.dstack([left] * 3))
+    write_png(tmp_path / "r.png", np.dstack([right] * 3))
+    cam = {"fx": 100.0, "fy": 100.0, "cx": 79.5, "cy": (h - 1) / 2, "width": 160, "height": h}
+    calib = tmp_path / "stereo.json"  # no ToF camera: rgbd stereo does not need one
+    calib.write_text(json.dumps({"stereo": {"left": cam, "right": cam, "baseline": 0.1}}))
+    rig = load_stereo_rig(calib)
+    assert rig.baseline == 0.1 and rig.left.width == 160
+    whole = Path(__file__).resolve().parents[1] / "examples" / "calibration.json"
+    assert load_stereo_rig(whole) == load_rig(whole).stereo  # a whole rig file works too
+    out = tmp_path / "out"
+    argv = ["stereo", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png")]
+    assert main([*argv, "--calib", str(calib), "--min-depth", "0.5", "--out", str(out)]) == 0
+    assert (out / "disparity.npz").exists()
+    # The calibration of other images (960 x 540) is refused, naming the flag.
+    assert main([*argv, "--calib", str(whole), "--out", str(out)]) == 2
+
+
 def test_cli_eval_stereo_on_val(
     tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

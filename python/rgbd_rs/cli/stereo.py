@@ -34,7 +34,8 @@ def register(commands: Commands) -> None:
     rng.add_argument(
         "--calib",
         type=Path,
-        help="rig calibration JSON: the search range covers depths down to --min-depth",
+        help="calibration JSON of these images (its 'stereo' section is enough: left, right, "
+        "baseline): the search range covers depths down to --min-depth",
     )
     st.add_argument(
         "--min-depth",
@@ -68,14 +69,20 @@ def register(commands: Commands) -> None:
     ev.add_argument("--quiet", action="store_true", help="no progress")
 
 
-def _search_range(args: argparse.Namespace, width: int) -> int:
+def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
     if args.max_disparity is not None:
         dmax = int(args.max_disparity)
     else:
-        from rgbd_rs.data.calibration import load_rig
+        from rgbd_rs.data.calibration import load_stereo_rig
 
-        rig = named("--calib", lambda: load_rig(args.calib))
-        dmax = math.ceil(rig.stereo.baseline * rig.stereo.focal / args.min_depth)
+        rig = named("--calib", lambda: load_stereo_rig(args.calib))
+        size = (rig.left.width, rig.left.height)
+        if size != (width, height):
+            raise InvalidArgumentError(
+                f"--calib: {args.calib} is for {size[0]} x {size[1]} images, the pair is "
+                f"{width} x {height}; expected the calibration of these images"
+            )
+        dmax = math.ceil(rig.baseline * rig.focal / args.min_depth)
     if dmax >= width:
         flag = "--max-disparity" if args.max_disparity is not None else "--min-depth"
         raise InvalidArgumentError(
@@ -93,7 +100,7 @@ def run_stereo(args: argparse.Namespace) -> int:
 
     left = named("--left", lambda: read_png(args.left))
     right = named("--right", lambda: read_png(args.right))
-    dmax = _search_range(args, left.shape[1])
+    dmax = _search_range(args, left.shape[1], left.shape[0])
     if args.method == "opencv":
         dmax = min(dmax, _max_search(left.shape[1]))
     out = output_folder(args.out, STEREO_OUTPUTS)

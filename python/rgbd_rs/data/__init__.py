@@ -12,7 +12,13 @@ from rgbd_rs.data.azure_kinect import (
     load_azure_kinect_frame,
     reproject_to_color,
 )
-from rgbd_rs.data.calibration import load_camera, load_rig, save_camera, save_rig
+from rgbd_rs.data.calibration import (
+    load_camera,
+    load_rig,
+    load_stereo_rig,
+    save_camera,
+    save_rig,
+)
 from rgbd_rs.data.middlebury import MiddleburyPair, load_middlebury
 from rgbd_rs.data.nyuv2 import (
     LABEL13_NAMES,
@@ -76,6 +82,7 @@ __all__ = [
     "load_nyuv2_mapping",
     "load_nyuv2_splits",
     "load_rig",
+    "load_stereo_rig",
     "load_stereo_scene",
     "load_stereo_scenes",
     "nyuv2_frames",

@@ -184,6 +184,27 @@ def load_camera(path: str | Path) -> PinholeCamera:
     )
 
 
+def load_stereo_rig(path: str | Path) -> StereoRig:
+    """The rectified stereo pair of a calibration JSON: its ``stereo`` section (``left``,
+    ``right``, ``baseline``), from a whole rig file or from one with that section alone (no
+    ToF camera needed, as for ``rgbd stereo --calib``). Errors name the file and the key."""
+    d = read_json(path)
+    try:
+        top = _object("the file", d)
+        _require("the file", top, ("stereo",), ("tof", "tof_to_reference", "reference"))
+        st = _object("stereo", top["stereo"])
+        _require("'stereo'", st, ("left", "right", "baseline"))
+        return StereoRig(
+            _camera("stereo.left", st["left"]),
+            _camera("stereo.right", st["right"]),
+            _number("stereo.baseline", st["baseline"]),
+        )
+    except _MissingKey as exc:
+        raise RgbdError(f"{path}: calibration: {exc}") from exc
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise RgbdError(f"{path}: invalid calibration ({exc})") from exc
+
+
 def load_rig(path: str | Path) -> ToFStereoRig:
     """Read a calibration JSON (layout in the module docstring).
 
