@@ -356,3 +356,17 @@ CASES: list[Case] = [
 @pytest.mark.parametrize("case", params(CASES))
 def test_bad_input(case: Case) -> None:
     check(case)
+
+
+def test_shape_errors_name_image_axes_h_w() -> None:
+    # A 3-channel depth given for a depth map reads as an image (H, W), a point list as (N, 3).
+    from rgbd_rs import _validate
+
+    with pytest.raises(
+        ShapeMismatchError, match=r"^depth: got shape \(4, 5, 3\), expected \(H, W\)$"
+    ):
+        _validate.array("depth", np.zeros((4, 5, 3)), shape=(None, None))
+    with pytest.raises(ShapeMismatchError, match=r"expected \(H, W, 3\)$"):
+        _validate.array("rgb", np.zeros((4, 5)), shape=(None, None, 3))
+    with pytest.raises(ShapeMismatchError, match=r"expected \(N, 3\)$"):
+        _validate.array("points", np.zeros((4, 2)), shape=(None, 3))

@@ -670,3 +670,16 @@ def test_a_dense_cloud_is_classified_from_a_seeded_subset_of_the_network_size() 
     pick = np.sort(np.random.default_rng(SAMPLE_SEED).choice(len(dense), n, replace=False))
     np.testing.assert_array_equal(CLF.probabilities([dense]), CLF.probabilities([dense[pick]]))
     assert not np.array_equal(CLF.probabilities([dense]), CLF.probabilities([dense[:n]]))
+
+
+def test_a_cloud_files_non_finite_points_are_dropped_with_a_warning(tmp_path: Path) -> None:
+    # An organised depth-camera cloud marks its holes with NaN: a file's are dropped (warned),
+    # an array given in Python is refused with the way to drop them.
+    pts = np.random.default_rng(0).random((50, 3))
+    pts[[3, 7]] = np.nan
+    np.save(tmp_path / "holes.npy", pts)
+    with pytest.warns(RuntimeWarning, match=r"holes\.npy: dropped 2 of 50 points that are not"):
+        got = load_shape(tmp_path / "holes.npy")
+    assert isinstance(got, np.ndarray) and got.shape == (48, 3)
+    with pytest.raises(InvalidArgumentError, match=r"drop the non-finite points first"):
+        shape_inputs(pts, SPEC)

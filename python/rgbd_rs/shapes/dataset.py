@@ -135,13 +135,36 @@ def load_shape(path: str | os.PathLike[str]) -> Shape:
 
 
 def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.float32]:
+    """``value`` as ``N x 3`` finite points. A file's points that are not finite (an organised
+    depth-camera cloud marks its holes with NaN) are dropped with a warning; an array given in
+    Python must be finite."""
     try:
+        if file:
+            value = _finite_rows(name, _validate.array(name, value, shape=(None, 3)))
         pts = _validate.array(name, value, shape=(None, 3), finite=True)
     except (InvalidArgumentError, ShapeMismatchError) as exc:
         if file:  # a bad file's content is an RgbdError naming the file
             raise RgbdError(f"not a point cloud: {exc}") from None
+        if "non-finite" in str(exc):
+            raise InvalidArgumentError(
+                f"{exc}; drop the non-finite points first (points[np.isfinite(points).all(1)])"
+            ) from None
         raise
     return pts
+
+
+def _finite_rows(name: str, points: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    """``points`` without its rows that hold a NaN or infinity (a warning says how many)."""
+    keep = np.isfinite(points).all(axis=1)
+    if keep.all() or not keep.any():
+        return points  # all finite, or none: the caller's check says so
+    warnings.warn(
+        f"{name}: dropped {int((~keep).sum())} of {len(points)} points that are not finite "
+        "(NaN or infinite coordinates)",
+        RuntimeWarning,
+        stacklevel=4,
+    )
+    return points[keep]
 
 
 def _read_array(p: Path, suffix: str) -> np.ndarray:
