@@ -328,10 +328,10 @@ def test_the_unseen_band_on_either_reference(sign: int) -> None:
 @pytest.mark.parametrize("sign", [-1, 1])
 def test_the_strip_before_the_first_tof_pixel_takes_its_value(sign: int) -> None:
     # A 12-px row per case, the border the other camera cannot see on the left for a left
-    # reference (target x - d), on the right for a right one. Row 0: the first ToF pixel (4 px
-    # in, d = 6) is unseen too, so the 4 px before it take its value. Row 1: its first ToF pixel
-    # (d = 2 at 4 px in) is seen: nothing moves. Row 2: unseen but unconfirmed (confidence 0).
-    # Row 3: no ToF at all.
+    # reference (target x - d), on the right for a right one. Row 0: the first ToF pixel is
+    # 4 px in at d = 6, so all 4 px before it are unseen at that disparity and take it. Row 1:
+    # d = 2 at 4 px in: only the 2 px nearest the border are unseen at d = 2. Row 2: unseen but
+    # unconfirmed (confidence 0). Row 3: no ToF at all.
     w, nan = 12, np.nan
     tof = np.full((4, w), nan, np.float32)
     tof[0, 4:], tof[1, 4:], tof[2, 4:] = 6.0, 2.0, 6.0
@@ -344,16 +344,17 @@ def test_the_strip_before_the_first_tof_pixel_takes_its_value(sign: int) -> None
     source = np.full((4, w), FUSE.SOURCE_LC, np.uint8)
     FUSE._carry_tof_to_border(disp, plaus, source, tof, conf, sign)
     strip = np.zeros((4, w), bool)
-    strip[0, :4] = True
+    strip[0, :4] = strip[1, :2] = True
+    value = np.where(np.arange(4)[:, None] == 1, 2.0, 6.0)
     if sign > 0:
         strip = strip[:, ::-1]
-    np.testing.assert_array_equal(disp, np.where(strip, 6.0, 9.0).astype(np.float32))
+    np.testing.assert_array_equal(disp, np.where(strip, value, 9.0).astype(np.float32))
     np.testing.assert_array_equal(plaus, np.where(strip, 0.7, 0.9).astype(np.float32))
     np.testing.assert_array_equal(
         source, np.where(strip, FUSE.SOURCE_TOF_CARRIED, FUSE.SOURCE_LC).astype(np.uint8)
     )
     FUSE._carry_tof_to_border(disp, plaus, source, tof, None, sign)  # uniform weights: row 2 too
-    assert (source == FUSE.SOURCE_TOF_CARRIED).sum() == 8 and (plaus[2][source[2] == 4] == 1).all()
+    assert (source == FUSE.SOURCE_TOF_CARRIED).sum() == 10 and (plaus[2][source[2] == 4] == 1).all()
 
 
 def test_the_border_the_other_camera_cannot_see_is_not_left_to_lc(shared_data: Path) -> None:
