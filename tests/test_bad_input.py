@@ -370,3 +370,5 @@ def test_shape_errors_name_image_axes_h_w() -> None:
         _validate.array("rgb", np.zeros((4, 5)), shape=(None, None, 3))
     with pytest.raises(ShapeMismatchError, match=r"expected \(N, 3\)$"):
         _validate.array("points", np.zeros((4, 2)), shape=(None, 3))
+    with pytest.raises(ShapeMismatchError, match=r"expected \(N, N, N\)$"):  # C x H x W: no names
+        _validate.array("cues", np.zeros((4, 2)), shape=(None, None, None))

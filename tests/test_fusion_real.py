@@ -3,6 +3,7 @@ fusion's knobs are chosen by, and fuse()'s choice of stereo matcher."""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import sys
 from pathlib import Path
@@ -14,6 +15,7 @@ from rgbd_rs import InvalidArgumentError
 from rgbd_rs.cli import main
 from rgbd_rs.data import load_stereo_scene
 from rgbd_rs.fusion import LcParams, fuse, sgm
+from rgbd_rs.fusion.evaluate_real import markdown
 from rgbd_rs.fusion.real_scenes import (
     DENSE_PROTOCOL_SIZE,
     DENSE_TOF_SCALE,
@@ -139,7 +141,22 @@ def test_scores_say_what_the_fusion_did() -> None:
     assert m["worst_good"] == pytest.approx(1.25, rel=1e-4)
     assert m["coverage_gap"] == pytest.approx(1 / 320)
     assert m["unseen_bad2"] == 0.0
-    assert summarize([c, c_off])["unseen_bad2"] == pytest.approx(10 / 80)
+    assert summarize([c, c_off])["unseen_bad2"] == pytest.approx(20 / 160)
+    # Pooled over the pixels each map has a value for: a ToF with 1 unseen pixel, off, in one
+    # case and 80 right ones in the other is 1 / 81 off, not the mean of 1 and 0.
+    tof_one = np.full_like(tof, np.nan)
+    tof_one[:, 10:] = tof[:, 10:]
+    tof_one[0, 0] = 20.0
+    c_one = score_maps("case", gt, -1, tof_one, stereo, fused)
+    assert c_one.unseen_valued["tof"] == 1 and c_one.unseen_bad2["tof"] == 1.0
+    assert summarize([c, c_one])["unseen_bad2_tof"] == pytest.approx(1 / 81)
+    no_tof = dataclasses.replace(
+        c_one,
+        unseen_valued={**c_one.unseen_valued, "tof": 0},
+        unseen_bad2={**c_one.unseen_bad2, "tof": float("nan")},
+    )
+    text = markdown([no_tof], "t")
+    assert "the ToF no value there" in text and "nan" not in text.split("Pixels the other")[1]
     with pytest.raises(Exception, match="no pixel is valid"):
         score_maps("empty", gt, -1, tof, stereo, np.full_like(gt, np.nan))
 

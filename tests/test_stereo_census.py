@@ -138,7 +138,7 @@ def test_cli_stereo_warns_on_a_swapped_pair(
     with warnings.catch_warnings():
         warnings.simplefilter("always")  # main prints it: rgbd: warning: ...
         assert main(["stereo", "--left", right, "--right", left, *out]) == 0
-    assert "rgbd: warning: left/right: the images look swapped" in capsys.readouterr().err
+    assert "rgbd: warning: --left/--right: the images look swapped" in capsys.readouterr().err
 
 
 def test_cli_stereo_calib_needs_only_the_stereo_pair(tmp_path: Path) -> None:

@@ -25,9 +25,11 @@ MAX_SIDE: int = _rgbd_rs.MAX_SIDE
 
 def _describe_shape(shape: Sequence[int | None]) -> str:
     """``(N, 3)`` for a list of points, ``(H, W)`` / ``(H, W, 3)`` for an image (two free
-    leading axes), numbers where the length is fixed."""
+    leading axes, and at most a fixed channel count after them), numbers where the length is
+    fixed."""
     names = ["N"] * len(shape)
-    if len(shape) >= 2 and shape[0] is None and shape[1] is None:
+    image = len(shape) == 2 or (len(shape) == 3 and shape[2] is not None)
+    if image and shape[0] is None and shape[1] is None:
         names[:2] = ["H", "W"]
     return (
         "(" + ", ".join(n if s is None else str(s) for n, s in zip(names, shape, strict=True)) + ")"

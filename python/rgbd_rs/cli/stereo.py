@@ -136,8 +136,8 @@ def _warn_if_swapped(left: Any, right: Any, reference: str, dmax: int, method: s
     checked = match(left, right, reference=reference, max_disparity=dmax)
     none = np.full(checked.shape, np.nan, np.float32)
     message = _swap_warning(left, right, reference, checked, none, dmax, match)
-    if message is not None:
-        warnings.warn(message, RuntimeWarning, stacklevel=2)
+    if message is not None:  # in the flags' words, as rgbd fuse says it
+        warnings.warn(message.replace("left/right:", "--left/--right:", 1), RuntimeWarning, 2)
 
 
 def run_eval_stereo(args: argparse.Namespace) -> int:

@@ -55,10 +55,12 @@ def markdown(scores: list[CaseScore], title: str) -> str:
         "0.5)."
     )
     if np.isfinite(m["unseen_bad2"]):
+        tof = m["unseen_bad2_tof"]
+        tof_text = f"{100 * tof:.1f} %" if np.isfinite(tof) else "no value there"
         rows.append(
             f"Pixels the other camera cannot see (never in the RMS above): fused "
-            f"{100 * m['unseen_bad2']:.1f} % off by more than 2 px, the ToF "
-            f"{100 * m['unseen_bad2_tof']:.1f} % (over the pixels each has a value for)."
+            f"{100 * m['unseen_bad2']:.1f} % off by more than 2 px, the ToF {tof_text} (over "
+            "the pixels each has a value for)."
         )
     return "\n".join(rows) + "\n"
 

@@ -50,6 +50,8 @@ class CaseScore:
     unseen_bad2: dict[str, float] = dataclasses.field(default_factory=dict)
     #: The number of those pixels (with ground truth).
     unseen_pixels: int = 0
+    #: Per map: how many of them it has a value for (the weights :func:`summarize` pools by).
+    unseen_valued: dict[str, int] = dataclasses.field(default_factory=dict)
 
     @property
     def ratio(self) -> float:
@@ -83,7 +85,8 @@ def score_maps(name: str, gt: F32, sign: int, tof: F32, stereo: F32, fused: F32)
     coverage["union"] = float((have["tof"] | have["stereo"]).sum()) / n
     unseen = _unseen(gt, sign)
     bad2 = {k: _bad2(v, gt, unseen) for k, v in maps.items()}
-    return CaseScore(name, rms, good, coverage, int(common.sum()), bad2, int(unseen.sum()))
+    valued = {k: int((unseen & np.isfinite(v)).sum()) for k, v in maps.items()}
+    return CaseScore(name, rms, good, coverage, int(common.sum()), bad2, int(unseen.sum()), valued)
 
 
 def _unseen(gt: F32, sign: int) -> npt.NDArray[np.bool_]:
@@ -128,9 +131,10 @@ def summarize(scores: Sequence[CaseScore] | Iterable[CaseScore]) -> dict[str, fl
 
 
 def _pooled_unseen(scores: list[CaseScore], key: str) -> float:
-    """The pixel-weighted share of the cases' unseen pixels ``key`` has > 2 px off (NaN: none)."""
-    pairs = [(c.unseen_bad2[key], c.unseen_pixels) for c in scores if key in c.unseen_bad2]
-    pairs = [(b, n) for b, n in pairs if np.isfinite(b) and n > 0]
+    """The share of all cases' unseen pixels that ``key`` has a value for which it has > 2 px
+    off (NaN: none)."""
+    pairs = [(c.unseen_bad2[key], c.unseen_valued[key]) for c in scores if key in c.unseen_bad2]
+    pairs = [(b, n) for b, n in pairs if n > 0 and np.isfinite(b)]
     if not pairs:
         return float("nan")
     return float(sum(b * n for b, n in pairs) / sum(n for _, n in pairs))

@@ -102,7 +102,10 @@ def _carry_tof_to_border(
     and val scenes (60 cases under three ToF laws, 20 under the dense protocol) the pixels the
     other camera cannot see went from 46-54 % to 10-16 % off by more than 2 px (RMS 23-27 px to
     9-11 px); the scored, visible pixels are untouched. A row whose first ToF pixel has
-    confidence 0 (an unconfirmed pixel, or the caller's weights) is left as it was."""
+    confidence 0 (an unconfirmed pixel, or the caller's weights) is left as it was. The risk,
+    not seen in those cases: a ToF dropout along the border in front of a near surface carries
+    that surface over a seen background (a limit on the strip's length in pixels, 4-32, lost
+    most of the gain: the ToF often starts 16-32 px in)."""
     h, w = tof.shape
     flip = sign > 0  # scan from the border the other camera cannot see
     t = tof[:, ::-1] if flip else tof
