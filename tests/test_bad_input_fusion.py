@@ -53,6 +53,13 @@ CASES: list[Case] = [
     ),
     Case(
         "fuse",
+        lambda: F.fuse(LEFT, LEFT, TOF, -TOF, RIG),
+        ARG,
+        r"^tof_amplitude: got 217088 negative values \(down to -1\), expected amplitudes >= 0",
+        "negative amplitude",
+    ),
+    Case(
+        "fuse",
         lambda: F.fuse(
             LEFT,
             LEFT,

@@ -232,6 +232,13 @@ def _reproject_tof(
     z = map2d("tof_depth", tof_depth, tof_shape)
     amp = map2d("tof_amplitude", tof_amplitude, tof_shape)
     valid = np.isfinite(z) & (z > 0)
+    with np.errstate(invalid="ignore"):
+        negative = valid & (amp < 0)
+    if negative.any():
+        raise InvalidArgumentError(
+            f"tof_amplitude: got {int(negative.sum())} negative values (down to "
+            f"{float(amp[negative].min()):.3g}), expected amplitudes >= 0 in any unit"
+        )
     # The disparity b f / z of a subnormal depth overflows float32 (checked here to name the
     # argument; depth_to_disparity would call it "depth").
     floor = r.stereo.baseline * r.stereo.focal / _validate.F32_MAX
