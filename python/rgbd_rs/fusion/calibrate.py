@@ -26,8 +26,9 @@ from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import views
 from rgbd_rs.fusion.evaluate import Sample, non_occluded
-from rgbd_rs.fusion.fuse import _fill_single_source, fuse
+from rgbd_rs.fusion.fuse import fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
+from rgbd_rs.fusion.sources import _fill_single_source
 from rgbd_rs.metrics import bad_pixel_rate, rms_error
 
 if TYPE_CHECKING:

@@ -94,7 +94,8 @@ def _unseen(gt: F32, sign: int) -> npt.NDArray[np.bool_]:
     x = np.arange(gt.shape[1], dtype=np.float32)[None, :]
     with np.errstate(invalid="ignore"):
         target = np.rint(x + np.float32(sign) * gt)
-        return np.isfinite(gt) & ((target < 0) | (target > gt.shape[1] - 1))
+        out: npt.NDArray[np.bool_] = np.isfinite(gt) & ((target < 0) | (target > gt.shape[1] - 1))
+    return out
 
 
 def _bad2(disparity: F32, gt: F32, where: npt.NDArray[np.bool_]) -> float:
