@@ -27,6 +27,7 @@ from rgbd_rs.data import (
     load_camera,
     load_middlebury,
     load_rig,
+    load_stereo_rig,
     reproject_to_color,
     save_camera,
     save_rig,
@@ -117,6 +118,9 @@ def _rig_edited(name: str, edit: Callable[[dict[str, Any]], object]) -> Callable
         return load_rig(_file(name, json.dumps(doc)))
 
     return call
+
+
+_STEREO = _rig_to_dict(synth3_rig(0.125))["stereo"]
 
 
 def _frame_npz(name: str, depth_mm: np.ndarray, ir: object = True) -> Path:
@@ -285,6 +289,31 @@ CASES: list[Case] = [
         FILE,
         r"one_cam\.json: holds one camera, expected a ToF \+ stereo rig .*`rgbd reproject`",
         "one camera",
+    ),
+    Case(
+        "load_stereo_rig",
+        lambda: load_stereo_rig(_file("st_none.json", '{"tof": {}}')),
+        FILE,
+        r"st_none\.json: calibration: the file has no key 'stereo'",
+        "no stereo",
+    ),
+    Case(
+        "load_stereo_rig",
+        lambda: load_stereo_rig(
+            _file("st_base.json", json.dumps({"stereo": {**_STEREO, "baseline": "0.1"}}))
+        ),
+        FILE,
+        r"st_base\.json: .*baseline",
+        "baseline string",
+    ),
+    Case(
+        "load_stereo_rig",
+        lambda: load_stereo_rig(
+            _file("st_key.json", json.dumps({"stereo": _STEREO, "tof_pose": 1}))
+        ),
+        FILE,
+        r"st_key\.json: calibration: the file has an unknown key 'tof_pose'",
+        "typo",
     ),
     Case("save_rig", lambda: save_rig(TMP / "r.json", "rig"), ARG, r"^rig: got str"),
     Case("synth3_rig", lambda: synth3_rig(1000.0), ARG, r"^scale: got 1000"),
