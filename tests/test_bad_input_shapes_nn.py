@@ -683,3 +683,14 @@ def test_a_cloud_files_non_finite_points_are_dropped_with_a_warning(tmp_path: Pa
     assert isinstance(got, np.ndarray) and got.shape == (48, 3)
     with pytest.raises(InvalidArgumentError, match=r"drop the non-finite points first"):
         shape_inputs(pts, SPEC)
+
+
+def test_a_ply_clouds_non_finite_points_are_dropped_too(tmp_path: Path) -> None:
+    pts = np.random.default_rng(0).random((20, 3))
+    pts[5] = np.nan
+    rows = "\n".join(" ".join("nan" if np.isnan(v) else f"{v:.5f}" for v in p) for p in pts)
+    head = "ply\nformat ascii 1.0\nelement vertex 20\nproperty float x\nproperty float y\n"
+    (tmp_path / "c.ply").write_text(head + f"property float z\nend_header\n{rows}\n")
+    with pytest.warns(RuntimeWarning, match=r"c\.ply: dropped 1 of 20 points"):
+        got = load_shape(tmp_path / "c.ply")
+    assert isinstance(got, np.ndarray) and got.shape == (19, 3)

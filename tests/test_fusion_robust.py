@@ -309,3 +309,16 @@ def test_missing_calibration_keys_are_named(
     (tmp_path / "c.json").write_text(json.dumps(doc))
     with pytest.raises(RgbdError, match=r"c\.json: " + match):
         load_rig(tmp_path / "c.json")
+
+
+def test_an_amplitude_without_any_positive_value_warns(scene: SynthSample) -> None:
+    # Estimated confidences read the amplitude: all zero / NaN / inf gives the ToF no weight.
+    for bad in (0.0, np.nan, np.inf):
+        amp = np.full_like(scene.tof_amplitude, bad)
+        with pytest.warns(RuntimeWarning) as record:
+            fuse(scene.left, scene.right, scene.tof_depth, amp, RIG, confidence="heuristic")
+        msg = _one_warning(record, "no ToF pixel has a finite amplitude > 0")
+        assert msg.startswith("tof_amplitude:")
+    # Uniform weights do not read it: no warning (the suite turns warnings into errors).
+    zero = np.zeros_like(scene.tof_amplitude)
+    fuse(scene.left, scene.right, scene.tof_depth, zero, RIG, confidence="uniform")

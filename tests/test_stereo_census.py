@@ -172,3 +172,22 @@ def test_cli_eval_stereo_on_val(
     assert main(["eval", "stereo", "--split", "val", "--out", str(tmp_path), "--quiet"]) == 0
     text = (tmp_path / "val.md").read_text()
     assert "census (ours)" in text and "OpenCV HH 7x7" in text and "Tsukuba" in text
+
+
+def test_cli_stereo_refuses_what_it_cannot_search(tmp_path: Path) -> None:
+    import json
+
+    from rgbd_rs.io import write_png
+
+    left, right = _pair(w=160)
+    h = left.shape[0]
+    for name, img in (("l.png", left), ("r.png", right), ("n.png", left[:, :8])):
+        write_png(tmp_path / name, np.dstack([img] * 3))
+    cam = {"fx": 100.0, "fy": 100.0, "cx": 79.5, "cy": (h - 1) / 2, "width": 160, "height": h}
+    calib = tmp_path / "huge.json"  # baseline x focal overflows to inf
+    calib.write_text(json.dumps({"stereo": {"left": cam, "right": cam, "baseline": 1e308}}))
+    argv = ["stereo", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png")]
+    assert main([*argv, "--calib", str(calib), "--out", str(tmp_path / "o")]) == 2
+    narrow = ["stereo", "--left", str(tmp_path / "n.png"), "--right", str(tmp_path / "n.png")]
+    opencv = ["--method", "opencv", "--max-disparity", "4", "--out", str(tmp_path / "o")]
+    assert main([*narrow, *opencv]) == 2

@@ -82,7 +82,13 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
                 f"--calib: {args.calib} is for {size[0]} x {size[1]} images, the pair is "
                 f"{width} x {height}; expected the calibration of these images"
             )
-        dmax = math.ceil(rig.baseline * rig.focal / args.min_depth)
+        reach = rig.baseline * rig.focal / args.min_depth
+        if not math.isfinite(reach) or reach >= width:
+            raise InvalidArgumentError(
+                f"--min-depth: a search range of {reach:.4g} px (baseline x focal / min depth "
+                f"from --calib), expected less than the image width {width}"
+            )
+        dmax = math.ceil(reach)
     if dmax >= width:
         flag = "--max-disparity" if args.max_disparity is not None else "--min-depth"
         raise InvalidArgumentError(
@@ -94,7 +100,7 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
 def run_stereo(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from rgbd_rs.fusion.stereo import _max_search, sgm
+    from rgbd_rs.fusion.stereo import BLOCK_SIZE, DISPARITY_STEP, _max_search, sgm
     from rgbd_rs.io import read_png, write_npz, write_png
     from rgbd_rs.viz import colorize_with_bar, save_png
 
@@ -102,6 +108,12 @@ def run_stereo(args: argparse.Namespace) -> int:
     right = named("--right", lambda: read_png(args.right))
     dmax = _search_range(args, left.shape[1], left.shape[0])
     if args.method == "opencv":
+        if _max_search(left.shape[1]) < 1:
+            raise InvalidArgumentError(
+                f"--left: images {left.shape[1]} px wide, expected at least "
+                f"{DISPARITY_STEP + BLOCK_SIZE // 2 + 1} px for OpenCV's SGBM (its 7x7 block and "
+                f"{DISPARITY_STEP}-px search steps); --method census takes narrower images"
+            )
         dmax = min(dmax, _max_search(left.shape[1]))
     out = output_folder(args.out, STEREO_OUTPUTS)
     disp = flagged(

@@ -349,6 +349,8 @@ def fuse(
             "left/right: stereo matching found no valid disparity and the ToF has none either; "
             "expected textured images or valid ToF data"
         )
+    if given is None and kind != "uniform" and not no_tof:
+        _warn_without_amplitude(tof_disp, tof.amplitude)
     ct: F32 | None
     cs: F32 | None
     if given is not None:
@@ -383,6 +385,22 @@ def fuse(
     return FusionResult(
         disp, depth, plaus, tof, st_map, ct, cs, dmax, r.reference, tof_disp, matcher, source
     )
+
+
+def _warn_without_amplitude(tof_disparity: F32, amplitude: F32) -> None:
+    """Warn when no ToF pixel has a finite amplitude > 0: estimated confidences then give the
+    ToF no weight anywhere, and the result is the stereo map's alone."""
+    have = np.isfinite(tof_disparity)
+    with np.errstate(invalid="ignore"):
+        usable = have & np.isfinite(amplitude) & (amplitude > 0)
+    if have.any() and not usable.any():
+        warnings.warn(
+            "tof_amplitude: no ToF pixel has a finite amplitude > 0 (all zero, NaN or "
+            "infinite): the estimated confidences give the ToF no weight; pass the camera's "
+            "amplitude (any unit), or confidence='uniform'",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def _unconfirmed_to_zero(confidence: F32, color_gap: F32 | None) -> F32:

@@ -199,8 +199,12 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
         raise RgbdError(f"{p}: no vertices or points, expected a mesh or point cloud")
     if suffix == ".ply":
         _check_ply_vertices(p, len(v))
+    if len(f) == 0:  # a point cloud: its non-finite points are dropped, as other files' are
+        v = _finite_rows(str(p), v)
     if not np.isfinite(v).all():
-        raise RgbdError(f"{p}: non-finite vertex coordinates")
+        bad = int((~np.isfinite(v).all(axis=1)).sum())
+        what = "points" if len(f) == 0 else "vertices"
+        raise RgbdError(f"{p}: {bad} of {len(v)} {what} have non-finite coordinates")
     if np.abs(v).max() > np.finfo(np.float32).max:
         raise RgbdError(f"{p}: vertex coordinates beyond float32 range")
     if len(f) == 0:
