@@ -318,7 +318,11 @@ def test_an_amplitude_without_any_positive_value_warns(scene: SynthSample) -> No
         with pytest.warns(RuntimeWarning) as record:
             fuse(scene.left, scene.right, scene.tof_depth, amp, RIG, confidence="heuristic")
         msg = _one_warning(record, "no ToF pixel has a finite amplitude > 0")
-        assert msg.startswith("tof_amplitude:")
-    # Uniform weights do not read it: no warning (the suite turns warnings into errors).
+        assert msg.startswith("tof_amplitude:") and "heuristic confidences give the ToF no" in msg
+    # The ConvNet reads it as a clue: the warning says that, not "no weight".
     zero = np.zeros_like(scene.tof_amplitude)
+    with pytest.warns(RuntimeWarning) as record:
+        fuse(scene.left, scene.right, scene.tof_depth, zero, RIG)
+    assert "reads it as one of its clues" in _one_warning(record, "finite amplitude > 0")
+    # Uniform weights do not read it: no warning (the suite turns warnings into errors).
     fuse(scene.left, scene.right, scene.tof_depth, zero, RIG, confidence="uniform")

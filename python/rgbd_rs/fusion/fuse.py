@@ -350,7 +350,7 @@ def fuse(
             "expected textured images or valid ToF data"
         )
     if given is None and kind != "uniform" and not no_tof:
-        _warn_without_amplitude(tof_disp, tof.amplitude)
+        _warn_without_amplitude(tof_disp, tof.amplitude, network=estimator is not None)
     ct: F32 | None
     cs: F32 | None
     if given is not None:
@@ -387,17 +387,23 @@ def fuse(
     )
 
 
-def _warn_without_amplitude(tof_disparity: F32, amplitude: F32) -> None:
-    """Warn when no ToF pixel has a finite amplitude > 0: estimated confidences then give the
-    ToF no weight anywhere, and the result is the stereo map's alone."""
+def _warn_without_amplitude(tof_disparity: F32, amplitude: F32, *, network: bool) -> None:
+    """Warn when no ToF pixel has a finite amplitude > 0: the heuristic confidences then give
+    the ToF no weight anywhere; a ConvNet reads it as one of its clues, and never saw a frame
+    without it."""
     have = np.isfinite(tof_disparity)
     with np.errstate(invalid="ignore"):
         usable = have & np.isfinite(amplitude) & (amplitude > 0)
     if have.any() and not usable.any():
+        effect = (
+            "the ConvNet reads it as one of its clues and was never trained without it"
+            if network
+            else "the heuristic confidences give the ToF no weight"
+        )
         warnings.warn(
             "tof_amplitude: no ToF pixel has a finite amplitude > 0 (all zero, NaN or "
-            "infinite): the estimated confidences give the ToF no weight; pass the camera's "
-            "amplitude (any unit), or confidence='uniform'",
+            f"infinite): {effect}; pass the camera's amplitude (any unit), or "
+            "confidence='uniform'",
             RuntimeWarning,
             stacklevel=3,
         )
