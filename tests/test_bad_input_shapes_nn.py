@@ -694,3 +694,15 @@ def test_a_ply_clouds_non_finite_points_are_dropped_too(tmp_path: Path) -> None:
     with pytest.warns(RuntimeWarning, match=r"c\.ply: dropped 1 of 20 points"):
         got = load_shape(tmp_path / "c.ply")
     assert isinstance(got, np.ndarray) and got.shape == (19, 3)
+
+
+def test_coordinates_beyond_float32_are_not_called_holes(tmp_path: Path) -> None:
+    # Finite float64 values that overflow float32 are out of range, not non-finite points to
+    # drop (and no numpy overflow warning leaks: the suite turns warnings into errors).
+    pts = np.random.default_rng(0).random((20, 3))
+    pts[:2] *= 1e300
+    np.save(tmp_path / "far.npy", pts)
+    with pytest.raises(RgbdError, match=r"far\.npy: got 6 values beyond float32's range"):
+        load_shape(tmp_path / "far.npy")
+    with pytest.raises(InvalidArgumentError, match=r"^shape: got 6 values beyond float32's range"):
+        shape_inputs(pts, SPEC)

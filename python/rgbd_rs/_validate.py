@@ -101,7 +101,8 @@ def array(
         )
     # np.ascontiguousarray keeps an unaligned buffer as it is; the kernels need aligned memory.
     try:
-        out = np.require(value, dtype=dtype, requirements=["C_CONTIGUOUS", "ALIGNED"])
+        with np.errstate(over="ignore"):  # overflow in the cast is reported below, by name
+            out = np.require(value, dtype=dtype, requirements=["C_CONTIGUOUS", "ALIGNED"])
     except MemoryError:
         need = value.size * np.dtype(dtype).itemsize
         raise MemoryError(
@@ -110,6 +111,12 @@ def array(
         ) from None
     if finite and out.size and not np.isfinite(out).all():
         bad = int(np.size(out) - np.count_nonzero(np.isfinite(out)))
+        if out.dtype != value.dtype and value.dtype.kind == "f" and np.isfinite(value).all():
+            top = float(np.abs(value).max())
+            raise InvalidArgumentError(
+                f"{name}: got {bad} values beyond {np.dtype(dtype)}'s range (up to {top:.3g}), "
+                f"expected magnitudes below {float(np.finfo(dtype).max):.3g}"
+            )
         raise InvalidArgumentError(f"{name}: got {bad} non-finite values, expected finite values")
     return out
 

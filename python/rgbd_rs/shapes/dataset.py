@@ -139,8 +139,10 @@ def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.f
     depth-camera cloud marks its holes with NaN) are dropped with a warning; an array given in
     Python must be finite."""
     try:
-        if file:
-            value = _finite_rows(name, _validate.array(name, value, shape=(None, 3)))
+        if file:  # in the file's own dtype: a float64 beyond float32's range is not a hole
+            raw = _validate.asarray(name, value)
+            if raw.ndim == 2 and raw.shape[1] == 3 and raw.dtype.kind == "f":
+                value = _finite_rows(name, raw)
         pts = _validate.array(name, value, shape=(None, 3), finite=True)
     except (InvalidArgumentError, ShapeMismatchError) as exc:
         if file:  # a bad file's content is an RgbdError naming the file
