@@ -28,6 +28,8 @@ default in force without a word); keys starting with ``_`` are free for notes.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -165,7 +167,7 @@ def load_camera(path: str | Path) -> PinholeCamera:
     (``examples/nyu_camera.json``). A rig file (``rgbd fuse --calib``) is read too: its
     reference stereo camera is returned."""
     d = read_json(path)
-    try:
+    with _reported(path):
         top = _object("the file", d)
         if "stereo" in top and "fx" not in top:
             rig = load_rig(path)
@@ -173,10 +175,6 @@ def load_camera(path: str | Path) -> PinholeCamera:
         foreign = not {"fx", "fy", "cx", "cy"} & set(top)
         if not foreign:
             return _camera("camera", top)
-    except _MissingKey as exc:
-        raise RgbdError(f"{path}: calibration: {exc}") from exc
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise RgbdError(f"{path}: invalid calibration ({exc})") from exc
     raise RgbdError(
         f"{path}: got a JSON object with keys {sorted(top)[:8]}, expected a camera "
         '({"fx", "fy", "cx", "cy", "width", "height"}, e.g. examples/nyu_camera.json) '
@@ -189,20 +187,32 @@ def load_stereo_rig(path: str | Path) -> StereoRig:
     ``right``, ``baseline``), from a whole rig file or from one with that section alone (no
     ToF camera needed, as for ``rgbd stereo --calib``). Errors name the file and the key."""
     d = read_json(path)
-    try:
+    with _reported(path):
         top = _object("the file", d)
         _require("the file", top, ("stereo",), ("tof", "tof_to_reference", "reference"))
         st = _object("stereo", top["stereo"])
         _require("'stereo'", st, ("left", "right", "baseline"))
-        return StereoRig(
-            _camera("stereo.left", st["left"]),
-            _camera("stereo.right", st["right"]),
-            _number("stereo.baseline", st["baseline"]),
-        )
+        return _stereo_rig(st)
+
+
+@contextlib.contextmanager
+def _reported(path: str | Path) -> Iterator[None]:
+    """A missing key or a bad value inside the block raises RgbdError naming ``path``."""
+    try:
+        yield
     except _MissingKey as exc:
         raise RgbdError(f"{path}: calibration: {exc}") from exc
     except (TypeError, ValueError, OverflowError) as exc:
         raise RgbdError(f"{path}: invalid calibration ({exc})") from exc
+
+
+def _stereo_rig(st: dict[str, Any]) -> StereoRig:
+    """The pair of a ``stereo`` section whose keys :func:`_require` checked."""
+    return StereoRig(
+        _camera("stereo.left", st["left"]),
+        _camera("stereo.right", st["right"]),
+        _number("stereo.baseline", st["baseline"]),
+    )
 
 
 def load_rig(path: str | Path) -> ToFStereoRig:
@@ -213,7 +223,6 @@ def load_rig(path: str | Path) -> ToFStereoRig:
     file and the value's place.
     """
     d = read_json(path)
-    cam = _camera
     if isinstance(d, dict) and "stereo" not in d and {"fx", "fy", "cx", "cy"} <= set(d):
         raise RgbdError(
             f"{path}: holds one camera, expected a ToF + stereo rig (stereo.left, "
@@ -222,7 +231,7 @@ def load_rig(path: str | Path) -> ToFStereoRig:
             "use rgbd_rs.reproject_depth (`rgbd reproject` for an Azure Kinect recording), "
             "to read one camera use load_camera"
         )
-    try:
+    with _reported(path):
         top = _object("the file", d)
         _require("the file", top, ("stereo", "tof", "tof_to_reference"), ("reference",))
         st = _object("stereo", top["stereo"])
@@ -230,19 +239,11 @@ def load_rig(path: str | Path) -> ToFStereoRig:
         t = _object("tof_to_reference", top["tof_to_reference"])
         _require("'tof_to_reference'", t, ("rotation", "translation"))
         return ToFStereoRig(
-            tof=cam("tof", top["tof"]),
-            stereo=StereoRig(
-                cam("stereo.left", st["left"]),
-                cam("stereo.right", st["right"]),
-                _number("stereo.baseline", st["baseline"]),
-            ),
+            tof=_camera("tof", top["tof"]),
+            stereo=_stereo_rig(st),
             tof_to_reference=Pose(
                 np.asarray(_numbers("tof_to_reference.rotation", t["rotation"]), float),
                 np.asarray(_numbers("tof_to_reference.translation", t["translation"]), float),
             ),
             reference=top.get("reference", "right"),
         )
-    except _MissingKey as exc:
-        raise RgbdError(f"{path}: calibration: {exc}") from exc
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise RgbdError(f"{path}: invalid calibration ({exc})") from exc
