@@ -83,7 +83,7 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
                 f"{width} x {height}; expected the calibration of these images"
             )
         reach = rig.baseline * rig.focal / args.min_depth
-        if not math.isfinite(reach) or reach >= width:
+        if not math.isfinite(reach):  # a finite one too wide is refused below
             raise InvalidArgumentError(
                 f"--min-depth: a search range of {reach:.4g} px (baseline x focal / min depth "
                 f"from --calib), expected less than the image width {width}"
@@ -126,17 +126,21 @@ def run_stereo(args: argparse.Namespace) -> int:
     name = "census SGM (rgbd_rs)" if args.method == "census" else "OpenCV SGBM-HH 7x7"
     title = f"{name}: disparity on the {args.reference} view"
     save_png(out / "preview.png", colorize_with_bar(disp, 0.0, float(dmax), "px", title=title))
-    _warn_if_swapped(left, right, args.reference, dmax, args.method)
+    _warn_if_swapped(left, right, args.reference, dmax, args.method, disp)
     cover = float(np.isfinite(disp).mean())
     print(f"{args.method} SGM on the {args.reference} view, 0..{dmax} px: {cover:.1%} matched")
     print(f"wrote {out}/disparity.npz, disparity.png, preview.png")
     return 0
 
 
-def _warn_if_swapped(left: Any, right: Any, reference: str, dmax: int, method: str) -> None:
+def _warn_if_swapped(
+    left: Any, right: Any, reference: str, dmax: int, method: str, disparity: Any
+) -> None:
     """Warn when the pair looks swapped, as ``rgbd fuse`` does without a ToF: the matcher with
-    ``fuse``'s left-right check matches far more pixels with the images exchanged (the
-    matcher alone, with no check, matches every pixel of a swapped pair too)."""
+    ``fuse``'s left-right check matches far more pixels with the images exchanged (the census
+    matcher alone, with no check, matches every pixel of a swapped pair too). OpenCV's map
+    (``disparity``) is the one ``fuse`` would compute; the census one is matched again with
+    the check."""
     import functools
     import warnings
 
@@ -145,7 +149,11 @@ def _warn_if_swapped(left: Any, right: Any, reference: str, dmax: int, method: s
     from rgbd_rs.fusion.fuse import _match, _swap_warning
 
     match = functools.partial(_match, matcher=method, width=left.shape[1])
-    checked = match(left, right, reference=reference, max_disparity=dmax)
+    checked = (
+        disparity
+        if method == "opencv"
+        else match(left, right, reference=reference, max_disparity=dmax)
+    )
     none = np.full(checked.shape, np.nan, np.float32)
     message = _swap_warning(left, right, reference, checked, none, dmax, match)
     if message is not None:  # in the flags' words, as rgbd fuse says it
