@@ -78,10 +78,12 @@ def array(
     dtype: npt.DTypeLike = np.float32,
     finite: bool = False,
     allow_empty: bool = False,
+    fix: str = "",
 ) -> np.ndarray:
     """Validate ``value`` as a real numeric array of ``shape`` (None = any length).
 
-    Returns it as a C-contiguous array of ``dtype``. ``finite`` rejects NaN/inf.
+    Returns it as a C-contiguous array of ``dtype``. ``finite`` rejects NaN/inf; ``fix``, when
+    given, is appended to that message (how to make the input finite).
     """
     value = asarray(name, value)
     if value.dtype.kind not in "iuf":
@@ -117,7 +119,10 @@ def array(
                 f"{name}: got {bad} values beyond {np.dtype(dtype)}'s range (up to {top:.3g}), "
                 f"expected magnitudes below {float(np.finfo(dtype).max):.3g}"
             )
-        raise InvalidArgumentError(f"{name}: got {bad} non-finite values, expected finite values")
+        raise InvalidArgumentError(
+            f"{name}: got {bad} non-finite values, expected finite values"
+            + (f"; {fix}" if fix else "")
+        )
     return out
 
 

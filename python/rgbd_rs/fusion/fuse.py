@@ -306,12 +306,13 @@ def fuse(
         max_disparity = _validate.integer("max_disparity", max_disparity, minimum=1, maximum=w - 1)
     # Depths in the wrong unit are refused before any work (as segment() does); other
     # implausible depths warn once the result is known (below).
-    implausible = tof_depth_warning(map2d("tof_depth", tof_depth, (r.tof.height, r.tof.width)), r)
+    depth_map = map2d("tof_depth", tof_depth, (r.tof.height, r.tof.width))
+    implausible = tof_depth_warning(depth_map, r)
     if implausible is not None and implausible[1]:
         raise InvalidArgumentError(implausible[0])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        sparse = _reproject_tof(tof_depth, tof_amplitude, r)
+        sparse = _reproject_tof(depth_map, tof_amplitude, r)
     # SGM runs on a worker thread (OpenCV releases the GIL) while the ToF is upsampled here (the
     # native filter releases it too): with the range predicted from the sparse ToF, re-run in
     # the rare scene where the upsampled ToF's range asks for another SGBM step.

@@ -143,14 +143,13 @@ def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.f
             raw = _validate.asarray(name, value)
             if raw.ndim == 2 and raw.shape[1] == 3 and raw.dtype.kind == "f":
                 value = _finite_rows(name, raw)
-        pts = _validate.array(name, value, shape=(None, 3), finite=True)
+        fix = (
+            "" if file else "drop the non-finite points first (points[np.isfinite(points).all(1)])"
+        )
+        pts = _validate.array(name, value, shape=(None, 3), finite=True, fix=fix)
     except (InvalidArgumentError, ShapeMismatchError) as exc:
         if file:  # a bad file's content is an RgbdError naming the file
             raise RgbdError(f"not a point cloud: {exc}") from None
-        if "non-finite" in str(exc):
-            raise InvalidArgumentError(
-                f"{exc}; drop the non-finite points first (points[np.isfinite(points).all(1)])"
-            ) from None
         raise
     return pts
 
