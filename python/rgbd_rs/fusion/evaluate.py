@@ -94,13 +94,31 @@ class SceneResult:
         return tuple(self.rms)
 
 
+def _target_columns(
+    d: F32, target_sign: int
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.int64]]:
+    """``(ys, xs, tx)``: every pixel with a disparity and its target column ``x + sign * d``,
+    rounded (it may lie outside the image)."""
+    ys, xs = np.nonzero(np.isfinite(d))
+    return ys, xs, np.rint(xs + target_sign * d[ys, xs]).astype(np.int64)
+
+
+def outside_target_view(disparity: npt.ArrayLike, target_sign: int) -> npt.NDArray[np.bool_]:
+    """Pixels of the reference view whose target column lies outside the target image: the
+    other camera cannot see them (never :func:`non_occluded`)."""
+    d = np.asarray(disparity, np.float32)
+    ys, xs, tx = _target_columns(d, target_sign)
+    out = np.zeros(d.shape, bool)
+    out[ys, xs] = (tx < 0) | (tx >= d.shape[1])
+    return out
+
+
 def non_occluded(disparity: npt.ArrayLike, target_sign: int) -> npt.NDArray[np.bool_]:
     """Pixels of the reference view visible in the target view: no nearer reference pixel
     (larger disparity) lands on the same target pixel (within 1 px of disparity)."""
     d = np.asarray(disparity, np.float32)
     front, _ = _warp_to_target(d, None, target_sign)  # the nearest disparity per target pixel
-    ys, xs = np.nonzero(np.isfinite(d))
-    tx = np.rint(xs + target_sign * d[ys, xs]).astype(np.int64)
+    ys, xs, tx = _target_columns(d, target_sign)
     inside = (tx >= 0) & (tx < d.shape[1])
     out = np.zeros(d.shape, bool)
     ys, xs, tx = ys[inside], xs[inside], tx[inside]

@@ -25,7 +25,7 @@ import numpy.typing as npt
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, views
 from rgbd_rs.fusion.calibrate import is_good
-from rgbd_rs.fusion.evaluate import Sample, non_occluded
+from rgbd_rs.fusion.evaluate import Sample, non_occluded, outside_target_view
 from rgbd_rs.fusion.fuse import FusionResult
 from rgbd_rs.metrics import rms_error
 
@@ -83,24 +83,15 @@ def score_maps(name: str, gt: F32, sign: int, tof: F32, stereo: F32, fused: F32)
     n = float(known.sum())
     coverage = {k: float(v.sum()) / n for k, v in have.items()}
     coverage["union"] = float((have["tof"] | have["stereo"]).sum()) / n
-    unseen = _unseen(gt, sign)
-    bad2 = {k: _bad2(v, gt, unseen) for k, v in maps.items()}
-    valued = {k: int((unseen & np.isfinite(v)).sum()) for k, v in maps.items()}
-    return CaseScore(name, rms, good, coverage, int(common.sum()), bad2, int(unseen.sum()), valued)
+    unseen = outside_target_view(gt, sign)
+    valued = {k: unseen & np.isfinite(v) for k, v in maps.items()}
+    bad2 = {k: _bad2(maps[k], gt, have) for k, have in valued.items()}
+    counts = {k: int(have.sum()) for k, have in valued.items()}
+    return CaseScore(name, rms, good, coverage, int(common.sum()), bad2, int(unseen.sum()), counts)
 
 
-def _unseen(gt: F32, sign: int) -> npt.NDArray[np.bool_]:
-    """The pixels with ground truth whose target ``x + sign * d`` lies outside the image."""
-    x = np.arange(gt.shape[1], dtype=np.float32)[None, :]
-    with np.errstate(invalid="ignore"):
-        target = np.rint(x + np.float32(sign) * gt)
-        out: npt.NDArray[np.bool_] = np.isfinite(gt) & ((target < 0) | (target > gt.shape[1] - 1))
-    return out
-
-
-def _bad2(disparity: F32, gt: F32, where: npt.NDArray[np.bool_]) -> float:
-    """The share of ``where``'s pixels with a value that are off by more than 2 px."""
-    have = where & np.isfinite(disparity)
+def _bad2(disparity: F32, gt: F32, have: npt.NDArray[np.bool_]) -> float:
+    """The share of the ``have`` pixels (where the map has a value) off by more than 2 px."""
     if not have.any():
         return float("nan")
     return float(np.mean(np.abs(disparity[have] - gt[have]) > 2.0))
