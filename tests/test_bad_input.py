@@ -10,6 +10,8 @@ every public callable has a case. The shared ``Case`` lives in tests/bad_input.p
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -227,6 +229,20 @@ CASES: list[Case] = [
     Case("StereoRig", lambda: StereoRig(CAM, CAM, 0.0), ARG, r"^baseline: got 0"),
     Case("StereoRig", lambda: StereoRig("x", CAM, 0.1), ARG, r"^left: got str", "left"),
     Case("StereoRig", lambda: StereoRig(CAM, CAM.scaled(2.0), 0.1), ARG, r"^right: got", "size"),
+    Case(
+        "StereoRig",
+        lambda: StereoRig(CAM, dataclasses.replace(CAM, cy=CAM.cy + 1.0), 0.1),
+        ARG,
+        r"^right: got cy=3\.5, expected the left camera's cy=2\.5",
+        "rectify",
+    ),
+    Case(
+        "StereoRig",
+        lambda: StereoRig(CAM, dataclasses.replace(CAM, cx=CAM.cx - 2.0), 0.1),
+        ARG,
+        r"^right: got cx=1\.5, expected the left camera's cx=3\.5",
+        "shift",
+    ),
     Case(
         "ToFStereoRig",
         lambda: ToFStereoRig(CAM, RIG, Pose(), "middle"),

@@ -14,12 +14,24 @@ from rgbd_rs.meshes import Mesh, box
 SHAPE = ShapeMismatchError
 ARG = InvalidArgumentError
 P = np.zeros((4, 3))
+#: A tetrahedron 2e30 across, just over the shape kernels' largest extent.
+HUGE = 2e30 * np.eye(4, 3)
+
+
+def test_a_shape_up_to_the_largest_extent_is_accepted() -> None:
+    views = S.depth_views(5e29 * np.eye(4, 3), 8)
+    assert views.shape == (6, 8, 8) and np.isfinite(views).all()
+
 
 CASES: list[Case] = [
     Case("voxelize", lambda: S.voxelize(np.zeros((0, 3))), SHAPE, r"^shape: got an empty"),
     Case("voxelize", lambda: S.voxelize(np.zeros((4, 2))), SHAPE, r"^shape: got shape", "2-D"),
     Case("voxelize", lambda: S.voxelize(np.array([[0.0, np.nan, 0]])), ARG, r"^shape", "nan"),
     Case("voxelize", lambda: S.voxelize(P, 0), ARG, r"^resolution: got 0", "res"),
+    Case("voxelize", lambda: S.voxelize(HUGE), ARG, r"^shape: got points spanning 2e\+30", "huge"),
+    Case("shape_inputs", lambda: S.shape_inputs(HUGE), ARG, r"^shape: got points spanning", "huge"),
+    # One shape is named as the caller named it, not as the batch it is run in.
+    Case("classify", lambda: S.classify(HUGE), ARG, r"^shape: got points spanning 2e\+30", "huge"),
     Case("voxelize", lambda: S.voxelize(P, 4096), ARG, r"^resolution: got 4096", "huge-res"),
     Case("voxelize", lambda: S.voxelize(P, fill="solid"), ARG, r"^fill: got 'solid'", "fill"),
     Case("voxelize", lambda: S.voxelize(P, fill="hollow"), ARG, r"^fill", "fill-name"),
@@ -36,8 +48,8 @@ CASES: list[Case] = [
         "voxelize",
         lambda: S.voxelize(np.array([[0.0, 0, 0], [3e38, 0, 0]])),
         ARG,
-        r"^points: got a bounding box of extent",
-        "huge",
+        r"^shape: got points spanning 3e\+38",
+        "huge-f64",
     ),
     Case("density_profiles", lambda: S.density_profiles(np.zeros((4, 4, 5))), SHAPE, r"^voxels"),
     Case(

@@ -17,6 +17,7 @@ P = np.random.default_rng(0).uniform(size=(16, 3))
 NAN = np.array([[0.0, np.nan, 0.0], [1.0, 1.0, 1.0]])
 NO_TRIS = Mesh(np.zeros((3, 3), np.float32), np.zeros((0, 3), np.uint32))
 HUGE = np.array([[0.0, 0, 0], [3e38, 0, 0]])
+HUGE_MESH = Mesh(np.array([[0.0, 0, 0], [3e38, 0, 0], [0, 3e38, 0]]), np.array([[0, 1, 2]]))
 
 CASES: list[Case] = [
     Case("depth_views", lambda: V.depth_views(np.zeros((0, 3))), SHAPE, r"^shape: got an empty"),
@@ -49,7 +50,21 @@ CASES: list[Case] = [
         "depth_views",
         lambda: V.depth_views(HUGE),
         ARG,
-        r"^points: got a bounding box of extent .*expected an extent <= 1e30",
+        r"^shape: got points spanning 3e\+38 units, expected a shape at most 1e\+30 units across",
+        "huge",
+    ),
+    Case(
+        "depth_views",
+        lambda: V.depth_views(HUGE_MESH),
+        ARG,
+        r"^shape: got a mesh spanning 3e\+38 units",
+        "huge-mesh",
+    ),
+    Case(
+        "depth_views_batch",
+        lambda: V.depth_views_batch([P, HUGE]),
+        ARG,
+        r"^shapes\[1\]: got points spanning",
         "huge",
     ),
     Case("depth_views_batch", lambda: V.depth_views_batch(P), ARG, r"^shapes: got ndarray"),

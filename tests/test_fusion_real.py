@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rgbd_rs import InvalidArgumentError
+from rgbd_rs import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.cli import main
 from rgbd_rs.data import load_stereo_scene
 from rgbd_rs.fusion import LcParams, fuse, sgm
@@ -159,6 +159,25 @@ def test_scores_say_what_the_fusion_did() -> None:
     assert "the ToF no value there" in text and "nan" not in text.split("Pixels the other")[1]
     with pytest.raises(Exception, match="no pixel is valid"):
         score_maps("empty", gt, -1, tof, stereo, np.full_like(gt, np.nan))
+
+
+_M = np.full((9, 9), 3.0, np.float32)
+
+
+@pytest.mark.parametrize(
+    ("sign", "maps", "exc", "match"),
+    [
+        (0, (_M, _M, _M), InvalidArgumentError, r"^sign: got 0, expected \+1 or -1"),
+        (-1, (_M[:3], _M, _M), ShapeMismatchError, r"^tof: got shape \(3, 9\), expected \(9, 9\)"),
+        (-1, (_M, _M, _M.astype(object)), InvalidArgumentError, r"^fused: got dtype object"),
+        (-1, (_M, _M[None], _M), ShapeMismatchError, r"^stereo: got shape \(1, 9, 9\)"),
+    ],
+)
+def test_score_maps_names_its_bad_argument(
+    sign: int, maps: tuple[np.ndarray, ...], exc: type, match: str
+) -> None:
+    with pytest.raises(exc, match=match):
+        score_maps("case", _M, sign, *maps)
 
 
 def test_fuse_runs_the_matcher_the_network_was_trained_on(shared_data: Path) -> None:

@@ -467,6 +467,20 @@ class StereoRig:
                 f"right: got {self.right.size} fx={self.right.fx}, expected a rectified pair with "
                 f"the left camera's size {self.left.size} and fx={self.left.fx}"
             )
+        # A rectified pair's rows line up (same fy, cy) and d = baseline * fx / z holds only
+        # with the same cx: an offset (Middlebury's "doffs") would shift every disparity.
+        for name in ("fy", "cx", "cy"):
+            a, b = getattr(self.left, name), getattr(self.right, name)
+            if not math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-6):
+                hint = (
+                    "shift one image by the offset first"
+                    if name == "cx"
+                    else "rectify the pair first: its rows must line up"
+                )
+                raise InvalidArgumentError(
+                    f"right: got {name}={b}, expected the left camera's {name}={a} (a rectified "
+                    f"pair shares its intrinsics; {hint})"
+                )
 
     @property
     def focal(self) -> float:

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs import _validate
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import F32, views
 from rgbd_rs.fusion.calibrate import is_good
@@ -67,7 +68,17 @@ class CaseScore:
 
 
 def score_maps(name: str, gt: F32, sign: int, tof: F32, stereo: F32, fused: F32) -> CaseScore:
-    """The scores of three maps against ``gt`` (``sign``: the target view's direction)."""
+    """The scores of three maps against ``gt`` (``sign``: the target view's direction).
+
+    ``gt`` and the three maps are ``H x W`` disparities of one size (NaN = none / unknown).
+    """
+    gt = _validate.array("gt", gt, shape=(None, None))
+    sign = _validate.sign("sign", sign)
+    size = gt.shape
+    tof, stereo, fused = (
+        _validate.array(k, v, shape=size)
+        for k, v in (("tof", tof), ("stereo", stereo), ("fused", fused))
+    )
     visible = np.isfinite(gt) & non_occluded(gt, sign)
     if not visible.any():
         raise RgbdError(f"{name}: no non-occluded ground truth to score")

@@ -25,6 +25,7 @@ from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.nn.shape_ensemble import ShapeEnsemble, _shape_network
 from rgbd_rs.nn.shapes import ARCH, ShapeNet, pack
+from rgbd_rs.shapes._cloud import check_extent
 from rgbd_rs.shapes.dataset import (
     InputSpec,
     Shape,
@@ -74,6 +75,7 @@ def to_z_up(shape: Mesh | npt.ArrayLike, up: str) -> Shape:
 def _spread(name: str, points: npt.NDArray[np.float32], what: str) -> None:
     """Refuse a shape whose points lie on one point or one line: its views are empty or a
     stroke, and the network would still name a class with confidence."""
+    check_extent(name, points)
     p = np.asarray(points, np.float64)
     c = p - p.mean(axis=0) if len(p) else p
     ev = np.sort(np.linalg.eigvalsh(c.T @ c))[::-1] if len(p) else np.zeros(3)
@@ -202,6 +204,7 @@ class ShapeClassifier:
             x = sample_surface(x, n, SAMPLE_SEED)
             _spread("shape", x, "surface samples of the mesh")
         elif isinstance(x, Mesh):
+            check_extent("shape", x.vertices, "a mesh")
             _spread("shape", x.vertices, "vertices")
         else:
             _spread("shape", x, "points")

@@ -56,6 +56,7 @@ from rgbd_rs.nn.shapes import (
     _input_shapes,
     _parse_representations,
 )
+from rgbd_rs.shapes._cloud import check_extent, cloud
 
 from .._reasons import reason
 
@@ -146,7 +147,7 @@ def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.f
         fix = (
             "" if file else "drop the non-finite points first (points[np.isfinite(points).all(1)])"
         )
-        pts = _validate.array(name, value, shape=(None, 3), finite=True, fix=fix)
+        pts = cloud(name, value, fix=fix)
     except (InvalidArgumentError, ShapeMismatchError) as exc:
         if file:  # a bad file's content is an RgbdError naming the file
             raise RgbdError(f"not a point cloud: {exc}") from None
@@ -628,6 +629,7 @@ def _shape_arg(name: str, shape: object) -> Shape:
             raise InvalidArgumentError(
                 f"{name}: got a mesh with no triangles, expected at least one"
             )
+        check_extent(name, shape.vertices, "a mesh")
         return shape
     return _points(name, shape)
 

@@ -71,6 +71,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh
+from rgbd_rs.shapes._cloud import check_extent, cloud
 
 __all__ = [
     "BACKGROUND",
@@ -150,7 +151,7 @@ def local_contrast_normalize(
 
 
 def _points(name: str, shape: object) -> np.ndarray:
-    return _validate.array(name, shape, shape=(None, 3), finite=True)
+    return cloud(name, shape)
 
 
 def _resolution(resolution: object) -> int:
@@ -178,6 +179,7 @@ def splat_radii(points: npt.ArrayLike, resolution: int = DEFAULT_RESOLUTION) -> 
 def _mesh(name: str, shape: Mesh) -> tuple[np.ndarray, np.ndarray]:
     if shape.triangles.size == 0:
         raise InvalidArgumentError(f"{name}: got a mesh with no triangles, expected at least one")
+    check_extent(name, shape.vertices, "a mesh")
     return shape.vertices, shape.triangles
 
 

@@ -18,6 +18,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh
+from rgbd_rs.shapes._cloud import check_extent, cloud
 
 __all__ = ["DEFAULT_RESOLUTION", "VoxelGrid", "density_profiles", "voxelize"]
 
@@ -59,6 +60,7 @@ def voxelize(
             raise InvalidArgumentError(f"dilate: got {dilate}, expected 0 for a mesh")
         if shape.triangles.size == 0:
             raise InvalidArgumentError("shape: got a mesh with no triangles, expected at least one")
+        check_extent("shape", shape.vertices, "a mesh")
         filled, origin, size = _rgbd_rs.voxelize_mesh(
             shape.vertices, shape.triangles, r, mode == "solid"
         )
@@ -67,7 +69,7 @@ def voxelize(
             raise InvalidArgumentError(
                 f"fill: got {fill!r} for a point cloud, expected 'surface' (points have no inside)"
             )
-        pts = _validate.array("shape", shape, shape=(None, 3), finite=True)
+        pts = cloud("shape", shape)
         filled, origin, size = _rgbd_rs.voxelize_points(pts, r, d)
     return VoxelGrid(filled=filled.astype(bool), origin=origin, size=float(size))
 

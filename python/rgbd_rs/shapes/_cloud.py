@@ -1,0 +1,34 @@
+"""One check of a point cloud given to the shape functions, naming the caller's argument."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from rgbd_rs import _validate
+from rgbd_rs.errors import InvalidArgumentError
+
+#: The largest bounding-box side the native shape kernels accept (their ``MAX_EXTENT``).
+MAX_EXTENT = 1e30
+
+
+def check_extent(name: str, points: npt.NDArray[np.floating], what: str = "points") -> None:
+    """Refuse finite ``points`` whose bounding box is wider than :data:`MAX_EXTENT` (its side in
+    float64: float32 coordinates can span more than float32 can hold). ``what``: the message's
+    word for them ("points", "a mesh")."""
+    if len(points) == 0:
+        return
+    p = np.asarray(points, np.float64)
+    extent = float((p.max(axis=0) - p.min(axis=0)).max())
+    if not extent <= MAX_EXTENT:
+        raise InvalidArgumentError(
+            f"{name}: got {what} spanning {extent:.3g} units, expected a shape at most "
+            f"{MAX_EXTENT:.0e} units across (rescale it)"
+        )
+
+
+def cloud(name: str, value: object, *, fix: str = "") -> npt.NDArray[np.float32]:
+    """``value`` as ``N x 3`` finite float32 points within :data:`MAX_EXTENT`."""
+    pts = _validate.array(name, value, shape=(None, 3), finite=True, fix=fix)
+    check_extent(name, pts)
+    return pts
