@@ -220,7 +220,11 @@ def test_what_one_input_measured_is_not_left_blank(shared_data: Path) -> None:
         px = out.source == code
         np.testing.assert_array_equal(d[px], src[px])
         np.testing.assert_array_equal(out.plausibility[px], conf[px])
-    assert set(np.unique(out.source)) <= {0, 1, 2, 3, 4}
+    assert set(np.unique(out.source)) <= {0, 1, 2, 3, 4, 5}
+    # LC's pixels are marked by whether an input measured them.
+    lent = out.source == FUSE.SOURCE_LC_UNMEASURED
+    assert lent.any() and not measured[lent].any()
+    assert measured[out.source == FUSE.SOURCE_LC].all()
     # The two-view cross-check's rejections stand: nothing is filled back.
     checked = fuse(
         s.left,
@@ -232,7 +236,11 @@ def test_what_one_input_measured_is_not_left_blank(shared_data: Path) -> None:
         params=LcParams(cross_check=True),
     )
     assert checked.source is not None
-    assert set(np.unique(checked.source)) <= {FUSE.SOURCE_NONE, FUSE.SOURCE_LC}
+    assert set(np.unique(checked.source)) <= {
+        FUSE.SOURCE_NONE,
+        FUSE.SOURCE_LC,
+        FUSE.SOURCE_LC_UNMEASURED,
+    }
     assert np.isfinite(checked.disparity).mean() < np.isfinite(d).mean()
 
 

@@ -401,14 +401,16 @@ def run_fuse(args: argparse.Namespace) -> int:
         f"fused {valid(out.disparity)}"
     )
     if out.source is not None:
-        from rgbd_rs.fusion.sources import SOURCE_STEREO, SOURCE_TOF, SOURCE_TOF_CARRIED
+        from rgbd_rs.fusion import sources as S
 
-        tof_px, st_px = (out.source == SOURCE_TOF).mean(), (out.source == SOURCE_STEREO).mean()
-        carried = (out.source == SOURCE_TOF_CARRIED).mean()
+        tof_px, st_px = (out.source == S.SOURCE_TOF).mean(), (out.source == S.SOURCE_STEREO).mean()
+        carried = (out.source == S.SOURCE_TOF_CARRIED).mean()
+        lent = (out.source == S.SOURCE_LC_UNMEASURED).mean()
         print(
             f"fused pixels LC left empty or cannot check, from one input: ToF {tof_px:.1%}, SGM "
-            f"{st_px:.1%}; ToF carried to the border the other camera cannot see {carried:.1%} "
-            "(fused.npz 'source': 2, 3, 4)"
+            f"{st_px:.1%}; ToF carried to the border the other camera cannot see {carried:.1%}; "
+            f"LC's answer where neither input measured {lent:.1%}, less sure than its "
+            "plausibility says (fused.npz 'source': 2, 3, 4, 5)"
         )
     print(
         f"fused {out.disparity.shape[1]}x{out.disparity.shape[0]} in {elapsed:.2f} s; wrote "

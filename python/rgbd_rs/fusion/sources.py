@@ -12,7 +12,12 @@ from rgbd_rs.fusion._inputs import F32
 #: :attr:`~rgbd_rs.fusion.fuse.FusionResult.source` values: where each fused pixel comes from.
 #: ``SOURCE_TOF_CARRIED``: the strip along the border the other camera cannot see, before the
 #: row's first ToF pixel, which takes that pixel's disparity (:func:`_carry_tof_to_border`).
+#: ``SOURCE_LC_UNMEASURED``: LC's answer at a pixel neither input measured, lent by its
+#: neighbours. Its ``plausibility`` is as high as anywhere (LC's winner share), but on the real
+#: val scenes (18 cases, 3 ToF laws) 23 % of these pixels were more than 2 px off against 1.2 %
+#: of LC's measured ones (train: 27 % against 1.2 %): mask them when a hole is better than a guess.
 SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO, SOURCE_TOF_CARRIED = 0, 1, 2, 3, 4
+SOURCE_LC_UNMEASURED = 5
 
 
 def _fill_single_source(
@@ -32,10 +37,12 @@ def _fill_single_source(
     empty); returns ``(disparity, plausibility, source)``. With ``keep_out_zero`` (confidences
     the caller gave) an input whose confidence there is 0 or NaN stays out; estimated
     confidences never hide the only measurement of a pixel, their value tells how far to trust
-    it. After LC's two-view ``cross_check`` nothing is filled: its rejections stand."""
+    it. After LC's two-view ``cross_check`` nothing is filled: its rejections stand. LC's pixels
+    that neither input measured are marked :data:`SOURCE_LC_UNMEASURED` either way."""
     disp = lc_disparity.copy()
     plaus = lc_plausibility.copy()
     source = np.where(np.isfinite(disp), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
+    source[np.isfinite(disp) & ~np.isfinite(tof) & ~np.isfinite(stereo)] = SOURCE_LC_UNMEASURED
     if cross_check:
         return disp, plaus, source
     empty = ~np.isfinite(disp)
