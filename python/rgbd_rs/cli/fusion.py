@@ -13,6 +13,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs
 from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
+from rgbd_rs.cli._maps import disparity_png16
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 #: Width of each panel of `rgbd fuse`'s preview.png (pixels).
@@ -32,8 +33,6 @@ FUSE_FLAGS = {
     "max_disparity": "--max-disparity",
     "reference": "--reference",
 }
-#: 16-bit disparity PNGs store disparity x 256 (the KITTI convention); 0 = invalid.
-DISPARITY_PNG_SCALE = 256.0
 #: Largest LC window half-size (crates/rgbd-fusion).
 MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 
@@ -367,8 +366,7 @@ def run_fuse(args: argparse.Namespace) -> int:
         maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
     output_folder(args.out, ("fused.npz", "disparity.png", "depth_mm.png", "preview.png"))
     write_npz(args.out / "fused.npz", maps)
-    disp16 = np.clip(np.nan_to_num(out.disparity * DISPARITY_PNG_SCALE, nan=0), 0, 65535)
-    write_png(args.out / "disparity.png", disp16.astype(np.uint16))
+    write_png(args.out / "disparity.png", disparity_png16(out.disparity))
     mm = np.clip(np.nan_to_num(out.depth * 1000.0, nan=0), 0, 65535)
     write_png(args.out / "depth_mm.png", mm.astype(np.uint16))
     ref = right if out.reference == "right" else left

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
+from rgbd_rs.cli._maps import disparity_png16
 from rgbd_rs.errors import InvalidArgumentError
 
 #: What ``rgbd stereo`` writes (cleared from --out first).
@@ -121,8 +122,7 @@ def run_stereo(args: argparse.Namespace) -> int:
         lambda: sgm(left, right, reference=args.reference, max_disparity=dmax, method=args.method),
     )
     write_npz(out / "disparity.npz", {"disparity": disp})
-    scaled = np.where(np.isfinite(disp), np.clip(np.rint(disp * 256), 0, 65535), 0)
-    write_png(out / "disparity.png", scaled.astype(np.uint16), rgb=False)
+    write_png(out / "disparity.png", disparity_png16(disp), rgb=False)
     name = "census SGM (rgbd_rs)" if args.method == "census" else "OpenCV SGBM-HH 7x7"
     title = f"{name}: disparity on the {args.reference} view"
     save_png(out / "preview.png", colorize_with_bar(disp, 0.0, float(dmax), "px", title=title))

@@ -1,0 +1,20 @@
+"""How the CLI writes a disparity map as a 16-bit PNG: disparity x 256, 0 = none."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+#: A PNG value is the disparity times this (the KITTI convention: 1/256-px steps, up to
+#: 255.996 px).
+DISPARITY_PNG_SCALE = 256.0
+
+
+def disparity_png16(disparity: npt.NDArray[np.floating]) -> npt.NDArray[np.uint16]:
+    """``disparity`` (px, NaN = none) as 16-bit PNG values: rounded to 1/256 px, 0 only where
+    there is none. A measured disparity below 1/512 px (0, or negative) is written as 1 and one
+    above 255.996 px as 65535, so that no measured pixel reads back as "none"."""
+    d = np.asarray(disparity, np.float64)
+    have = np.isfinite(d)
+    scaled = np.rint(np.where(have, d, 0.0) * DISPARITY_PNG_SCALE)
+    return np.where(have, np.clip(scaled, 1, 65535), 0).astype(np.uint16)
