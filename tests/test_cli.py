@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -490,8 +491,12 @@ def test_fuse_prints_the_search_range_and_each_inputs_coverage(
     assert fused >= either - 0.05
     assert "fused pixels LC left empty or cannot check, from one input: ToF" in out
     argv = [*_fuse_argv(fuse_inputs, out=tmp_path / "b"), "--reference", "left"]
-    assert main([*argv, "--max-disparity", "40"]) == 0
-    out = capsys.readouterr().out
+    # The fixture's ToF sits below the right camera: the left one is the far camera.
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert main([*argv, "--max-disparity", "40"]) == 0
+    out, err = capsys.readouterr()
+    assert "Fuse on the right camera: reference='right' (rgbd fuse --reference right)" in err
     assert "SGM search range: 0-40 px (--max-disparity)" in out
     assert "valid pixels on the left camera" in out
 

@@ -15,6 +15,7 @@ from rgbd_rs import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.cli import main
 from rgbd_rs.data import load_stereo_scene
 from rgbd_rs.fusion import LcParams, fuse, sgm
+from rgbd_rs.fusion._inputs import far_camera_warning
 from rgbd_rs.fusion.evaluate_real import markdown
 from rgbd_rs.fusion.real_scenes import (
     DENSE_PROTOCOL_SIZE,
@@ -294,6 +295,40 @@ def test_cli_eval_fusion_with_the_dense_protocol(
     for other in (["--middlebury"], []):
         assert main(["eval", "fusion", *other, "--dense", "--out", str(tmp_path)]) == 2
         assert capsys.readouterr().err.startswith("rgbd: error: --dense: got it without --real")
+
+
+def test_the_right_view_protocol_fuses_on_the_camera_far_from_the_tof(shared_data: Path) -> None:
+    near = real_sample("Books", 0)
+    far = real_sample("Books", 0, view="right")
+    assert far.name == "Books_law0_right" and far.rig.reference == "right"
+    np.testing.assert_array_equal(far.tof_depth, near.tof_depth)  # the same ToF frame
+    scene = load_stereo_scene("Books")
+    assert scene.disparity_right is not None
+    np.testing.assert_array_equal(far.gt_disparity, scene.disparity_right)
+    # The pose is carried across the baseline: the ToF sits beside the left camera.
+    np.testing.assert_allclose(
+        far.rig.tof_to_reference.translation,
+        near.rig.tof_to_reference.translation - [near.rig.stereo.baseline, 0, 0],
+    )
+    assert far_camera_warning(far.rig) is not None and far_camera_warning(near.rig) is None
+    # Tsukuba has no right-view ground truth: refused alone, left out of a split.
+    with pytest.raises(InvalidArgumentError, match=r"^view: got 'right' for Tsukuba"):
+        real_sample("Tsukuba", 0, view="right")
+    names = [s.name for s in real_samples("val", 1, view="right")]
+    assert "Tsukuba_law0_right" not in names and "Books_law0_right" in names
+
+
+def test_cli_eval_fusion_on_the_far_camera(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["eval", "fusion", "--real", "val", "--laws", "1", "--limit", "1", "--quiet"]
+    assert main([*args, "--view", "right", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "real_val_right" / "table.md").read_text()
+    assert "Baby1_law0_right" in text and "fused on the right camera" in text
+    capsys.readouterr()
+    for other in (["--middlebury"], ["--real", "val", "--dense"]):
+        assert main(["eval", "fusion", *other, "--view", "right", "--out", str(tmp_path)]) == 2
+        assert capsys.readouterr().err.startswith("rgbd: error: --view: got")
 
 
 def test_tof_depth_from_across_an_edge_gets_no_confidence(shared_data: Path) -> None:

@@ -3,6 +3,7 @@ outputs, implausible ToF depths, swapped images, either output camera, the calib
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import json
 import warnings
@@ -11,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rgbd_rs import InvalidArgumentError, RgbdError, ShapeMismatchError
+from rgbd_rs import InvalidArgumentError, Pose, RgbdError, ShapeMismatchError
 from rgbd_rs.data.calibration import _rig_to_dict, load_rig
 from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
 from rgbd_rs.fusion import FusionResult, fuse, sgm, tof_confidence, tof_to_reference
-from rgbd_rs.fusion._inputs import with_reference
+from rgbd_rs.fusion._inputs import far_camera_warning, with_reference
 from rgbd_rs.fusion.stereo import (
     DISPARITY_STEP,
     MAX_RANGE_FRACTION,
@@ -259,9 +260,11 @@ def test_swapped_images_warn_without_a_tof_too(scene: SynthSample) -> None:
 
 
 def test_reference_left_is_consistent_with_right(scene: SynthSample, fused: FusionResult) -> None:
-    left = fuse(
-        scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, reference="left"
-    )
+    # The synthetic ToF sits below the right camera: the left one is the far camera.
+    with pytest.warns(RuntimeWarning, match=r"^reference: the ToF sits 0\.04 m from the right"):
+        left = fuse(
+            scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, reference="left"
+        )
     assert left.reference == "left" and fused.reference == "right"
     # Right pixel x sees what left pixel x + d sees, with the same disparity.
     for key in ("tof", "disparity"):
@@ -272,6 +275,21 @@ def test_reference_left_is_consistent_with_right(scene: SynthSample, fused: Fusi
         inside = xl < r_map.shape[1]
         diff = np.abs(l_map[ys[inside], xl[inside]] - r_map[ys[inside], xs[inside]])
         assert np.mean(diff < 1) > 0.85, key
+
+
+def test_the_far_camera_warning_speaks_only_for_the_camera_farther_from_the_tof() -> None:
+    assert far_camera_warning(RIG) is None  # the ToF below the right (reference) camera
+    left = with_reference(RIG, "left")
+    msg = far_camera_warning(left)
+    assert msg is not None and "reference='right' (rgbd fuse --reference right)" in msg
+    # A ToF midway between the cameras, or just off the middle: either camera is fine.
+    b = RIG.stereo.baseline
+    for x in (-b / 2, -b / 2 + 0.04 * b, -b / 2 - 0.04 * b):
+        mid = dataclasses.replace(RIG, tof_to_reference=Pose(np.eye(3), np.array([x, 0.04, 0.0])))
+        assert far_camera_warning(mid) is None
+    # Beside the left camera while fusing on the right: warned, naming the left camera.
+    by_left = dataclasses.replace(RIG, tof_to_reference=Pose(np.eye(3), np.array([-b, 0.0, 0.0])))
+    assert "Fuse on the left camera" in (far_camera_warning(by_left) or "")
 
 
 def test_with_reference_carries_the_pose_across_the_baseline() -> None:

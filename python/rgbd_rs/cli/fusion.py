@@ -183,6 +183,14 @@ def register(commands: Commands) -> None:
         "default sensor, finer than the colour images and far more precise than the stereo map; "
         "written to OUT/real_SPLIT_dense/)",
     )
+    ef.add_argument(
+        "--view",
+        choices=("left", "right"),
+        default="left",
+        help="with --real: the camera fused on and scored (default left, beside the simulated "
+        "ToF; right: the far camera, the scenes with right-view ground truth; written to "
+        "OUT/real_SPLIT_right/)",
+    )
     ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes / real cases only")
     ef.add_argument(
         "--stride",
@@ -423,6 +431,10 @@ def run_eval(args: argparse.Namespace) -> int:
 
     if args.dense and args.real is None:
         raise InvalidArgumentError("--dense: got it without --real, expected --real SPLIT too")
+    if args.view != "left" and args.real is None:
+        raise InvalidArgumentError("--view: got it without --real, expected --real SPLIT too")
+    if args.view != "left" and args.dense:
+        raise InvalidArgumentError("--view: got right with --dense, expected the --laws protocol")
     if args.synth is None and not args.middlebury and args.real is None:
         raise InvalidArgumentError(
             "--synth/--middlebury/--real: got none of them, expected at least one"
@@ -457,8 +469,11 @@ def run_eval(args: argparse.Namespace) -> int:
         else:
             per = "1 ToF law" if args.laws == 1 else f"{args.laws} ToF laws"
             title = f"real {args.real} split ({per} per scene)"
-            real_cases = real_samples(args.real, args.laws)
+            real_cases = real_samples(args.real, args.laws, view=args.view)
             folder = args.out / f"real_{args.real}"
+            if args.view == "right":
+                title = f"{title}, fused on the right camera (far from the ToF)"
+                folder = args.out / f"real_{args.real}_right"
         cases = evaluate_real(
             islice(real_cases, args.limit),
             folder,

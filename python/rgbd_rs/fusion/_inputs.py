@@ -83,6 +83,37 @@ def with_reference(rig: ToFStereoRig, reference: str) -> ToFStereoRig:
     return ToFStereoRig(rig.tof, rig.stereo, across.compose(rig.tof_to_reference), side)
 
 
+#: The other camera must be nearer the ToF than the reference camera by this share of the
+#: baseline before :func:`far_camera_warning` speaks (a ToF midway between them is fine).
+FAR_CAMERA_MARGIN = 0.1
+
+
+def far_camera_warning(rig: ToFStereoRig) -> str | None:
+    """A warning when the rig fuses on the camera of the pair farther from the ToF, else None.
+
+    The pixels the stereo pair cannot match are those the other camera does not see; a ToF
+    beside the reference camera sees them, one beside the other camera does not, so there
+    neither input measures the surface. On the real val scenes (ToF 4 cm below the left
+    camera, 160 mm baseline, law 0) fusing on the right camera instead of the left made the
+    mean fused RMS 1.89 px instead of 0.77 px, worse than stereo alone (1.34 x)."""
+    baseline = rig.stereo.baseline
+    tof_centre = np.asarray(rig.tof_to_reference.translation, float)
+    # The other camera's centre in the reference camera's frame.
+    other_x = -baseline if rig.reference == "right" else baseline
+    to_ref = float(np.linalg.norm(tof_centre))
+    to_other = float(np.linalg.norm(tof_centre - np.array([other_x, 0.0, 0.0])))
+    if to_ref - to_other <= FAR_CAMERA_MARGIN * baseline:
+        return None
+    other = "left" if rig.reference == "right" else "right"
+    return (
+        f"reference: the ToF sits {to_other:.3g} m from the {other} camera and {to_ref:.3g} m "
+        f"from the {rig.reference} camera, where the map is fused; the surfaces the {other} "
+        "camera cannot see (where the stereo pair cannot match) are hidden from the ToF too, so "
+        f"nothing measures them (on real scenes this tripled the fused error). Fuse on the "
+        f"{other} camera: reference='{other}' (rgbd fuse --reference {other})"
+    )
+
+
 #: A stereo pair resolves depth only where the disparity is at least this many pixels; ToF depths
 #: whose disparity on the rig lies below it everywhere are "beyond the stereo range".
 MIN_STEREO_DISPARITY = 1.0

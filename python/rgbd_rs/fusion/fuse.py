@@ -18,6 +18,7 @@ from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import (
     F32,
     U8,
+    far_camera_warning,
     map2d,
     rgb8,
     rig_arg,
@@ -256,11 +257,16 @@ def fuse(
     ToF depths that look like millimetres (or kilometres) for the rig are refused
     (:class:`~rgbd_rs.InvalidArgumentError`, before any work). Other implausible input warns
     once each (:class:`RuntimeWarning`), saying what to check: depths beyond the stereo range
-    of the rig, and a left/right pair that looks swapped.
+    of the rig, a left/right pair that looks swapped, and an output camera farther from the ToF
+    than the other one (fuse on the camera beside the ToF: the stereo pair's occlusions are then
+    what the ToF sees).
     """
     r = rig_arg(rig)
     if reference is not None:
         r = with_reference(r, reference)
+    far = far_camera_warning(r)
+    if far is not None:
+        warnings.warn(far, RuntimeWarning, stacklevel=2)
     size = r.stereo.left.size
     lft = rgb8("left", left, size)
     rgt = rgb8("right", right, size)

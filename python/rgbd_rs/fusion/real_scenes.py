@@ -34,6 +34,7 @@ from rgbd_rs import _validate
 from rgbd_rs.data import tof_variation
 from rgbd_rs.data.stereo_scenes import SPLITS, StereoScene, load_stereo_scene, scene_names
 from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.fusion._inputs import with_reference
 from rgbd_rs.fusion.evaluate import PROTOCOL_TOF_SIZE, Sample, simulate_tof
 
 #: The ToF camera's width as a fraction of the colour camera's (uniform).
@@ -95,12 +96,18 @@ def real_sample(
     *,
     epoch: int | None = None,
     dense: bool = False,
+    view: str = "left",
 ) -> Sample:
     """Scene ``scene`` (a :class:`~rgbd_rs.data.stereo_scenes.StereoScene`, or a scene's name,
     read by :func:`~rgbd_rs.data.stereo_scenes.load_stereo_scene`) with the ToF frame of its law
     ``law`` (``epoch=None``: the fixed law of validation and test; an epoch number: that epoch's
     training draw). ``dense`` draws from the dense family instead (:data:`DENSE_TOF_SCALE`; its
-    own seeds). The sample's name is ``<scene>_law<k>`` (``<scene>_dense<k>``)."""
+    own seeds). The sample's name is ``<scene>_law<k>`` (``<scene>_dense<k>``).
+
+    ``view="right"`` fuses on the right camera instead, the one farther from the ToF (the same ToF
+    frame; the ground truth of the right view; ``_right`` appended to the name): what a user gets
+    who fuses on the camera not beside the ToF. Scenes without right-view ground truth are
+    refused."""
     if isinstance(scene, str):
         scene = load_stereo_scene(scene)
     elif not isinstance(scene, StereoScene):
@@ -111,6 +118,11 @@ def real_sample(
     if epoch is not None:
         epoch = _validate.integer("epoch", epoch, minimum=0)
     dense = _validate.flag("dense", dense)
+    side = _validate.choice("view", view, ("left", "right"))
+    if side == "right" and scene.disparity_right is None:
+        raise InvalidArgumentError(
+            f"view: got 'right' for {scene.name}, expected a scene with right-view ground truth"
+        )
     rng = np.random.default_rng(_seed(scene.name, law, epoch, dense))
     h, w = scene.left.shape[:2]
     drawn = _draw_law(rng, w, h, dense)
@@ -121,7 +133,11 @@ def real_sample(
     depth, amplitude = tof_variation.apply(depth, amplitude, drawn.variation, rng)
     depth = _dropouts(depth, drawn.dropout, rng)
     kind = "dense" if dense else "law"
-    return Sample(f"{scene.name}_{kind}{law}", scene.left, scene.right, depth, amplitude, rig, gt)
+    name = f"{scene.name}_{kind}{law}"
+    if side == "right":
+        assert scene.disparity_right is not None  # checked above
+        rig, gt, name = with_reference(rig, "right"), scene.disparity_right, f"{name}_right"
+    return Sample(name, scene.left, scene.right, depth, amplitude, rig, gt)
 
 
 def real_samples(
@@ -131,10 +147,12 @@ def real_samples(
     epoch: int | None = None,
     root: str | None = None,
     dense_laws: int = 0,
+    view: str = "left",
 ) -> Iterator[Sample]:
     """Every scene of ``split`` under ``laws`` sensor laws each, then ``dense_laws`` laws of the
     dense family (scene-major order; at least one law in all). The arguments are checked at the
-    call, the scenes read as the iterator is consumed."""
+    call, the scenes read as the iterator is consumed. ``view``: as :func:`real_sample`; with
+    ``"right"`` the scenes without right-view ground truth are left out."""
     _validate.choice("split", split, SPLITS)
     laws = _validate.integer("laws", laws, minimum=0, maximum=64)
     dense_laws = _validate.integer("dense_laws", dense_laws, minimum=0, maximum=64)
@@ -144,15 +162,18 @@ def real_samples(
         )
     if epoch is not None:
         epoch = _validate.integer("epoch", epoch, minimum=0)
+    side = _validate.choice("view", view, ("left", "right"))
     names = scene_names(split, root)
 
     def cases() -> Iterator[Sample]:
         for name in names:
             scene = load_stereo_scene(name, root)
+            if side == "right" and scene.disparity_right is None:
+                continue
             for k in range(laws):
-                yield real_sample(scene, k, epoch=epoch)
+                yield real_sample(scene, k, epoch=epoch, view=side)
             for k in range(dense_laws):
-                yield real_sample(scene, k, epoch=epoch, dense=True)
+                yield real_sample(scene, k, epoch=epoch, dense=True, view=side)
 
     return cases()
 
