@@ -217,6 +217,13 @@ CASES: list[Case] = [
     ),
     Case(
         "load_azure_kinect_frame",
+        lambda: load_azure_kinect_frame(_frame_npz("neg.npz", -np.ones((4, 4), np.int16))),
+        ARG,
+        r"^path: .*neg\.npz holds 16 negative depth_mm values \(down to -1\), expected millimetres",
+        "negative depth",
+    ),
+    Case(
+        "load_azure_kinect_frame",
         lambda: load_azure_kinect_frame(
             _frame_npz("no_ir.npz", np.ones((4, 4), np.uint16), ir=None)
         ),
@@ -263,6 +270,21 @@ CASES: list[Case] = [
         FILE,
         r"rig_typo\.json.*unknown key 'refrence'",
         "typo",
+    ),
+    Case(
+        "load_rig",
+        _rig_edited("rig_rot.json", lambda d: d["tof_to_reference"]["rotation"].__setitem__(0, 5)),
+        FILE,
+        r"rig_rot\.json.*tof_to_reference\.rotation is \[5, \[0\.0, 1\.0, 0\.0\], .*\], "
+        r"expected a 3 x 3 list of numbers",
+        "ragged rotation",
+    ),
+    Case(
+        "load_rig",
+        _rig_edited("rig_t2.json", lambda d: d["tof_to_reference"]["translation"].pop()),
+        FILE,
+        r"rig_t2\.json.*tof_to_reference\.translation is \[0\.0, 0\.04\], expected a list of 3",
+        "short translation",
     ),
     Case(
         "load_rig",

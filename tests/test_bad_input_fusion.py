@@ -53,6 +53,15 @@ CASES: list[Case] = [
     ),
     Case(
         "fuse",
+        lambda: F.fuse(
+            LEFT, LEFT, -np.linspace(1, 3, TOF.size, dtype=np.float32).reshape(TOF.shape), TOF, RIG
+        ),
+        ARG,
+        r"^tof_depth: got only negative depths \(-3 to -1\), expected metres > 0 .*sign flipped",
+        "negative depth",
+    ),
+    Case(
+        "fuse",
         lambda: F.fuse(LEFT, LEFT, TOF, -TOF, RIG),
         ARG,
         r"^tof_amplitude: got 217088 negative values \(down to -1\), expected amplitudes >= 0",
@@ -126,6 +135,17 @@ CASES: list[Case] = [
         ARG,
         r"^gamma_c: got -1",
         "gamma_c",
+    ),
+    # Beyond float32: refused when made, as the user wrote it (not as the inf it would become).
+    Case(
+        "LcParams",
+        lambda: F.LcParams(gamma_c=1e300),
+        ARG,
+        r"^gamma_c: got 1e\+300, expected a magnitude within float32",
+        "f32",
+    ),
+    Case(
+        "LcParams", lambda: F.LcParams(bin_width=1e-300), ARG, r"^bin_width: got 1e-300", "f32-tiny"
     ),
     Case(
         "LcParams.resolved",

@@ -129,6 +129,13 @@ CASES = [
         "even",
     ),
     Case("CensusParams", lambda: F.CensusParams(paths=6), ARG, r"^paths: got 6", "paths"),
+    Case(
+        "CensusParams",
+        lambda: F.CensusParams(speckle_range=1e39),
+        ARG,
+        r"^speckle_range: got 1e\+39, expected a magnitude within float32",
+        "f32",
+    ),
     Case("CensusParams", lambda: F.CensusParams(median=4), ARG, r"^median: got 4", "median"),
     Case(
         "CensusParams",

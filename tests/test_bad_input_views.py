@@ -92,6 +92,13 @@ CASES: list[Case] = [
     ),
     Case(
         "local_contrast_normalize",
+        lambda: V.local_contrast_normalize(np.ones((8, 8)), 5, eps=1e300),
+        ARG,
+        r"^eps: got 1e\+300, expected a magnitude within float32",
+        "eps-f32",
+    ),
+    Case(
+        "local_contrast_normalize",
         lambda: V.local_contrast_normalize(np.zeros(5)),
         SHAPE,
         r"^image: got shape \(5,\)",

@@ -174,7 +174,9 @@ def test_cli_eval_stereo_on_val(
     assert "census (ours)" in text and "OpenCV HH 7x7" in text and "Tsukuba" in text
 
 
-def test_cli_stereo_refuses_what_it_cannot_search(tmp_path: Path) -> None:
+def test_cli_stereo_refuses_what_it_cannot_search(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     import json
 
     from rgbd_rs.io import write_png
@@ -188,6 +190,23 @@ def test_cli_stereo_refuses_what_it_cannot_search(tmp_path: Path) -> None:
     calib.write_text(json.dumps({"stereo": {"left": cam, "right": cam, "baseline": 1e308}}))
     argv = ["stereo", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png")]
     assert main([*argv, "--calib", str(calib), "--out", str(tmp_path / "o")]) == 2
+    capsys.readouterr()
+    # A tiny nearest depth: the range is printed in a few digits, not hundreds.
+    calib.write_text(json.dumps({"stereo": {"left": cam, "right": cam, "baseline": 0.1}}))
+    assert main([*argv, "--calib", str(calib), "--min-depth", "1e-300", "--out", "o"]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err.startswith("rgbd: error: --min-depth: a search range of 1e+301 px") and len(err) < 200
+    )
+    # --min-depth means nothing beside --max-disparity: refused, not ignored.
+    both = ["--max-disparity", "16", "--min-depth", "1", "--out", str(tmp_path / "o")]
+    assert main([*argv, *both]) == 2
+    assert "--min-depth: got it with --max-disparity, expected --calib" in capsys.readouterr().err
+    # An empty --out would be the working folder, whose old outputs would be deleted.
+    with pytest.raises(SystemExit) as stop:  # refused while parsing, as argparse does
+        main([*argv, "--max-disparity", "16", "--out", ""])
+    assert stop.value.code == 2
+    assert "--out: got an empty path, expected a folder" in capsys.readouterr().err
     narrow = ["stereo", "--left", str(tmp_path / "n.png"), "--right", str(tmp_path / "n.png")]
     opencv = ["--method", "opencv", "--max-disparity", "4", "--out", str(tmp_path / "o")]
     assert main([*narrow, *opencv]) == 2

@@ -41,6 +41,13 @@ pub fn normals_from_points(
     height: usize,
     max_depth_jump: f32,
 ) -> Result<Vec<f32>> {
+    if width == 0 || height == 0 {
+        return Err(invalid(
+            "points",
+            format!("{height}x{width} points"),
+            "a grid at least 1x1",
+        ));
+    }
     check_len("points", points, width * height * 3, "height * width * 3")?;
     if !(max_depth_jump > 0.0) {
         return Err(invalid(
@@ -123,5 +130,9 @@ mod tests {
             assert!((n[3 * i + 2] + s).abs() < 1e-5);
         }
         assert!(normals_from_points(&[0.0; 6], 2, 1, 0.0).is_err());
+        // An empty grid is refused, not a zero-sized chunk (found by a fuzz of the binding).
+        for (w, h) in [(0, 5), (5, 0), (0, 0)] {
+            assert!(normals_from_points(&[], w, h, 1.0).is_err(), "{w}x{h}");
+        }
     }
 }

@@ -169,6 +169,9 @@ def flagged(
 def folder(text: str) -> Path:
     """An argparse type: an output folder, which must not be an existing file (checked while
     parsing, before minutes of work)."""
+    if not text.strip():
+        # Path("") is the working folder, whose files a command may then replace.
+        raise argparse.ArgumentTypeError("got an empty path, expected a folder")
     path = Path(text)
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"got {text}, a file; expected a folder")

@@ -14,6 +14,8 @@ from rgbd_rs.cli._maps import disparity_png16
 from rgbd_rs.errors import InvalidArgumentError
 
 #: What ``rgbd stereo`` writes (cleared from --out first).
+#: ``--min-depth`` when ``--calib`` gives the range: the nearest depth searched (metres).
+DEFAULT_MIN_DEPTH = 0.5
 STEREO_OUTPUTS = ("disparity.npz", "disparity.png", "preview.png")
 #: OpenCV block sizes ``rgbd eval stereo`` compares against.
 OPENCV_BLOCKS = (3, 5, 7, 9)
@@ -41,8 +43,8 @@ def register(commands: Commands) -> None:
     st.add_argument(
         "--min-depth",
         type=real(0.0, 1e6),
-        default=0.5,
-        help="with --calib: nearest depth searched, metres (default 0.5)",
+        default=None,
+        help=f"with --calib: nearest depth searched, metres (default {DEFAULT_MIN_DEPTH})",
     )
     st.add_argument("--reference", choices=("left", "right"), default="left", help="default left")
     st.add_argument(
@@ -72,6 +74,11 @@ def register(commands: Commands) -> None:
 
 def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
     if args.max_disparity is not None:
+        if args.min_depth is not None:
+            raise InvalidArgumentError(
+                "--min-depth: got it with --max-disparity, expected --calib (the range comes "
+                "from the calibration and the nearest depth, or is given)"
+            )
         dmax = int(args.max_disparity)
     else:
         from rgbd_rs.data.calibration import load_stereo_rig
@@ -83,7 +90,8 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
                 f"--calib: {args.calib} is for {size[0]} x {size[1]} images, the pair is "
                 f"{width} x {height}; expected the calibration of these images"
             )
-        reach = rig.baseline * rig.focal / args.min_depth
+        min_depth = DEFAULT_MIN_DEPTH if args.min_depth is None else args.min_depth
+        reach = rig.baseline * rig.focal / min_depth
         if not math.isfinite(reach):  # a finite one too wide is refused below
             raise InvalidArgumentError(
                 f"--min-depth: a search range of {reach:.4g} px (baseline x focal / min depth "
@@ -93,7 +101,7 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
     if dmax >= width:
         flag = "--max-disparity" if args.max_disparity is not None else "--min-depth"
         raise InvalidArgumentError(
-            f"{flag}: a search range of {dmax} px, expected less than the image width {width}"
+            f"{flag}: a search range of {dmax:.4g} px, expected less than the image width {width}"
         )
     return dmax
 

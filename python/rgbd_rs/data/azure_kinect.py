@@ -206,6 +206,12 @@ def load_azure_kinect_frame(path: str | Path) -> AzureKinectFrame:
             f"path: {path} holds depth {depth_mm.shape}, ir {ir.shape}, color {color.shape}, "
             "expected equal 2-D depth/ir and an H x W x 3 colour image"
         )
+    if depth_mm.dtype.kind == "i" and (depth_mm < 0).any():
+        raise InvalidArgumentError(
+            f"path: {path} holds {int((depth_mm < 0).sum())} negative depth_mm values (down to "
+            f"{int(depth_mm.min())}), expected millimetres >= 0 (0 = no return; the device "
+            "writes uint16)"
+        )
     depth = depth_mm.astype(np.float32) / 1000.0
     depth[depth_mm == 0] = np.nan
     return AzureKinectFrame(depth, ir.astype(np.float32), np.ascontiguousarray(color[:, :, :3]))

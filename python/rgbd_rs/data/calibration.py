@@ -109,6 +109,20 @@ def _numbers(where: str, value: object) -> list[Any]:
     return value
 
 
+def _matrix(where: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+    """A list of numbers (``(n,)``) or of rows of numbers (``(rows, n)``) of exactly ``shape``."""
+    _numbers(where, value)
+    rows = value if len(shape) == 2 else [value]
+    want = f"{shape[0]} x {shape[1]} list of" if len(shape) == 2 else f"list of {shape[0]}"
+    assert isinstance(rows, list)
+    if len(rows) != (shape[0] if len(shape) == 2 else 1) or any(
+        not isinstance(r, list) or len(r) != shape[-1] or any(isinstance(v, list) for v in r)
+        for r in rows
+    ):
+        raise ValueError(f"{where} is {value!r}, expected a {want} numbers")
+    return np.asarray(value, float)
+
+
 #: The keys every camera object of the layout needs (``distortion`` is optional).
 CAMERA_KEYS = ("fx", "fy", "cx", "cy", "width", "height")
 
@@ -242,8 +256,8 @@ def load_rig(path: str | Path) -> ToFStereoRig:
             tof=_camera("tof", top["tof"]),
             stereo=_stereo_rig(st),
             tof_to_reference=Pose(
-                np.asarray(_numbers("tof_to_reference.rotation", t["rotation"]), float),
-                np.asarray(_numbers("tof_to_reference.translation", t["translation"]), float),
+                _matrix("tof_to_reference.rotation", t["rotation"], (3, 3)),
+                _matrix("tof_to_reference.translation", t["translation"], (3,)),
             ),
             reference=top.get("reference", "right"),
         )

@@ -83,6 +83,22 @@ def with_reference(rig: ToFStereoRig, reference: str) -> ToFStereoRig:
     return ToFStereoRig(rig.tof, rig.stereo, across.compose(rig.tof_to_reference), side)
 
 
+def negative_depth_error(depth: F32) -> str | None:
+    """The refusal of a depth map with negative depths of several values and none > 0 (a sign
+    flipped: one repeated value, such as -1, is an invalid-pixel mark), else None."""
+    with np.errstate(invalid="ignore"):
+        if (depth > 0).any():
+            return None
+        neg = depth[depth < 0]
+    if np.unique(neg[:100_000]).size < 2:
+        return None
+    return (
+        f"tof_depth: got only negative depths ({float(neg.min()):.3g} to {float(neg.max()):.3g}), "
+        "expected metres > 0 in front of the camera (NaN, 0 or a negative value mark invalid "
+        "pixels): is the sign flipped?"
+    )
+
+
 #: The other camera must be nearer the ToF than the reference camera by this share of the
 #: baseline before :func:`far_camera_warning` speaks (a ToF midway between them is fine).
 FAR_CAMERA_MARGIN = 0.1

@@ -74,7 +74,7 @@ class CensusParams:
         _validate.choice("census_reference", self.census_reference, ("center", "mean"))
         _validate.integer("p1", self.p1, minimum=1, maximum=MAX_P2 - 1)
         _validate.integer("p2", self.p2, minimum=self.p1 + 1, maximum=MAX_P2)
-        _validate.real("p2_contrast", self.p2_contrast, nonnegative=True)
+        _validate.real("p2_contrast", self.p2_contrast, nonnegative=True, f32=True)
         if isinstance(self.paths, bool) or self.paths not in (4, 5, 8):
             raise InvalidArgumentError(f"paths: got {self.paths!r}, expected 4, 5 or 8")
         _validate.choice("subpixel", self.subpixel, ("parabola", "equiangular", "off"))
@@ -85,7 +85,7 @@ class CensusParams:
         if self.median % 2 == 0:
             raise InvalidArgumentError(f"median: got {self.median}, expected an odd side")
         _validate.integer("speckle_size", self.speckle_size, minimum=0, maximum=2**31)
-        _validate.real("speckle_range", self.speckle_range, nonnegative=True)
+        _validate.real("speckle_range", self.speckle_range, nonnegative=True, f32=True)
         bits = self.census_width * self.census_height - (self.census_reference == "center")
         if self.census_width % 2 == 0 or self.census_height % 2 == 0 or bits > 64:
             raise InvalidArgumentError(

@@ -20,6 +20,7 @@ from rgbd_rs.fusion._inputs import (
     U8,
     far_camera_warning,
     map2d,
+    negative_depth_error,
     rgb8,
     rig_arg,
     tof_depth_warning,
@@ -317,6 +318,9 @@ def fuse(
     # Depths in the wrong unit are refused before any work (as segment() does); other
     # implausible depths warn once the result is known (below).
     depth_map = map2d("tof_depth", tof_depth, (r.tof.height, r.tof.width))
+    negative = negative_depth_error(depth_map)
+    if negative is not None:
+        raise InvalidArgumentError(negative)
     implausible = tof_depth_warning(depth_map, r)
     if implausible is not None and implausible[1]:
         raise InvalidArgumentError(implausible[0])

@@ -51,9 +51,9 @@ class LcParams:
         if self.radius is not None:
             _validate.integer("radius", self.radius, minimum=1, maximum=MAX_RADIUS)
         if self.gamma_s is not None:
-            _validate.real("gamma_s", self.gamma_s, positive=True)
+            _validate.real("gamma_s", self.gamma_s, positive=True, f32=True)
         for name in ("gamma_c", "gamma_t", "truncation", "bin_width"):
-            _validate.real(name, getattr(self, name), positive=True)
+            _validate.real(name, getattr(self, name), positive=True, f32=True)
         _validate.integer("stride", self.stride, minimum=1)
         _validate.flag("cross_check", self.cross_check)
 
@@ -64,7 +64,7 @@ class LcParams:
         else:
             r = _validate.integer("radius", self.radius, minimum=1, maximum=MAX_RADIUS)
         if self.gamma_s is not None:
-            return r, _validate.real("gamma_s", self.gamma_s, positive=True)
+            return r, _validate.real("gamma_s", self.gamma_s, positive=True, f32=True)
         return r, _rgbd_rs.LcConfig.gamma_s_for_radius(r)
 
     def native(self, width: int, target_sign: int) -> _rgbd_rs.LcConfig:
@@ -74,10 +74,10 @@ class LcParams:
         return _rgbd_rs.LcConfig(
             radius,
             gamma_s,
-            _validate.real("gamma_c", self.gamma_c, positive=True),
-            _validate.real("gamma_t", self.gamma_t, positive=True),
-            _validate.real("truncation", self.truncation, positive=True),
-            _validate.real("bin_width", self.bin_width, positive=True),
+            _validate.real("gamma_c", self.gamma_c, positive=True, f32=True),
+            _validate.real("gamma_t", self.gamma_t, positive=True, f32=True),
+            _validate.real("truncation", self.truncation, positive=True, f32=True),
+            _validate.real("bin_width", self.bin_width, positive=True, f32=True),
             _validate.integer("stride", self.stride, minimum=1),
             target_sign,
         )

@@ -144,7 +144,7 @@ def local_contrast_normalize(
     w = _validate.integer("window", window, minimum=1)
     if w % 2 == 0:
         raise InvalidArgumentError(f"window: got {window}, expected an odd number of pixels")
-    e = _validate.real("eps", eps, positive=True)
+    e = _validate.real("eps", eps, positive=True, f32=True)
     out = np.array(x, dtype=np.float32, order="C", copy=True)
     _rgbd_rs.local_contrast_normalize(out.reshape(-1, *x.shape[-2:]), w, e)
     return out
