@@ -308,6 +308,39 @@ def test_up_axis_of_y_up_and_x_up_shapes(shared_data: Path, tmp_path: Path) -> N
         clf(clouds[0], up="w")
 
 
+def test_turns_make_the_answer_independent_of_the_heading(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The networks read ModelNet's heading; with turns=True a shape turned by quarter turns
+    about z gets the same probabilities whichever way it faces."""
+    from rgbd_rs import InvalidArgumentError
+    from rgbd_rs.shapes.classify import ShapeClassifier, shipped_weights
+
+    if "modelnet10" not in shipped_weights():
+        pytest.skip("no shipped ModelNet10 weights")
+    src = PointCloudSet(shared_data / "modelnet" / "modelnet10_1024.npz")
+    idx = [i for c in range(10) for i in np.flatnonzero((src.labels == c) & (src.splits == 1))[:1]]
+    clouds = [src.load(int(i)).astype(np.float32) for i in idx]
+    quarter = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]], np.float32)  # exact 90 degrees
+    clf = ShapeClassifier.load(dataset="modelnet10")
+    facing = [clouds]
+    for _ in range(3):
+        facing.append([c @ quarter.T for c in facing[-1]])
+    plain = [clf.probabilities(f) for f in facing]
+    averaged = [clf.probabilities(f, turns=True) for f in facing]
+    for p in averaged[1:]:
+        np.testing.assert_allclose(p, averaged[0], atol=1e-4)
+    # Without turns the heading changes answers (the shapes face ModelNet's way at k = 0).
+    assert any((p.argmax(1) != plain[0].argmax(1)).any() for p in plain[1:])
+    np.testing.assert_allclose(averaged[0], np.mean(plain, axis=0), atol=1e-4)
+    f = tmp_path / "turned.npy"
+    np.save(f, facing[1][3])
+    assert main(["classify", str(f), "--dataset", "modelnet10", "--turns"]) == 0
+    assert capsys.readouterr().out.startswith(f"{f}: ")
+    with pytest.raises(InvalidArgumentError, match=r"^turns: got 1"):
+        clf(clouds[0], turns=1)  # type: ignore[arg-type]
+
+
 def test_shipped_modelnet40_weights_classify_test_shapes(shared_data: Path) -> None:
     """The shipped ModelNet40 checkpoint (the default of classify()) on the first 2 official test
     shapes of each class (89.5 % on all 2468 test shapes; two networks averaged)."""

@@ -273,6 +273,17 @@ def test_mirror_trains_on_mirror_images_and_evaluates_both(tiny_cache: Path) -> 
     both = evaluate(best, tiny_cache / "cache", split="train", mirror=True, turns=True)
     assert both.mirror and both.turns and both.count == CLASSES * PER_CLASS
     assert "mirror averaged" in both.summary() and "4 turns averaged" in both.summary()
+    # Turned shapes: the same shapes read after k quarter turns; averaged over the four turns
+    # the confusion does not depend on how the shapes were turned first.
+    cache = tiny_cache / "cache"
+    turned = [evaluate(best, cache, split="train", turned=k) for k in range(4)]
+    assert turned[0].turned == 0 and "turned" not in turned[0].summary()
+    assert "shapes turned 90 degrees" in turned[1].summary()
+    assert all(t.count == CLASSES * PER_CLASS for t in turned)
+    avg = [evaluate(best, cache, split="train", turns=True, turned=k).confusion for k in (0, 3)]
+    np.testing.assert_array_equal(avg[0], avg[1])
+    with pytest.raises(InvalidArgumentError, match=r"^turned: got 4"):
+        evaluate(best, cache, turned=4)
     with pytest.raises(InvalidArgumentError, match="mirror"):
         evaluate(best, tiny_cache / "cache", mirror="yes")  # type: ignore[arg-type]
     with pytest.raises(InvalidArgumentError, match="mirror"):

@@ -94,6 +94,13 @@ def _classify(commands: Commands) -> None:
         help="the shape's up axis (default z, ModelNet's; many PLY/OBJ files are y-up): the "
         "networks were trained on z-up shapes, and a shape on its side is misclassified",
     )
+    p.add_argument(
+        "--turns",
+        action="store_true",
+        help="average over the shape's four quarter turns about the up axis: for a shape that "
+        "may face any way (the networks read ModelNet's heading; ModelNet10 test: 92.7 %% "
+        "aligned, 45-69 %% turned, 81.1 %% with --turns whichever way)",
+    )
 
 
 def run_classify(args: argparse.Namespace) -> int:
@@ -105,7 +112,7 @@ def run_classify(args: argparse.Namespace) -> int:
         lambda: ShapeClassifier.load(args.checkpoint, dataset=args.dataset),
     )
     where = {"path": "FILE", "shape": "FILE"}  # the library's argument names
-    best, probs = flagged(where, lambda: clf(load_shape(args.file), up=args.up))
+    best, probs = flagged(where, lambda: clf(load_shape(args.file), up=args.up, turns=args.turns))
     print(f"{args.file}: {best}")
     for name, prob in list(probs.items())[: args.top]:
         print(f"  {prob:6.1%}  {name}")
@@ -465,6 +472,15 @@ def _eval(commands: Commands) -> None:
         "--batch-size", type=integer(1), default=64, metavar="N", help="shapes per batch (64)"
     )
     p.add_argument(
+        "--turned",
+        type=int,
+        choices=(0, 90, 180, 270),
+        default=0,
+        metavar="DEG",
+        help="turn every shape by 0, 90, 180 or 270 degrees about z first: how the networks do "
+        "on shapes that do not face ModelNet's way (default 0)",
+    )
+    p.add_argument(
         "--device",
         type=device(auto=False),
         default="cpu",
@@ -556,6 +572,7 @@ def run_eval(args: argparse.Namespace) -> int:
                 turns=args.turns,
                 mirror=args.mirror,
                 quiet=args.quiet,
+                turned=args.turned // 90,
             )
 
         flag = "--ablation" if args.ablation is not None else "--checkpoint"

@@ -68,6 +68,9 @@ class ShapeEvaluation:
     turns: bool = False
     #: True when probabilities were averaged over the shape and its mirror image (x -> -x).
     mirror: bool = False
+    #: Quarter turns about z (counter-clockwise, 0-3) every shape was turned by before it was
+    #: read: how the classifier does on shapes that do not face ModelNet's way.
+    turned: int = 0
 
     def __post_init__(self) -> None:
         if not isinstance(self.classes, tuple) or not all(isinstance(c, str) for c in self.classes):
@@ -107,6 +110,7 @@ class ShapeEvaluation:
                 )
         for name in ("turns", "mirror"):
             _validate.flag(name, getattr(self, name))
+        _validate.integer("turned", self.turned, minimum=0, maximum=3)
 
     @property
     def count(self) -> int:
@@ -151,8 +155,10 @@ class ShapeEvaluation:
 
     def summary(self) -> str:
         """One line: accuracy, mean class accuracy, count, representations, checkpoint."""
-        tta = ("; 4 turns averaged" if self.turns else "") + (
-            "; mirror averaged" if self.mirror else ""
+        tta = (
+            (f"; shapes turned {90 * self.turned} degrees" if self.turned else "")
+            + ("; 4 turns averaged" if self.turns else "")
+            + ("; mirror averaged" if self.mirror else "")
         )
         return (
             f"{self.dataset} {self.split}: accuracy {_pct(self.accuracy)}, mean class accuracy "
@@ -238,11 +244,14 @@ def evaluate(
     turns: bool = False,
     mirror: bool = False,
     quiet: bool = True,
+    turned: int = 0,
 ) -> ShapeEvaluation:
     """Accuracy of ``checkpoint`` on ``cache``'s ``split`` (``"test"``, ``"train"``, ``"all"``).
     ``turns``: average each shape's probabilities over its four quarter turns about z
     (:mod:`rgbd_rs.shapes.augment`); ``mirror``: average them over the shape and its mirror image
-    in x (both: over all eight). ``quiet=False`` shows a progress bar over the shapes.
+    in x (both: over all eight). ``turned``: turn every shape by that many quarter turns about
+    z first (0-3), to measure shapes that do not face ModelNet's way. ``quiet=False`` shows a
+    progress bar over the shapes.
     A cache computed with other inputs (resolution, normalisation, classes, missing
     representations) raises :class:`RgbdError` naming both, as does one with shapes of
     ``split`` still to compute."""
@@ -261,10 +270,13 @@ def evaluate(
     for name, flag in (("turns", turns), ("mirror", mirror), ("quiet", quiet)):
         if not isinstance(flag, bool):
             raise InvalidArgumentError(f"{name}: got {flag!r}, expected True or False")
+    k = _validate.integer("turned", turned, minimum=0, maximum=3)
     shapes = clf.net.shapes
     bar = tqdm(total=len(data), desc="evaluate", unit="shape", disable=True if quiet else None)
     with bar:  # closed on an exception too
         for x, y in loader:
+            if k:
+                x = _quarter_turns(x, shapes)[k]
             views = _mirror_pair(x, shapes) if mirror else [x]
             if turns:
                 views = [t for v in views for t in _quarter_turns(v, shapes)]
@@ -281,6 +293,7 @@ def evaluate(
         split=split,
         turns=turns,
         mirror=mirror,
+        turned=k,
     )
 
 
