@@ -65,6 +65,9 @@ TMP = Path(_TMP.name)
 (TMP / "nan.off").write_text("OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n")
 (TMP / "junk.ply").write_bytes(b"ply\nformat nonsense\n")
 (TMP / "junk.pcd").write_text("# .PCD\nFIELDS x y\n")
+_PCD = "FIELDS {f}\nSIZE 4 4 4\nTYPE F F F\nCOUNT {c}\nWIDTH 1\nPOINTS 1\nDATA ascii\n0 0 0\n"
+(TMP / "no_x.pcd").write_text(_PCD.format(f="a y z", c="1 1 1"))
+(TMP / "huge_count.pcd").write_text(_PCD.format(f="x y z", c="1 1 99999999999"))
 (TMP / "shape.txt").write_text("1 2 3\n")
 np.save(TMP / "flat.npy", np.zeros((5, 2)))
 np.save(TMP / "nan.npy", np.array([[0.0, np.nan, 0.0]]))
@@ -321,6 +324,20 @@ ALL_CASES: list[Case] = [
         RgbdError,
         r"junk\.pcd: not a PCD",
         "pcd",
+    ),
+    Case(
+        "load_shape",
+        lambda: load_shape(TMP / "no_x.pcd"),
+        RgbdError,
+        r"no_x\.pcd: not a PCD point cloud \(its FIELDS a y z lack x\)$",
+        "pcd without x",
+    ),
+    Case(
+        "load_shape",
+        lambda: load_shape(TMP / "huge_count.pcd"),
+        RgbdError,
+        r"huge_count\.pcd: .*COUNT 1 1 99999999999: expected .*counts of 1 to 4096\)$",
+        "pcd count",
     ),
     Case(
         "load_shape",

@@ -14,6 +14,7 @@ read. Writes ``OUT/chosen.pt`` (the power stored in it) and ``OUT/choice.md``.
 from __future__ import annotations
 
 import argparse
+import warnings
 from pathlib import Path
 
 from rgbd_rs.fusion.calibrate import best_score, calibrate_stereo_power, write_calibrated
@@ -32,6 +33,12 @@ def main() -> None:
         help="also the val scenes with the dense protocol's ToF (rgbd eval fusion --dense)",
     )
     ap.add_argument(
+        "--far-protocol",
+        action="store_true",
+        help="also the val scenes fused on the camera far from the ToF (rgbd eval fusion "
+        "--view right)",
+    )
+    ap.add_argument(
         "--epochs",
         type=int,
         help="the training run's --epochs: refuse to choose while epN.pt of any of 1..N is "
@@ -48,6 +55,9 @@ def main() -> None:
     samples = list(real_samples("val", a.laws))
     if a.dense_protocol:
         samples += list(dense_protocol_samples("val"))
+    if a.far_protocol:
+        warnings.filterwarnings("ignore", r"reference: the ToF sits", RuntimeWarning)
+        samples += list(real_samples("val", a.laws, view="right"))
     shipped = ConfidenceEstimator.load()
     candidates: dict[str, tuple[Path | None, ConfidenceEstimator]] = {
         f"shipped (trained on {shipped.matcher})": (None, shipped),
@@ -81,6 +91,7 @@ def main() -> None:
     text = (
         f"Real validation cases: {len(samples)} ({a.laws} ToF laws per val scene"
         + (", and each val scene with the dense protocol's ToF" if a.dense_protocol else "")
+        + (", and the val scenes fused on the far camera" if a.far_protocol else "")
         + ")\n\n"
         + "\n".join(rows)
         + f"\n\nChosen: {path.stem}, power {best.power:g} -> {chosen}\n"

@@ -15,7 +15,9 @@ Resumable: caches are skipped when present and ``train`` resumes from the last c
 from __future__ import annotations
 
 import argparse
+import itertools
 import shutil
+import warnings
 from pathlib import Path
 
 from rgbd_rs.fusion.real_scenes import real_samples
@@ -35,6 +37,13 @@ def main() -> None:
         help="laws of the dense family (a ToF as fine as the colour camera) per training "
         "scene, added to the pool (0; rgbd_rs.fusion.real_scenes.DENSE_TOF_SCALE)",
     )
+    ap.add_argument(
+        "--far-laws",
+        type=int,
+        default=0,
+        help="laws per training scene fused on the camera far from the ToF (the right one, "
+        "real_samples(view='right')), added to the pool (0)",
+    )
     ap.add_argument("--matcher", default="census", choices=("census", "opencv"))
     ap.add_argument("--epochs", type=int, default=6)
     ap.add_argument("--per-scene", type=int, default=100, help="crops per case and epoch")
@@ -53,9 +62,14 @@ def main() -> None:
     ap.add_argument("--quiet", action="store_true")
     a = ap.parse_args()
     cache = a.out / f"cache_{a.matcher}"
+    # The far-camera cases are fused there on purpose.
+    warnings.filterwarnings("ignore", r"reference: the ToF sits", RuntimeWarning)
+    pool = real_samples("train", a.laws, dense_laws=a.dense_laws)
+    if a.far_laws:
+        pool = itertools.chain(pool, real_samples("train", a.far_laws, view="right"))
     train = prepare(
-        real_samples("train", a.laws, dense_laws=a.dense_laws),
-        cache / "train",  # one file per case name: a dense law's name differs
+        pool,
+        cache / "train",  # one file per case name: a dense or far law's name differs
         matcher=a.matcher,
         quiet=a.quiet,
     )

@@ -216,6 +216,10 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
     return Mesh(v.astype(np.float32), f.astype(np.uint32))
 
 
+#: The most values one PCD field may hold per point (PCL's descriptors hold a few hundred).
+MAX_PCD_COUNT = 4096
+
+
 def _read_pcd(p: Path) -> np.ndarray:
     """x, y, z of an ASCII or binary (uncompressed) PCD file."""
     raw = p.read_bytes()
@@ -238,9 +242,26 @@ def _read_pcd(p: Path) -> np.ndarray:
         counts = [int(c) for c in header.get("COUNT", ["1"] * len(fields))]
         n = int(header["POINTS"][0]) if "POINTS" in header else int(header["WIDTH"][0])
         mode = header["DATA"][0].lower()
-        cols = [fields.index(a) for a in ("x", "y", "z")]
     except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
         raise RgbdError(f"{p}: not a PCD point cloud (bad header: {reason(exc)})") from None
+    if missing := [a for a in ("x", "y", "z") if a not in fields]:
+        raise RgbdError(
+            f"{p}: not a PCD point cloud (its FIELDS {' '.join(fields)} lack {', '.join(missing)})"
+        )
+    cols = [fields.index(a) for a in ("x", "y", "z")]
+    if not (len(sizes) == len(types) == len(counts) == len(fields)):
+        raise RgbdError(
+            f"{p}: not a PCD point cloud (FIELDS, SIZE, TYPE and COUNT list {len(fields)}, "
+            f"{len(sizes)}, {len(types)} and {len(counts)} entries, expected one per field)"
+        )
+    if any(not 1 <= c <= MAX_PCD_COUNT for c in counts) or any(
+        s not in (1, 2, 4, 8) for s in sizes
+    ):
+        raise RgbdError(
+            f"{p}: not a PCD point cloud (SIZE {' '.join(map(str, sizes))}, COUNT "
+            f"{' '.join(map(str, counts))}: expected sizes of 1, 2, 4 or 8 bytes and counts of "
+            f"1 to {MAX_PCD_COUNT})"
+        )
     if n < 0:
         raise RgbdError(f"{p}: not a PCD point cloud (the header says {n} points)")
     if mode == "ascii":
