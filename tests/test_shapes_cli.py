@@ -165,6 +165,12 @@ def test_bad_runs_end_in_one_line(
     err = capsys.readouterr().err
     assert err.startswith("rgbd: error: --checkpoint:") and "none.pt" in err
     assert err.count("\n") == 1
+    # The flag is not followed by its own parameter's name ("--data: data: got ...").
+    assert main(["shapes", "cache", "--data", "nonexist", "--out", str(tmp_path / "x")]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: --data: got 'nonexist', expected")
+    with pytest.raises(SystemExit):
+        main(["shapes", "cache", "--data", str(pack), "--representations", "foo"])
+    assert "argument --representations: got unknown ['foo']" in capsys.readouterr().err
     ok = tmp_path / "ok"
     argv = ["shapes", "cache", "--data", str(pack), "--out", str(ok), "--quiet"]
     assert main([*argv, "--representations", "volume", "--normalisation", "standardize"]) == 0

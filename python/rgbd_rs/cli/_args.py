@@ -111,12 +111,19 @@ def shard(text: str) -> tuple[int, int]:
     return i, n
 
 
+def without_name(flag: str, message: str) -> str:
+    """``message`` without a leading ``"name: "`` when ``name`` is the flag's own parameter
+    (``--data`` and ``"data: got ..."``), so that the flag is not followed by its name."""
+    bare = flag.lstrip("-").replace("-", "_")
+    return message[len(bare) + 1 :].lstrip() if message.startswith(f"{bare}:") else message
+
+
 def named(flag: str, load: Callable[[], T]) -> T:
     """``load()``, with a bad file's error prefixed by the ``flag`` that named the file."""
     try:
         return load()
     except RgbdError as exc:
-        raise type(exc)(f"{flag}: {exc}") from None
+        raise type(exc)(f"{flag}: {without_name(flag, str(exc))}") from None
     except OSError as exc:
         raise RgbdError(f"{flag}: {os_message(exc)}") from None
 

@@ -20,6 +20,7 @@ from rgbd_rs.cli._args import (
     real,
     shard,
     training_run_options,
+    without_name,
 )
 
 
@@ -37,8 +38,8 @@ def _representations(text: str) -> tuple[str, ...]:
 
     try:
         return _parse_representations(text)
-    except RgbdError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    except RgbdError as exc:  # argparse names the flag itself
+        raise argparse.ArgumentTypeError(without_name("--representations", str(exc))) from None
 
 
 #: The recipe parameter ``--exclude-names`` sets (its errors name the flag).
