@@ -324,6 +324,28 @@ def test_reproject_of_a_pickled_frame_says_what_the_file_holds(
     assert "allow_pickle" not in res.stderr
 
 
+def test_reproject_names_the_frame_map_that_does_not_fit_the_calibration(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    calib = shared_data / "tof" / "azure_kinect_calibration.json"
+    real = np.load(shared_data / "tof" / "azure_kinect_frame.npz")
+    small = {
+        "depth": dict(depth_mm=np.full((10, 10), 1000, np.uint16), ir=np.ones((10, 10), np.uint16)),
+        "colour": dict(depth_mm=real["depth_mm"], ir=real["ir"]),
+    }
+    colours = {"depth": real["color"], "colour": np.zeros((100, 100, 3), np.uint8)}
+    want = {
+        "depth": "--frame depth_mm: got shape (10, 10), expected (576, 640)",
+        "colour": "--frame color: got size 100x100, expected the camera's 1280x720",
+    }
+    for name, arrays in small.items():
+        frame = tmp_path / f"{name}.npz"
+        np.savez(frame, color=colours[name], **arrays)
+        argv = ["reproject", "--frame", str(frame), "--calib", str(calib), "--undistort"]
+        assert main([*argv, "--out", str(tmp_path / name)]) == 2
+        assert capsys.readouterr().err == f"rgbd: error: {want[name]}\n"
+
+
 def _png(path: Path, arr: np.ndarray) -> Path:
     import cv2
 

@@ -111,6 +111,24 @@ def test_cli_errors_name_the_flag(tmp_path: Path, capsys: pytest.CaptureFixture[
             assert n in err, (n, err)
 
 
+def test_cli_a_frame_too_small_for_the_labeler_names_the_inputs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "rgb.png"), np.full((48, 64, 3), 90, np.uint8))
+    np.save(tmp_path / "depth.npy", np.full((48, 64), 2.0, np.float32))
+    cam = {"fx": 60.0, "fy": 60.0, "cx": 31.5, "cy": 23.5, "width": 64, "height": 48}
+    (tmp_path / "cam.json").write_text(json.dumps(cam))
+    argv = ["segment", "--rgb", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.npy")]
+    argv += ["--calib", str(tmp_path / "cam.json"), "--out", str(tmp_path / "o"), "--quiet"]
+    assert main([*argv, "--segments", "10"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rgbd: error: --rgb/--depth: got a 64x48 frame, smaller than the "), err
+
+
 def _tiny_labeler():  # type: ignore[no-untyped-def]
     import torch
 

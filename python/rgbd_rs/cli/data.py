@@ -126,7 +126,11 @@ def run_reproject(args: argparse.Namespace) -> int:
 
     cal = flagged({"path": "--calib"}, lambda: load_azure_kinect_calibration(args.calib))
     frame = flagged({"path": "--frame"}, lambda: load_azure_kinect_frame(args.frame))
-    rep = reproject_to_color(frame, cal, splat_radius=args.splat_radius)
+    # The frame's maps must fit the calibration's cameras: a mismatch names --frame.
+    from_frame = {"depth": "--frame depth_mm", "image": "--frame color", "frame": "--frame"}
+    rep = flagged(
+        from_frame, lambda: reproject_to_color(frame, cal, splat_radius=args.splat_radius)
+    )
     if not np.isfinite(rep.depth).any():
         return fail(
             "no ToF pixel reaches the colour camera (coverage 0 %): check that --frame's "
@@ -144,7 +148,7 @@ def run_reproject(args: argparse.Namespace) -> int:
         cam = cal.color
         depth = cam.undistort_image(depth, interpolation="nearest")
         amplitude = cam.undistort_image(amplitude, interpolation="nearest")
-        color = cam.undistort_image(color)
+        color = flagged(from_frame, lambda: cam.undistort_image(frame.color))
         write_png(args.out / "color.png", color)
         save_camera(args.out / "camera.json", cam.without_distortion())
         written += ", color.png, camera.json (undistorted)"

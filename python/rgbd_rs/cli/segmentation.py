@@ -62,6 +62,7 @@ SEGMENT_FLAGS = {
     "camera": "--calib",
     "pdfs": "--pdfs",
     "n_segments": "--segments",
+    "cues": "--rgb/--depth",  # the labeling network's input, made from both
 }
 
 
