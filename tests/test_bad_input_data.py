@@ -190,6 +190,15 @@ CASES: list[Case] = [
     ),
     Case(
         "load_azure_kinect_calibration",
+        lambda: load_azure_kinect_calibration(
+            _kinect_calibration(TMP / "nan", ModelParameters=[float("nan")] * 14)
+        ),
+        ARG,
+        r"^path: .*nan/kinect\.json \(NaN is not a JSON number\)",
+        "NaN",
+    ),
+    Case(
+        "load_azure_kinect_calibration",
         lambda: load_azure_kinect_calibration(TMP / "none.json", depth_mode="HFOV"),
         ARG,
         r"^depth_mode: got 'HFOV'",

@@ -15,8 +15,10 @@ tests/test_azure_kinect.py).
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -107,7 +109,9 @@ def load_azure_kinect_calibration(
         raise InvalidArgumentError(f"path: got {path!r}, expected a calibration JSON path")
     path = Path(path)
     try:
-        cams = json.loads(path.read_text())["CalibrationInformation"]["Cameras"]
+        # NaN and Infinity are not JSON numbers: refused, as read_json refuses them.
+        cams = json.loads(path.read_text(), parse_constant=_no_constant)
+        cams = cams["CalibrationInformation"]["Cameras"]
         by_loc = {c["Location"]: c for c in cams}
         d, c = by_loc["CALIBRATION_CameraLocationD0"], by_loc["CALIBRATION_CameraLocationPV0"]
         dp = _numbers("D0 ModelParameters", d["Intrinsics"]["ModelParameters"], 14)
@@ -132,6 +136,10 @@ def load_azure_kinect_calibration(
     return AzureKinectCalibration(depth_cam, color_cam, pose, radius)
 
 
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
+
+
 def _numbers(what: str, values: object, count: int) -> list[float]:
     """``count`` JSON numbers (strings are refused, not parsed)."""
     if not isinstance(values, list) or len(values) != count:
@@ -139,6 +147,8 @@ def _numbers(what: str, values: object, count: int) -> list[float]:
     for v in values:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise ValueError(f"{what}: got {v!r}, expected numbers")
+        if not math.isfinite(float(v)):
+            raise ValueError(f"{what}: got {v!r}, expected finite numbers")
     return [float(v) for v in values]
 
 
