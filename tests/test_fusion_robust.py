@@ -17,6 +17,7 @@ from rgbd_rs.data.calibration import _rig_to_dict, load_rig
 from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
 from rgbd_rs.fusion import FusionResult, fuse, sgm, tof_confidence, tof_to_reference
 from rgbd_rs.fusion._inputs import far_camera_warning, with_reference
+from rgbd_rs.fusion.fuse import shipped_estimator
 from rgbd_rs.fusion.stereo import (
     DISPARITY_STEP,
     MAX_RANGE_FRACTION,
@@ -27,7 +28,7 @@ from rgbd_rs.fusion.stereo import (
     search_range,
 )
 from rgbd_rs.fusion.upsample import _reproject_tof
-from rgbd_rs.nn.confidence import ConfidenceEstimator
+from rgbd_rs.nn.confidence import WEIGHTS, WEIGHTS_FAR, ConfidenceEstimator
 
 RIG = synth3_rig(0.25)  # 480 x 270
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -265,6 +266,17 @@ def test_reference_left_is_consistent_with_right(scene: SynthSample, fused: Fusi
         left = fuse(
             scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, reference="left"
         )
+    # There the ConvNet trained for the far camera runs, here the default one.
+    far_net = ConfidenceEstimator.load(WEIGHTS_FAR)
+    assert shipped_estimator(far=True).source == str(WEIGHTS_FAR)
+    assert shipped_estimator().source == str(WEIGHTS)
+    for net, result, images in (
+        (far_net, left, (scene.left, scene.right)),
+        (ConfidenceEstimator.load(), fused, (scene.right, scene.left)),
+    ):
+        maps = (result.tof_fused, result.tof.amplitude, result.stereo_disparity)
+        p_s = net(*images, *maps, reference=result.reference)[1]
+        np.testing.assert_allclose(p_s, result.stereo_confidence, atol=1e-6)
     assert left.reference == "left" and fused.reference == "right"
     # Right pixel x sees what left pixel x + d sees, with the same disparity.
     for key in ("tof", "disparity"):

@@ -333,11 +333,16 @@ def run_fuse(args: argparse.Namespace) -> int:
             "(the ConvNet it sets)"
         )
     if net_flags:
-        from rgbd_rs.nn.confidence import ConfidenceEstimator
+        from rgbd_rs.fusion._inputs import far_camera_warning, with_reference
+        from rgbd_rs.nn.confidence import WEIGHTS_FAR, ConfidenceEstimator
 
+        weights = args.weights
+        if weights is None:  # --precision alone: the shipped network fuse() would pick
+            fused_on = rig if args.reference is None else with_reference(rig, args.reference)
+            weights = WEIGHTS_FAR if far_camera_warning(fused_on) is not None else None
         conf = named(
             net_flags[0],
-            lambda: ConfidenceEstimator.load(args.weights, precision=args.precision or "auto"),
+            lambda: ConfidenceEstimator.load(weights, precision=args.precision or "auto"),
         )
     if args.tof_confidence is not None:
         conf = (
@@ -478,7 +483,8 @@ def run_eval(args: argparse.Namespace) -> int:
             islice(real_cases, args.limit),
             folder,
             title=title,
-            estimator=estimator,
+            # Without --weights, fuse()'s own choice (the far-camera network on --view right).
+            estimator=None if args.weights is None else estimator,
             confidence="heuristic" if args.no_convnet else "convnet",
             params=params,
             quiet=args.quiet,

@@ -86,11 +86,13 @@ UNCONFIRMED_COLOR_GAP = 20.0
 
 
 @functools.cache
-def shipped_estimator() -> ConfidenceEstimator:
-    """The confidence ConvNet shipped in the package, loaded once per process."""
-    from rgbd_rs.nn.confidence import ConfidenceEstimator
+def shipped_estimator(far: bool = False) -> ConfidenceEstimator:
+    """The confidence ConvNet shipped in the package, loaded once per process: with ``far``,
+    the one for fusing on the camera of the pair farther from the ToF
+    (:data:`~rgbd_rs.nn.confidence.WEIGHTS_FAR`)."""
+    from rgbd_rs.nn.confidence import WEIGHTS_FAR, ConfidenceEstimator
 
-    return ConfidenceEstimator.load()
+    return ConfidenceEstimator.load(WEIGHTS_FAR if far else None)
 
 
 #: Swapped left/right images. A pair's match score is the share of the pixels SGM can search
@@ -242,7 +244,8 @@ def fuse(
         rig: :class:`~rgbd_rs.ToFStereoRig`; the output lies on ``rig.reference_camera``
             unless ``reference`` says otherwise.
         confidence: ``"convnet"`` (default: the confidence ConvNet of thesis §3.6 with the
-            weights shipped in the package), a :class:`~rgbd_rs.nn.confidence.ConfidenceEstimator`
+            weights shipped in the package; on the camera farther from the ToF, those trained
+            for it), a :class:`~rgbd_rs.nn.confidence.ConfidenceEstimator`
             (your own checkpoint), ``"uniform"`` (equal weights, Dal Mutto 2012), ``"heuristic"``
             (:mod:`rgbd_rs.fusion.confidence`), or ``(tof_conf, stereo_conf)`` maps in [0, 1] on
             the reference camera.
@@ -286,7 +289,8 @@ def fuse(
     if isinstance(confidence, str):
         kind = _validate.choice("confidence", confidence, CONFIDENCE_KINDS)
         if kind == "convnet":
-            estimator = shipped_estimator()
+            # On the camera far from the ToF, the network trained for it (docs/training.md).
+            estimator = shipped_estimator(far=far is not None)
     elif _is_estimator(confidence):
         estimator = confidence
         kind = "convnet"

@@ -171,6 +171,11 @@ def _exact_float32(device: torch.device, half: bool) -> Iterator[None]:
 
 #: The shipped checkpoint (trained by ``rgbd train confidence``; README: training recipe).
 WEIGHTS = Path(__file__).parent / "weights" / "confidence.pt"
+#: The shipped checkpoint for fusing on the camera of the pair farther from the ToF (the same
+#: network fine-tuned with such cases, docs/training.md): :func:`~rgbd_rs.fusion.fuse` uses it
+#: there by itself. It is not the default elsewhere: on the camera beside the ToF it damaged a
+#: precise ToF on rendered validation scenes the default handles (docs/experiments.md).
+WEIGHTS_FAR = Path(__file__).parent / "weights" / "confidence_far.pt"
 #: Checkpoint normalisation key of :attr:`ConfidenceEstimator.stereo_power` (optional; 1 if absent).
 STEREO_POWER_KEY = "lc_stereo_power"
 #: Checkpoint normalisation key of :attr:`ConfidenceEstimator.matcher` (optional; ``"opencv"``,
@@ -251,8 +256,9 @@ class ConfidenceEstimator:
         device: str = "cpu",
         precision: Precision = DEFAULT_PRECISION,
     ) -> ConfidenceEstimator:
-        """The shipped weights (``path=None``) or the checkpoint at ``path``, computing in
-        ``precision`` (:data:`PRECISIONS`)."""
+        """The shipped weights (``path=None``: :data:`WEIGHTS`, those for the camera beside the
+        ToF) or the checkpoint at ``path`` (:data:`WEIGHTS_FAR` for the far camera), computing
+        in ``precision`` (:data:`PRECISIONS`)."""
         from rgbd_rs.nn.checkpoint import load_checkpoint
 
         _validate.device("device", device)
