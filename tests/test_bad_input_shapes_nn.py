@@ -545,7 +545,7 @@ ALL_CASES: list[Case] = [
         "ShapeClassifier.probabilities",
         lambda: CLF.probabilities([EMPTY]),
         ARG,
-        r"^shape: got a mesh with no triangles",
+        r"^shapes\[0\]: got a mesh with no triangles",
     ),
     Case(
         "ShapeClassifier.probabilities",

@@ -336,14 +336,21 @@ def test_reproject_names_the_frame_map_that_does_not_fit_the_calibration(
     colours = {"depth": real["color"], "colour": np.zeros((100, 100, 3), np.uint8)}
     want = {
         "depth": "--frame depth_mm: got shape (10, 10), expected (576, 640)",
-        "colour": "--frame color: got size 100x100, expected the camera's 1280x720",
+        "colour": "--frame color: got size 100x100, expected the calibration's colour camera "
+        "1280x720 (--calib)",
     }
     for name, arrays in small.items():
         frame = tmp_path / f"{name}.npz"
         np.savez(frame, color=colours[name], **arrays)
-        argv = ["reproject", "--frame", str(frame), "--calib", str(calib), "--undistort"]
-        assert main([*argv, "--out", str(tmp_path / name)]) == 2
-        assert capsys.readouterr().err == f"rgbd: error: {want[name]}\n"
+        for extra in (["--undistort"], []):
+            out = tmp_path / name
+            out.mkdir(exist_ok=True)
+            (out / "depth.npz").write_bytes(b"an earlier run's output")
+            argv = ["reproject", "--frame", str(frame), "--calib", str(calib), *extra]
+            assert main([*argv, "--out", str(out)]) == 2
+            assert capsys.readouterr().err == f"rgbd: error: {want[name]}\n"
+            # Refused before anything in --out was replaced.
+            assert (out / "depth.npz").read_bytes() == b"an earlier run's output"
 
 
 def _png(path: Path, arr: np.ndarray) -> Path:
@@ -591,6 +598,26 @@ def test_fuse_precision_float32_is_the_float32_estimators_result(
         confidence=ConfidenceEstimator.load(precision="float32"),
     )
     np.testing.assert_array_equal(saved, want.disparity)
+    # On the camera far from the ToF, --precision alone keeps the network fuse() picks there.
+    from rgbd_rs.nn.confidence import WEIGHTS_FAR
+
+    far = [*_fuse_argv(fuse_inputs, out=tmp_path / "far"), "--precision", "float32"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert main([*far, "--reference", "left"]) == 0
+    with pytest.warns(RuntimeWarning, match="Fuse on the right camera"):
+        want_far = fuse(
+            read_png(g["--left"]),
+            read_png(g["--right"]),
+            np.load(g["--tof-depth"]),
+            np.load(g["--tof-amplitude"]),
+            load_rig(g["--calib"]),
+            confidence=ConfidenceEstimator.load(WEIGHTS_FAR, precision="float32"),
+            reference="left",
+        )
+    capsys.readouterr()
+    saved_far = np.load(tmp_path / "far" / "fused.npz")["disparity"]
+    np.testing.assert_array_equal(saved_far, want_far.disparity)
 
 
 def test_fuse_precision_choices_are_the_libraries() -> None:

@@ -345,6 +345,12 @@ def test_turns_make_the_answer_independent_of_the_heading(
     assert capsys.readouterr().out.startswith(f"{f}: ")
     with pytest.raises(InvalidArgumentError, match=r"^turns: got 1"):
         clf(clouds[0], turns=1)  # type: ignore[arg-type]
+    # A bad shape in a list is named by its index; alone, as the argument.
+    huge = 2e30 * np.eye(4, 3)
+    with pytest.raises(InvalidArgumentError, match=r"^shapes\[1\]: got points spanning 2e\+30"):
+        clf.probabilities([clouds[0], huge])
+    with pytest.raises(InvalidArgumentError, match=r"^shape: got points spanning 2e\+30"):
+        clf(huge)
 
 
 def test_shipped_modelnet40_weights_classify_test_shapes(shared_data: Path) -> None:

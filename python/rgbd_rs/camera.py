@@ -462,7 +462,9 @@ class StereoRig:
         object.__setattr__(
             self, "baseline", _validate.real("baseline", self.baseline, positive=True)
         )
-        if self.left.size != self.right.size or not math.isclose(self.left.fx, self.right.fx):
+        if self.left.size != self.right.size or not math.isclose(
+            self.left.fx, self.right.fx, rel_tol=1e-6, abs_tol=1e-6
+        ):
             raise InvalidArgumentError(
                 f"right: got {self.right.size} fx={self.right.fx}, expected a rectified pair with "
                 f"the left camera's size {self.left.size} and fx={self.left.fx}"

@@ -1,4 +1,5 @@
-"""How the CLI writes a disparity map as a 16-bit PNG: disparity x 256, 0 = none."""
+"""How the CLI writes disparity and depth maps as 16-bit PNGs (disparity x 256, millimetres), 0
+meaning "none" and nothing else."""
 
 from __future__ import annotations
 
@@ -18,3 +19,16 @@ def disparity_png16(disparity: npt.NDArray[np.floating]) -> npt.NDArray[np.uint1
     have = np.isfinite(d)
     scaled = np.rint(np.where(have, d, 0.0) * DISPARITY_PNG_SCALE)
     return np.where(have, np.clip(scaled, 1, 65535), 0).astype(np.uint16)
+
+
+def depth_mm_png16(depth: npt.NDArray[np.floating]) -> npt.NDArray[np.uint16]:
+    """``depth`` (metres, NaN = none) as 16-bit millimetres, rounded: 0 only where there is none.
+    A measured depth below 1 mm is written as 1 and one beyond 65.535 m (an infinite one, from
+    a zero disparity, included) as 65535."""
+    d = np.asarray(depth, np.float64)
+    have = ~np.isnan(d)
+    with np.errstate(invalid="ignore", over="ignore"):
+        mm = np.rint(np.where(have, d, 0.0) * 1000.0)
+    return np.where(have, np.clip(np.nan_to_num(mm, posinf=65535, neginf=1), 1, 65535), 0).astype(
+        np.uint16
+    )

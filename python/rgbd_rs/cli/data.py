@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from rgbd_rs.cli._args import Commands, fail, flagged, folder, integer, output_folder, real
+from rgbd_rs.cli._maps import depth_mm_png16
 from rgbd_rs.geometry import MAX_SPLAT_RADIUS
 
 #: Width of each panel of `rgbd reproject`'s preview.png (pixels).
@@ -126,8 +127,16 @@ def run_reproject(args: argparse.Namespace) -> int:
 
     cal = flagged({"path": "--calib"}, lambda: load_azure_kinect_calibration(args.calib))
     frame = flagged({"path": "--frame"}, lambda: load_azure_kinect_frame(args.frame))
-    # The frame's maps must fit the calibration's cameras: a mismatch names --frame.
-    from_frame = {"depth": "--frame depth_mm", "image": "--frame color", "frame": "--frame"}
+    # The frame's maps must fit the calibration's cameras: a mismatch names --frame, before
+    # anything in --out is replaced.
+    want = (cal.color.height, cal.color.width)
+    if frame.color.shape[:2] != want:
+        h, w = frame.color.shape[:2]
+        return fail(
+            f"--frame color: got size {w}x{h}, expected the calibration's colour camera "
+            f"{want[1]}x{want[0]} (--calib)"
+        )
+    from_frame = {"depth": "--frame depth_mm", "frame": "--frame"}
     rep = flagged(
         from_frame, lambda: reproject_to_color(frame, cal, splat_radius=args.splat_radius)
     )
@@ -148,13 +157,12 @@ def run_reproject(args: argparse.Namespace) -> int:
         cam = cal.color
         depth = cam.undistort_image(depth, interpolation="nearest")
         amplitude = cam.undistort_image(amplitude, interpolation="nearest")
-        color = flagged(from_frame, lambda: cam.undistort_image(frame.color))
+        color = cam.undistort_image(color)
         write_png(args.out / "color.png", color)
         save_camera(args.out / "camera.json", cam.without_distortion())
         written += ", color.png, camera.json (undistorted)"
     write_npz(args.out / "depth.npz", {"depth": depth, "amplitude": amplitude})
-    mm = np.clip(np.nan_to_num(depth * 1000.0, nan=0.0), 0, 65535).astype(np.uint16)
-    save_png(args.out / "depth_mm.png", mm)
+    save_png(args.out / "depth_mm.png", depth_mm_png16(depth))
     panels = [
         image_panel(as_bgr(color), "colour camera", width=PREVIEW_WIDTH),
         map_panel(depth, "ToF depth on the colour camera", unit="m", width=PREVIEW_WIDTH),

@@ -13,7 +13,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs
 from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
-from rgbd_rs.cli._maps import disparity_png16
+from rgbd_rs.cli._maps import depth_mm_png16, disparity_png16
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 #: Width of each panel of `rgbd fuse`'s preview.png (pixels).
@@ -202,7 +202,8 @@ def register(commands: Commands) -> None:
     ef.add_argument(
         "--weights",
         type=Path,
-        help="confidence ConvNet checkpoint for the 'LC ConvNet' row (default: the shipped one)",
+        help="confidence ConvNet checkpoint for the 'LC ConvNet' row (default: the shipped one "
+        "fuse() picks, the far-camera network with --view right)",
     )
     ef.add_argument("--no-convnet", action="store_true", help="leave out the 'LC ConvNet' row")
     ef.add_argument(
@@ -380,8 +381,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     output_folder(args.out, ("fused.npz", "disparity.png", "depth_mm.png", "preview.png"))
     write_npz(args.out / "fused.npz", maps)
     write_png(args.out / "disparity.png", disparity_png16(out.disparity))
-    mm = np.clip(np.nan_to_num(out.depth * 1000.0, nan=0), 0, 65535)
-    write_png(args.out / "depth_mm.png", mm.astype(np.uint16))
+    write_png(args.out / "depth_mm.png", depth_mm_png16(out.depth))
     ref = right if out.reference == "right" else left
     d = out.disparity[np.isfinite(out.disparity)]
     lo, hi = (float(np.percentile(d, 1)), float(np.percentile(d, 99))) if d.size else (0.0, 1.0)

@@ -13,9 +13,9 @@ from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_
 from rgbd_rs.cli._maps import disparity_png16
 from rgbd_rs.errors import InvalidArgumentError
 
-#: What ``rgbd stereo`` writes (cleared from --out first).
 #: ``--min-depth`` when ``--calib`` gives the range: the nearest depth searched (metres).
 DEFAULT_MIN_DEPTH = 0.5
+#: What ``rgbd stereo`` writes (cleared from --out first).
 STEREO_OUTPUTS = ("disparity.npz", "disparity.png", "preview.png")
 #: OpenCV block sizes ``rgbd eval stereo`` compares against.
 OPENCV_BLOCKS = (3, 5, 7, 9)
@@ -99,9 +99,11 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
             )
         dmax = math.ceil(reach)
     if dmax >= width:
-        flag = "--max-disparity" if args.max_disparity is not None else "--min-depth"
+        given = args.max_disparity is not None
+        flag = "--max-disparity" if given else "--min-depth"
+        shown = f"{dmax}" if given else f"{dmax:.4g}"  # as typed, or 4 digits of a computed one
         raise InvalidArgumentError(
-            f"{flag}: a search range of {dmax:.4g} px, expected less than the image width {width}"
+            f"{flag}: a search range of {shown} px, expected less than the image width {width}"
         )
     return dmax
 

@@ -120,10 +120,11 @@ def evaluate_real(
     scores: list[CaseScore] = []
     cells: list[U8] = []
     labels: list[str] = []
-    for s in tqdm(list(samples), desc=title, disable=quiet, unit="case"):
-        with warnings.catch_warnings():
-            # Fusing on the camera far from the ToF is what a `view="right"` case measures.
-            warnings.filterwarnings("ignore", r"reference: the ToF sits", RuntimeWarning)
+    with warnings.catch_warnings():
+        # Fusing on the camera far from the ToF is what a `view="right"` case measures; other
+        # warnings still show once per run.
+        warnings.filterwarnings("ignore", r"reference: the ToF sits", RuntimeWarning)
+        for s in tqdm(list(samples), desc=title, disable=quiet, unit="case"):
             res = fuse(
                 s.left,
                 s.right,
@@ -133,11 +134,11 @@ def evaluate_real(
                 confidence=confidence if estimator is None else estimator,  # type: ignore[arg-type]
                 params=params,
             )
-        scores.append(score_result(s, res))
-        if len(scores) <= figure_cases:
-            c, lab = _case_panels(s, res)
-            cells += c
-            labels += lab
+            scores.append(score_result(s, res))
+            if len(scores) <= figure_cases:
+                c, lab = _case_panels(s, res)
+                cells += c
+                labels += lab
     if out is not None:
         folder = Path(out)
         folder.mkdir(parents=True, exist_ok=True)

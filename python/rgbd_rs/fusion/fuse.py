@@ -85,11 +85,15 @@ CONFIDENCE_KINDS = ("convnet", "uniform", "heuristic")
 UNCONFIRMED_COLOR_GAP = 20.0
 
 
-@functools.cache
 def shipped_estimator(far: bool = False) -> ConfidenceEstimator:
     """The confidence ConvNet shipped in the package, loaded once per process: with ``far``,
     the one for fusing on the camera of the pair farther from the ToF
     (:data:`~rgbd_rs.nn.confidence.WEIGHTS_FAR`)."""
+    return _shipped(bool(far))
+
+
+@functools.cache
+def _shipped(far: bool) -> ConfidenceEstimator:
     from rgbd_rs.nn.confidence import WEIGHTS_FAR, ConfidenceEstimator
 
     return ConfidenceEstimator.load(WEIGHTS_FAR if far else None)

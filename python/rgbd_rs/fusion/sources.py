@@ -38,7 +38,9 @@ def _fill_single_source(
     the caller gave) an input whose confidence there is 0 or NaN stays out; estimated
     confidences never hide the only measurement of a pixel, their value tells how far to trust
     it. After LC's two-view ``cross_check`` nothing is filled: its rejections stand. LC's pixels
-    that neither input measured are marked :data:`SOURCE_LC_UNMEASURED` either way."""
+    that neither input measured (has a finite value at) are marked :data:`SOURCE_LC_UNMEASURED`
+    either way; a value whose confidence is 0 still counts as measured, since the caller sees
+    it in ``tof_fused`` / ``stereo_disparity``."""
     disp = lc_disparity.copy()
     plaus = lc_plausibility.copy()
     source = np.where(np.isfinite(disp), SOURCE_LC, SOURCE_NONE).astype(np.uint8)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -197,18 +198,20 @@ class ShapeClassifier:
         net.eval()
         return out
 
-    def _prepare(self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str], up: str) -> Shape:
+    def _prepare(
+        self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str], up: str, name: str = "shape"
+    ) -> Shape:
         x: Any = load_shape(shape) if isinstance(shape, (str, os.PathLike)) else shape
-        x = to_z_up(x, up)
+        x = to_z_up(_shape_arg(name, x), up)  # validated under the caller's name
         n = self.points_per_shape or 1024
         if isinstance(x, Mesh) and self.kind == "points":
             x = sample_surface(x, n, SAMPLE_SEED)
-            _spread("shape", x, "surface samples of the mesh")
+            _spread(name, x, "surface samples of the mesh")
         elif isinstance(x, Mesh):
-            check_extent("shape", x.vertices, "a mesh")
-            _spread("shape", x.vertices, "vertices")
+            check_extent(name, x.vertices, "a mesh")
+            _spread(name, x.vertices, "vertices")
         else:
-            _spread("shape", x, "points")
+            _spread(name, x, "points")
             if self.kind == "points" and len(x) > n:
                 # A dense scan: the network saw n-point clouds (ModelNet's packs), and
                 # rendering millions of points took minutes. A seeded subset of n points.
@@ -240,7 +243,19 @@ class ShapeClassifier:
                 f"shapes: got {type(shapes).__name__}, expected a list of shapes"
             )
         _validate.choice("up", up, tuple(UP_ROTATIONS))
-        prepared = [self._prepare(s, up) for s in shapes]
+        names = [f"shapes[{i}]" for i in range(len(shapes))]
+        return self._probabilities(shapes, names, workers, up, turns)
+
+    def _probabilities(
+        self,
+        shapes: Sequence[Mesh | npt.ArrayLike | str | os.PathLike[str]],
+        names: list[str],
+        workers: int,
+        up: str,
+        turns: bool,
+    ) -> npt.NDArray[np.float32]:
+        """:meth:`probabilities` with each shape's name for its errors."""
+        prepared = [self._prepare(s, up, name) for s, name in zip(shapes, names, strict=True)]
         if not prepared:
             return np.zeros((0, len(self.classes)), np.float32)
         inputs = batch_inputs(prepared, self.spec, workers=workers)
@@ -271,7 +286,9 @@ class ShapeClassifier:
         """``(class name, {class: probability})``, the dict sorted by decreasing probability;
         ``up``: the shape's up axis, ``turns``: average over its four headings (see
         :meth:`probabilities`)."""
-        p = self.probabilities([shape], up=up, turns=turns)[0]
+        _validate.flag("turns", turns)
+        _validate.choice("up", up, tuple(UP_ROTATIONS))
+        p = self._probabilities([shape], ["shape"], 1, up, turns)[0]
         order = np.argsort(-p, kind="stable")
         probs = {self.classes[i]: float(p[i]) for i in order}
         return self.classes[int(order[0])], probs
