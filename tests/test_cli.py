@@ -582,42 +582,31 @@ def test_fuse_precision_float32_is_the_float32_estimators_result(
     from rgbd_rs.data import load_rig
     from rgbd_rs.fusion import fuse
     from rgbd_rs.io import read_png
-    from rgbd_rs.nn.confidence import ConfidenceEstimator
+    from rgbd_rs.nn.confidence import WEIGHTS_FAR, ConfidenceEstimator
 
-    argv = [*_fuse_argv(fuse_inputs, out=tmp_path / "f32"), "--precision", "float32"]
-    assert main(argv) == 0
-    capsys.readouterr()
-    saved = np.load(tmp_path / "f32" / "fused.npz")["disparity"]
     g = fuse_inputs
-    want = fuse(
+    inputs = (
         read_png(g["--left"]),
         read_png(g["--right"]),
         np.load(g["--tof-depth"]),
         np.load(g["--tof-amplitude"]),
         load_rig(g["--calib"]),
-        confidence=ConfidenceEstimator.load(precision="float32"),
     )
-    np.testing.assert_array_equal(saved, want.disparity)
-    # On the camera far from the ToF, --precision alone keeps the network fuse() picks there.
-    from rgbd_rs.nn.confidence import WEIGHTS_FAR
-
-    far = [*_fuse_argv(fuse_inputs, out=tmp_path / "far"), "--precision", "float32"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("always")
-        assert main([*far, "--reference", "left"]) == 0
-    with pytest.warns(RuntimeWarning, match="Fuse on the right camera"):
-        want_far = fuse(
-            read_png(g["--left"]),
-            read_png(g["--right"]),
-            np.load(g["--tof-depth"]),
-            np.load(g["--tof-amplitude"]),
-            load_rig(g["--calib"]),
-            confidence=ConfidenceEstimator.load(WEIGHTS_FAR, precision="float32"),
-            reference="left",
-        )
-    capsys.readouterr()
-    saved_far = np.load(tmp_path / "far" / "fused.npz")["disparity"]
-    np.testing.assert_array_equal(saved_far, want_far.disparity)
+    # On the camera far from the ToF (the left one here), --precision alone keeps the network
+    # fuse() picks there.
+    for name, reference, weights in (
+        ("f32", [], None),
+        ("far", ["--reference", "left"], WEIGHTS_FAR),
+    ):
+        argv = [*_fuse_argv(g, out=tmp_path / name), "--precision", "float32", *reference]
+        net = ConfidenceEstimator.load(weights, precision="float32")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the far camera's warning (tested elsewhere)
+            assert main(argv) == 0
+            want = fuse(*inputs, confidence=net, reference="left" if reference else None)
+        capsys.readouterr()
+        saved = np.load(tmp_path / name / "fused.npz")["disparity"]
+        np.testing.assert_array_equal(saved, want.disparity)
 
 
 def test_fuse_precision_choices_are_the_libraries() -> None:
