@@ -57,6 +57,8 @@ KNOWN: dict[str, str] = {
     "rgbd_rs.shapes.dataset.CachedShapes": "dataset returned by ShapeCache.dataset",
     "rgbd_rs.shapes.dataset.ShapeSource": "base class of OffTree / PointCloudSet (open_shapes)",
     "rgbd_rs.shapes.classify.shipped_weights": "which shipped checkpoints exist (rgbd classify)",
+    "rgbd_rs.fusion.fuse.shipped_estimator": "the shipped ConvNet fuse() runs on the near or "
+    "the far camera (the demo, the benches)",
     "rgbd_rs.nn.shapes.pack": "the packed input layout ShapeNet and its datasets share",
     "rgbd_rs.nn.shapes.unpack": "inverse of pack",
 }
