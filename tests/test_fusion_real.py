@@ -452,3 +452,52 @@ def test_the_border_the_other_camera_cannot_see_is_not_left_to_lc(shared_data: P
     err = np.abs(out.disparity - gt)
     assert np.median(err[carried & band]) < 1.0
     assert np.mean(err[band] > 2) < 0.3
+
+
+@pytest.mark.parametrize("sign", [-1, 1])
+def test_a_confirmed_surface_continues_into_the_band(sign: int) -> None:
+    """The ToF continues the surface LC confirmed at the band's inner edge; LC's forced stereo
+    values in the band (0-4 px where the surface is at 5 px) give way, up to a break in the
+    ToF's chain, and not in a row whose edge LC did not confirm."""
+    from rgbd_rs.fusion.sources import _extend_tof_into_band
+
+    w = 14
+    tof = np.full((4, w), 5.0, np.float32)
+    tof[2, 1] = 9.0  # row 2: a jump in the ToF chain near the border
+    conf = np.full((4, w), 0.7, np.float32)
+    conf[3, 2] = 0.0  # row 3: an unconfirmed ToF pixel breaks the chain too
+    fused = np.full((4, w), 5.0, np.float32)
+    fused[:, :5] = np.arange(5, dtype=np.float32)  # forced small values in the band (x < 5)
+    fused[1, 5:8] = 2.0  # row 1: LC did not take the ToF at the edge: not confirmed
+    plaus = np.ones_like(fused)
+    source = np.full(fused.shape, FUSE.SOURCE_LC, np.uint8)
+    if sign > 0:  # the right reference's band is at the right border
+        tof, conf, fused = (np.ascontiguousarray(a[:, ::-1]) for a in (tof, conf, fused))
+    before = fused.copy()
+    _extend_tof_into_band(fused, plaus, source, tof, conf, sign)
+    if sign > 0:
+        fused, before, source, plaus = (a[:, ::-1] for a in (fused, before, source, plaus))
+    taken = source == FUSE.SOURCE_TOF
+    np.testing.assert_array_equal(taken[0], np.arange(w) < 5)
+    assert not taken[1].any()
+    np.testing.assert_array_equal(taken[2], (np.arange(w) >= 2) & (np.arange(w) < 5))
+    np.testing.assert_array_equal(taken[3], (np.arange(w) >= 3) & (np.arange(w) < 5))
+    np.testing.assert_array_equal(fused[taken], 5.0)
+    np.testing.assert_array_equal(plaus[taken], np.float32(0.7))
+    np.testing.assert_array_equal(fused[~taken], before[~taken])
+
+
+def test_the_band_of_a_rendered_scene_follows_the_tof() -> None:
+    """A rendered scene, whose ToF reaches the image border: the band the other camera cannot
+    see was LC's forced stereo values with full plausibility (a new user's first `rgbd fuse`);
+    now the ToF's surface, as far as the fusion confirmed it."""
+    from rgbd_rs.data.synth import generate, synth3_rig
+    from rgbd_rs.fusion.evaluate import outside_target_view
+
+    rig = synth3_rig(0.25)
+    s = generate(0, "test", 1, rig)[0]
+    out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, rig)
+    gt = s.gt_disparity
+    band = outside_target_view(gt, 1) & np.isfinite(gt) & np.isfinite(out.disparity)
+    assert band.sum() > 300
+    assert np.mean(np.abs(out.disparity - gt)[band] > 2) < 0.05

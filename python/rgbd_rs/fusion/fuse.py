@@ -39,6 +39,7 @@ from rgbd_rs.fusion.sources import (
     SOURCE_TOF,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_TOF_CARRIED,  # noqa: F401 (re-exported: FusionResult.source)
     _carry_tof_to_border,
+    _extend_tof_into_band,
     _fill_single_source,
     _unseen_from_tof,
 )
@@ -151,7 +152,8 @@ class FusionResult:
     #: the same plausibility on real scenes; mask it when a hole is better than a guess),
     #: :data:`SOURCE_TOF` / :data:`SOURCE_STEREO` (LC left it empty and that input measured it:
     #: its value, and its confidence as ``plausibility``; the ToF where both did, and where the
-    #: ToF says the other camera cannot see the pixel), :data:`SOURCE_TOF_CARRIED` (along the
+    #: ToF says the other camera cannot see the pixel and the matcher has no value or the ToF
+    #: continues a surface the fusion confirmed), :data:`SOURCE_TOF_CARRIED` (along the
     #: border the other camera cannot see, before the row's first ToF pixel: that pixel's value
     #: and confidence), :data:`SOURCE_NONE` (nothing). With ``LcParams(cross_check=True)``
     #: nothing is filled (LC's unmeasured pixels are still marked).
@@ -403,6 +405,7 @@ def fuse(
     )
     if not cross_check:
         _unseen_from_tof(disp, plaus, source, tof_disp, st_map, ct, sign)
+        _extend_tof_into_band(disp, plaus, source, tof_disp, ct, sign)
         _carry_tof_to_border(disp, plaus, source, tof_disp, ct, sign)
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(

@@ -136,3 +136,72 @@ def _carry_tof_to_border(
     disp[r, c] = d0[r]
     plaus[r, c] = c0[r]
     source[r, c] = SOURCE_TOF_CARRIED
+
+
+#: Largest step (px) between neighbouring ToF disparities of the chain
+#: :func:`_extend_tof_into_band` follows, and largest ToF-stereo gap (px) that confirms its
+#: start.
+BAND_CHAIN_STEP = 1.0
+BAND_CONFIRM_GAP = 1.0
+
+
+def _extend_tof_into_band(
+    disp: F32,
+    plaus: F32,
+    source: npt.NDArray[np.uint8],
+    tof: F32,
+    tof_confidence: F32 | None,
+    sign: int,
+) -> None:
+    """In place: in each row, the pixels the ToF says the other camera cannot see that continue
+    a surface the fusion confirmed take the ToF's value and confidence. From the row's innermost
+    pixel whose ToF target is inside the other image, where the fused map (LC, which could still
+    weigh both inputs there) agrees with the ToF within :data:`BAND_CONFIRM_GAP` (at its first
+    value within that pixel's disparity of it), the chain runs towards the border while the ToF
+    has a value within :data:`BAND_CHAIN_STEP` of its neighbour's (and confidence > 0). There
+    the stereo map's value is a forced match (the true one lies beyond its search) and LC can
+    weigh no other hypothesis (its photometric terms need the target pixel), so it kept the
+    forced one with full plausibility."""
+    h, w = tof.shape
+    flip = sign > 0  # make the border the other camera cannot see column 0 (target x - d)
+    t = tof[:, ::-1] if flip else tof
+    c = None if tof_confidence is None else (tof_confidence[:, ::-1] if flip else tof_confidence)
+    cols = np.arange(w, dtype=np.float32)[None, :]
+    with np.errstate(invalid="ignore"):
+        seen = np.isfinite(t) & (t <= cols)
+    has = seen.any(axis=1)
+    x_e = np.where(has, seen.argmax(axis=1), 0)
+    rows = np.arange(h)
+    # Confirmation: the fused map's first value inside the edge, within the edge pixel's
+    # disparity (the band's own width, so the rule does not depend on the image size), took the
+    # ToF's value there: LC, which could still weigh both inputs' photometric terms, chose it.
+    fused = disp[:, ::-1] if flip else disp
+    d_e = np.where(has, t[rows, x_e], 0.0)
+    reach = np.ceil(np.nan_to_num(d_e)).astype(np.int64) + 1
+    after = (cols >= x_e[:, None]) & (cols < (x_e + reach)[:, None]) & np.isfinite(fused)
+    first = np.where(after.any(axis=1), after.argmax(axis=1), 0)
+    with np.errstate(invalid="ignore"):
+        confirmed = (
+            has
+            & after.any(axis=1)
+            & (np.abs(t[rows, first] - fused[rows, first]) <= BAND_CONFIRM_GAP)
+        )
+        # ok[x]: pixel x continues the chain from x + 1 (a value within the step, confidence > 0).
+        step = np.abs(t[:, :-1] - t[:, 1:]) <= BAND_CHAIN_STEP
+        if c is not None:
+            step &= c[:, :-1] > 0
+    inside = np.arange(w - 1)[None, :] < x_e[:, None]
+    broken = inside & ~step
+    # The chain starts after the last break below the edge (or at column 0).
+    last_break = np.where(broken.any(axis=1), w - 2 - np.argmax(broken[:, ::-1], axis=1), -1)
+    start = last_break + 1
+    take = (
+        confirmed[:, None]
+        & (np.arange(w)[None, :] >= start[:, None])
+        & (np.arange(w)[None, :] < x_e[:, None])
+    )
+    if flip:
+        take = take[:, ::-1]
+    disp[take] = tof[take]
+    plaus[take] = 1.0 if tof_confidence is None else tof_confidence[take]
+    source[take] = SOURCE_TOF
