@@ -98,6 +98,9 @@ def test_raw_depth_as_depth_and_nan_holes(frame: dict[str, np.ndarray]) -> None:
 def test_millimetres_are_refused(frame: dict[str, np.ndarray]) -> None:
     with pytest.raises(InvalidArgumentError, match="depth looks like millimetres; divide by 1000"):
         hha(frame["depth"] * 1000, nyu_camera())
+    # Centimetres (a median of a few hundred) could be either: both are named.
+    with pytest.raises(InvalidArgumentError, match=r"centimetres \(divide by 100\) or millimetres"):
+        hha(frame["depth"] * 100, nyu_camera())
     # uint16 millimetres straight from a PNG, as users often pass them.
     mm = np.round(frame["depth"] * 1000).astype(np.uint16)
     with pytest.raises(InvalidArgumentError, match="millimetres"):

@@ -27,7 +27,8 @@ Robust where the Python port is not:
   disparity and 0 height (MATLAB's ``uint8(NaN)``);
 - depth in millimetres is refused: if the median valid depth is above 50 (no indoor or
   Kinect-class scene has a median beyond 50 m) ``InvalidArgumentError`` says
-  "depth looks like millimetres; divide by 1000";
+  "depth looks like millimetres; divide by 1000" (below a median of 1000 it names centimetres
+  too);
 - depth with no valid pixel is refused with a clear error;
 - a view without floor falls back on the assumed floor 1.3 m below the camera.
 

@@ -129,11 +129,15 @@ pub fn check_depth(arg: &'static str, depth: &[f32], width: usize, height: usize
     let mid = valid.len() / 2;
     let (_, median, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
     if *median > MAX_MEDIAN_DEPTH_M {
+        // Indoor scenes lie 0.5-10 m away: up to 1000 the map may be centimetres as well.
+        let unit = if *median > 1000.0 {
+            "depth looks like millimetres; divide by 1000"
+        } else {
+            "depth looks like centimetres (divide by 100) or millimetres (divide by 1000)"
+        };
         return Err(invalid(
             arg,
-            format!(
-                "a median valid depth of {median}: depth looks like millimetres; divide by 1000"
-            ),
+            format!("a median valid depth of {median}: {unit}"),
             format!("metres (median valid depth <= {MAX_MEDIAN_DEPTH_M})"),
         ));
     }
