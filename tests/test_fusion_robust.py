@@ -16,7 +16,7 @@ from rgbd_rs import InvalidArgumentError, Pose, RgbdError, ShapeMismatchError
 from rgbd_rs.data.calibration import _rig_to_dict, load_rig
 from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
 from rgbd_rs.fusion import FusionResult, fuse, sgm, tof_confidence, tof_to_reference
-from rgbd_rs.fusion._inputs import far_camera_warning, with_reference
+from rgbd_rs.fusion._inputs import far_camera_warning, tof_depth_warning, with_reference
 from rgbd_rs.fusion.fuse import shipped_estimator
 from rgbd_rs.fusion.stereo import (
     DISPARITY_STEP,
@@ -239,6 +239,19 @@ def test_depths_beyond_the_stereo_range_warn_once(scene: SynthSample) -> None:
         fuse(scene.left, scene.right, far, scene.tof_amplitude, RIG)
     msg = _one_warning(record, "beyond the stereo rig's range")
     assert "baseline" in msg and "millimetres" not in msg
+
+
+def test_an_amplitude_passed_as_depth_warns(scene: SynthSample) -> None:
+    # Most values far beyond the rig's range, a few plausible: the message asks whether the map
+    # is the depth at all (a helper swapped --tof-depth and --tof-amplitude and got no word).
+    amp = scene.tof_amplitude
+    scaled = (222.0 * amp / np.nanmedian(amp[amp > 0])).astype(np.float32)
+    with pytest.warns(RuntimeWarning) as record:
+        fuse(scene.left, scene.right, scaled, scene.tof_amplitude, RIG)
+    msg = _one_warning(record, "of the ToF depths lie outside the stereo rig's range")
+    assert "not the amplitude" in msg and "median 222 m" in msg
+    # The scene's own depths: nothing to say.
+    assert tof_depth_warning(scene.tof_depth, RIG) is None
 
 
 def test_swapped_images_warn_once(scene: SynthSample) -> None:

@@ -149,7 +149,8 @@ def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> tuple[str, bool] | None:
     all (``IMPLAUSIBLE_SHARE``) lie below ``MIN_STEREO_DISPARITY`` (beyond the stereo range) or
     at or above the image width (nearer than any match), the message says so, and names
     millimetres (or kilometres) when most (``UNIT_MAJORITY``) of the depths divided
-    (multiplied) by 1000 would be plausible.
+    (multiplied) by 1000 would be plausible; if most (but not almost all) do, a warning asks
+    whether the map is the depth at all (an amplitude passed as depth reads so).
     """
     with np.errstate(invalid="ignore"):
         z = depth[np.isfinite(depth) & (depth > 0)].astype(np.float64)
@@ -162,7 +163,8 @@ def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> tuple[str, bool] | None:
         d = bf / (z * scale)
         return float(np.mean((d >= MIN_STEREO_DISPARITY) & (d < width)))
 
-    if plausible(1.0) > 1 - IMPLAUSIBLE_SHARE:
+    share = plausible(1.0)
+    if share >= UNIT_MAJORITY:
         return None
     med = float(np.median(z))
     d_med = bf / med
@@ -171,6 +173,14 @@ def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> tuple[str, bool] | None:
         f"{width} px wide: disparities {MIN_STEREO_DISPARITY:g}-{width} px are depths "
         f"{bf / width:.3g}-{bf / MIN_STEREO_DISPARITY:.3g} m"
     )
+    if share > 1 - IMPLAUSIBLE_SHARE:
+        # Most, not almost all: a map of another kind (the amplitude), or a unit with outliers.
+        return (
+            f"tof_depth: {100 * (1 - share):.0f} % of the ToF depths lie outside the stereo "
+            f"rig's range (median {med:.4g} m; {rig_text}); check that it is the depth map in "
+            "metres (not the amplitude) and the calibration's baseline and focal length",
+            False,
+        )
     for scale, unit in ((1e-3, "millimetres"), (1e3, "kilometres")):
         if plausible(scale) >= UNIT_MAJORITY:
             return (
