@@ -17,6 +17,7 @@ import argparse
 import warnings
 from pathlib import Path
 
+from rgbd_rs.fusion._inputs import FAR_CAMERA_WARNING
 from rgbd_rs.fusion.calibrate import best_score, calibrate_stereo_power, write_calibrated
 from rgbd_rs.fusion.real_scenes import dense_protocol_samples, real_samples
 from rgbd_rs.nn.confidence import WEIGHTS, ConfidenceEstimator
@@ -56,7 +57,7 @@ def main() -> None:
     if a.dense_protocol:
         samples += list(dense_protocol_samples("val"))
     if a.far_protocol:
-        warnings.filterwarnings("ignore", r"reference: the ToF sits", RuntimeWarning)
+        warnings.filterwarnings("ignore", FAR_CAMERA_WARNING, RuntimeWarning)
         samples += list(real_samples("val", a.laws, view="right"))
     shipped = ConfidenceEstimator.load()
     candidates: dict[str, tuple[Path | None, ConfidenceEstimator]] = {

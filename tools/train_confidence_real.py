@@ -20,6 +20,7 @@ import shutil
 import warnings
 from pathlib import Path
 
+from rgbd_rs.fusion._inputs import FAR_CAMERA_WARNING
 from rgbd_rs.fusion.real_scenes import real_samples
 from rgbd_rs.nn.confidence_data import prepare
 from rgbd_rs.nn.confidence_train import Recipe, recipe_config, train_on_caches
@@ -63,7 +64,7 @@ def main() -> None:
     a = ap.parse_args()
     cache = a.out / f"cache_{a.matcher}"
     # The far-camera cases are fused there on purpose.
-    warnings.filterwarnings("ignore", r"reference: the ToF sits", RuntimeWarning)
+    warnings.filterwarnings("ignore", FAR_CAMERA_WARNING, RuntimeWarning)
     pool = real_samples("train", a.laws, dense_laws=a.dense_laws)
     if a.far_laws:
         pool = itertools.chain(pool, real_samples("train", a.far_laws, view="right"))

@@ -18,7 +18,6 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -28,7 +27,7 @@ from rgbd_rs._reasons import reason
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.geometry import Reprojection, reproject_depth
-from rgbd_rs.io import read_npz
+from rgbd_rs.io import _no_constant, read_npz
 
 # mode -> (binned resolution, crop offset, output resolution), from the SDK's mode tables.
 DEPTH_MODES: dict[str, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]] = {
@@ -134,10 +133,6 @@ def load_azure_kinect_calibration(
             "device's calibration JSON with D0 and PV0 cameras"
         ) from None
     return AzureKinectCalibration(depth_cam, color_cam, pose, radius)
-
-
-def _no_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not a JSON number")
 
 
 def _numbers(what: str, values: object, count: int) -> list[float]:

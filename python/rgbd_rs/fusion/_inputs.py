@@ -99,6 +99,9 @@ def negative_depth_error(depth: F32) -> str | None:
     )
 
 
+#: How :func:`far_camera_warning`'s message starts (a filter for callers that fuse on the far
+#: camera on purpose: ``warnings.filterwarnings("ignore", FAR_CAMERA_WARNING)``).
+FAR_CAMERA_WARNING = "reference: the ToF sits"
 #: The other camera must be nearer the ToF than the reference camera by this share of the
 #: baseline before :func:`far_camera_warning` speaks (a ToF midway between them is fine).
 FAR_CAMERA_MARGIN = 0.1
@@ -123,7 +126,7 @@ def far_camera_warning(rig: ToFStereoRig) -> str | None:
         return None
     other = "left" if rig.reference == "right" else "right"
     return (
-        f"reference: the ToF sits {to_other:.3g} m from the {other} camera and {to_ref:.3g} m "
+        f"{FAR_CAMERA_WARNING} {to_other:.3g} m from the {other} camera and {to_ref:.3g} m "
         f"from the {rig.reference} camera, where the map is fused; the surfaces the {other} "
         "camera cannot see (where the stereo pair cannot match) are hidden from the ToF too, so "
         "nothing measures them (on real scenes the fused error grew by a third). Fuse on the "

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from tqdm import tqdm
 
-from rgbd_rs.fusion._inputs import U8
+from rgbd_rs.fusion._inputs import FAR_CAMERA_WARNING, U8
 from rgbd_rs.fusion.calibrate import MAX_DAMAGE
 from rgbd_rs.fusion.evaluate import Sample
 from rgbd_rs.fusion.fuse import FusionResult, fuse
@@ -123,7 +123,7 @@ def evaluate_real(
     with warnings.catch_warnings():
         # Fusing on the camera far from the ToF is what a `view="right"` case measures; other
         # warnings still show once per run.
-        warnings.filterwarnings("ignore", r"reference: the ToF sits", RuntimeWarning)
+        warnings.filterwarnings("ignore", FAR_CAMERA_WARNING, RuntimeWarning)
         for s in tqdm(list(samples), desc=title, disable=quiet, unit="case"):
             res = fuse(
                 s.left,

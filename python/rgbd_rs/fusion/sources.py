@@ -20,6 +20,22 @@ SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO, SOURCE_TOF_CARRIED = 0, 1, 2,
 SOURCE_LC_UNMEASURED = 5
 
 
+def _take(
+    disp: F32,
+    plaus: F32,
+    source: npt.NDArray[np.uint8],
+    take: npt.NDArray[np.bool_],
+    value: F32,
+    confidence: F32 | None,
+    code: int,
+) -> None:
+    """In place: the ``take`` pixels get ``value``, its ``confidence`` as plausibility (1 for
+    uniform weights) and the source ``code``."""
+    disp[take] = value[take]
+    plaus[take] = 1.0 if confidence is None else confidence[take]
+    source[take] = code
+
+
 def _fill_single_source(
     lc_disparity: F32,
     lc_plausibility: F32,
@@ -55,9 +71,7 @@ def _fill_single_source(
         take = empty & np.isfinite(value)
         if conf is not None and keep_out_zero:
             take &= conf > 0  # an input the caller's weights rule out stays out
-        disp[take] = value[take]
-        plaus[take] = 1.0 if conf is None else conf[take]
-        source[take] = code
+        _take(disp, plaus, source, take, value, conf, code)
         empty &= ~take
     return disp, plaus, source
 
@@ -88,9 +102,7 @@ def _unseen_from_tof(
         unseen = np.isfinite(tof) & ((target < 0) | (target > w - 1)) & ~np.isfinite(stereo)
         if tof_confidence is not None:
             unseen &= tof_confidence > 0
-    disp[unseen] = tof[unseen]
-    plaus[unseen] = 1.0 if tof_confidence is None else tof_confidence[unseen]
-    source[unseen] = SOURCE_TOF
+    _take(disp, plaus, source, unseen, tof, tof_confidence, SOURCE_TOF)
 
 
 def _carry_tof_to_border(
@@ -139,8 +151,8 @@ def _carry_tof_to_border(
 
 
 #: Largest step (px) between neighbouring ToF disparities of the chain
-#: :func:`_extend_tof_into_band` follows, and largest ToF-stereo gap (px) that confirms its
-#: start.
+#: :func:`_extend_tof_into_band` follows, and largest gap (px) between the ToF and the fused map
+#: that confirms its start.
 BAND_CHAIN_STEP = 1.0
 BAND_CONFIRM_GAP = 1.0
 
@@ -186,22 +198,16 @@ def _extend_tof_into_band(
             & after.any(axis=1)
             & (np.abs(t[rows, first] - fused[rows, first]) <= BAND_CONFIRM_GAP)
         )
-        # ok[x]: pixel x continues the chain from x + 1 (a value within the step, confidence > 0).
+        # step[x]: pixel x continues the chain from x + 1 (within the step, confidence > 0).
         step = np.abs(t[:, :-1] - t[:, 1:]) <= BAND_CHAIN_STEP
         if c is not None:
             step &= c[:, :-1] > 0
-    inside = np.arange(w - 1)[None, :] < x_e[:, None]
+    inside = cols[:, :-1] < x_e[:, None]
     broken = inside & ~step
     # The chain starts after the last break below the edge (or at column 0).
     last_break = np.where(broken.any(axis=1), w - 2 - np.argmax(broken[:, ::-1], axis=1), -1)
     start = last_break + 1
-    take = (
-        confirmed[:, None]
-        & (np.arange(w)[None, :] >= start[:, None])
-        & (np.arange(w)[None, :] < x_e[:, None])
-    )
+    take = confirmed[:, None] & (cols >= start[:, None]) & (cols < x_e[:, None])
     if flip:
         take = take[:, ::-1]
-    disp[take] = tof[take]
-    plaus[take] = 1.0 if tof_confidence is None else tof_confidence[take]
-    source[take] = SOURCE_TOF
+    _take(disp, plaus, source, take, tof, tof_confidence, SOURCE_TOF)
