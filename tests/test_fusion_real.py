@@ -314,6 +314,11 @@ def test_the_right_view_protocol_fuses_on_the_camera_far_from_the_tof(shared_dat
     # Tsukuba has no right-view ground truth: refused alone, left out of a split.
     with pytest.raises(InvalidArgumentError, match=r"^view: got 'right' for Tsukuba"):
         real_sample("Tsukuba", 0, view="right")
+    for bad in ("top", 1):
+        with pytest.raises(InvalidArgumentError, match=r"^view: got"):
+            real_sample("Books", 0, view=bad)  # type: ignore[arg-type]
+        with pytest.raises(InvalidArgumentError, match=r"^view: got"):
+            real_samples("val", 1, view=bad)  # type: ignore[arg-type]
     names = [s.name for s in real_samples("val", 1, view="right")]
     assert "Tsukuba_law0_right" not in names and "Books_law0_right" in names
 
