@@ -227,6 +227,13 @@ CASES: list[Case] = [
     ),
     # -- camera rigs ----------------------------------------------------------------------------
     Case("StereoRig", lambda: StereoRig(CAM, CAM, 0.0), ARG, r"^baseline: got 0"),
+    Case(
+        "StereoRig",
+        lambda: StereoRig(CAM, CAM, 1e308),
+        ARG,
+        r"^baseline: got 1e\+308 m with fx=\S+: every disparity .* would overflow float32",
+        "huge",
+    ),
     Case("StereoRig", lambda: StereoRig("x", CAM, 0.1), ARG, r"^left: got str", "left"),
     Case("StereoRig", lambda: StereoRig(CAM, CAM.scaled(2.0), 0.1), ARG, r"^right: got", "size"),
     Case(

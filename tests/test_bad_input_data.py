@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import tempfile
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -451,6 +452,13 @@ CASES: list[Case] = [
     Case("read_png", lambda: read_png(_file("bad.png", b"\x89PNG")), FILE, r"bad\.png: corrupt"),
     Case("write_json", lambda: write_json(TMP / "o.json", object()), ARG, r"^obj: got"),
     Case("write_json", lambda: write_json(TMP, {}), FILE, r"is a folder, expected a file", "dir"),
+    Case(
+        "write_png",
+        lambda: write_png(_file("plain", "x") / "sub" / "o.png", U8),
+        FILE,
+        r"o\.png: could not be written \(.*plain is a file, expected a folder to write in\)$",
+        "file as folder",
+    ),
     Case("read_json", lambda: read_json(_file("bad.json", "{")), FILE, r"bad\.json: malformed"),
     Case("sha256", lambda: sha256(TMP / "nothing"), FILE, r"nothing: file not found"),
     # -- viz ------------------------------------------------------------------------------------
@@ -579,3 +587,23 @@ CASES: list[Case] = [
 @pytest.mark.parametrize("case", params(CASES))
 def test_bad_input(case: Case) -> None:
     check(case)
+
+
+def test_metric_limits_beyond_float32_give_the_limiting_answer_without_warnings() -> None:
+    """A threshold, edge step or distance beyond float32's range is a limit, not an overflow."""
+    truth = np.ones((6, 8), np.float32)
+    truth[:, 4:] = 2.0  # one vertical depth edge
+    est = truth + np.float32(0.5)
+    image = np.zeros((6, 8, 3), np.uint8)
+    image[:, 4:] = 200
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's overflow warnings would raise here
+        assert bad_pixel_rate(est, truth, 1e300) == 0.0
+        assert bad_pixel_rate(est, truth, 0.25) == 1.0
+        far = np.full((2, 2), 3e38, np.float32)
+        assert bad_pixel_rate(far, -far, 1e300) == 0.0  # 6e38 apart: no float32 overflow
+        assert bad_pixel_rate(far, -far, 1e38) == 1.0
+        assert not depth_edges(truth, 1e300).any()
+        assert depth_edges(truth, 0.5).any()
+        assert not edge_band(truth, 2, 1e300).any()
+        assert edge_alignment(truth, image, 1e300) == 1.0

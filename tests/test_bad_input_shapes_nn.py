@@ -18,7 +18,7 @@ import torch
 
 from bad_input import Case, check, params, public_cases
 from rgbd_rs import InvalidArgumentError, RgbdError, ShapeMismatchError
-from rgbd_rs.meshes import Mesh, box
+from rgbd_rs.meshes import Mesh, box, load_mesh
 from rgbd_rs.nn.checkpoint import Checkpoint, save_checkpoint
 from rgbd_rs.nn.shape_ensemble import ShapeEnsemble
 from rgbd_rs.nn.shapes import (
@@ -64,6 +64,7 @@ TMP = Path(_TMP.name)
 (TMP / "empty.off").write_text("OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n")
 (TMP / "nan.off").write_text("OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n")
 (TMP / "junk.ply").write_bytes(b"ply\nformat nonsense\n")
+(TMP / "cut.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0")  # cut inside a vertex line
 (TMP / "junk.pcd").write_text("# .PCD\nFIELDS x y\n")
 _PCD = "FIELDS {f}\nSIZE 4 4 4\nTYPE F F F\nCOUNT {c}\nWIDTH 1\nPOINTS 1\nDATA ascii\n0 0 0\n"
 (TMP / "no_x.pcd").write_text(_PCD.format(f="a y z", c="1 1 1"))
@@ -307,8 +308,22 @@ ALL_CASES: list[Case] = [
         "load_shape",
         lambda: load_shape(TMP / "empty.off"),
         RgbdError,
-        r"empty\.off: mesh has no faces",
+        r"empty\.off: not a valid OFF mesh \(no faces of three or more vertices",
         "no-faces",
+    ),
+    Case(
+        "load_mesh",
+        lambda: load_mesh(TMP / "empty.off"),
+        RgbdError,
+        r"empty\.off: not a valid OFF mesh \(no faces of three or more vertices",
+        "no-faces",
+    ),
+    Case(
+        "load_shape",
+        lambda: load_shape(TMP / "cut.obj"),
+        RgbdError,
+        r"cut\.obj: its vertices have shape \(\d+, 2\), expected three coordinates each",
+        "truncated obj",
     ),
     Case(
         "load_shape",

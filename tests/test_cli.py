@@ -568,6 +568,12 @@ def test_png_and_camera_errors_name_the_file(
     assert "WARN" not in capfd.readouterr().err, "no OpenCV log line before our error"
     (tmp_path / "tail.png").write_bytes(good + b"\0\0")  # bytes after IEND still decode
     assert read_png(tmp_path / "tail.png").shape == (480, 640, 3)
+    flipped = bytearray(good)
+    flipped[len(good) // 2] ^= 0xFF  # inside an IDAT chunk: its CRC no longer matches
+    (tmp_path / "f.png").write_bytes(bytes(flipped))
+    with pytest.raises(RgbdError, match=r"f\.png: corrupt .*'IDAT' fails its CRC check"):
+        read_png(tmp_path / "f.png")
+    assert "libpng" not in capfd.readouterr().err, "no libpng line before our error"
     cam = tmp_path / "c.json"
     cam.write_text('{"fx": -500, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480}')
     with pytest.raises(

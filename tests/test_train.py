@@ -255,6 +255,7 @@ def test_load_checkpoint_errors_name_the_file(tmp_path: Path) -> None:
     torch.save(data, no_norm)
     for path, what in [
         (missing, "checkpoint file not found"),
+        (tmp_path, r"is a folder, expected a checkpoint file \(\.pt\)"),
         (garbage, r"not a readable rgbd_rs checkpoint \(it is not a torch checkpoint\)"),
         (unsafe, r"not a readable rgbd_rs checkpoint \(it holds Python objects that are unsafe"),
         (empty, r"not a readable rgbd_rs checkpoint \(it ends early: truncated or empty\?\)"),

@@ -469,6 +469,12 @@ class StereoRig:
                 f"right: got {self.right.size} fx={self.right.fx}, expected a rectified pair with "
                 f"the left camera's size {self.left.size} and fx={self.left.fx}"
             )
+        if self.baseline * self.left.fx > _validate.F32_MAX:
+            raise InvalidArgumentError(
+                f"baseline: got {self.baseline:.3g} m with fx={self.left.fx:g}: every disparity "
+                f"baseline x fx / z would overflow float32; expected baseline x fx <= "
+                f"{_validate.F32_MAX:.3g} (a baseline in metres)"
+            )
         # A rectified pair's rows line up (same fy, cy) and d = baseline * fx / z holds only
         # with the same cx: an offset (Middlebury's "doffs") would shift every disparity.
         for name in ("fy", "cx", "cy"):

@@ -13,6 +13,7 @@ import os
 import stat
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -88,6 +89,15 @@ def _read_bytes(path: Path) -> bytes:
     return data
 
 
+def _file_above(path: Path) -> Path | None:
+    """The nearest existing folder-to-be above ``path`` when it is not a folder (a file where
+    ``path`` needs a parent folder), else None."""
+    for parent in path.parents:
+        if parent.exists():
+            return None if parent.is_dir() else parent
+    return None
+
+
 def _atomic_bytes(path: Path, data: bytes) -> Path:
     """Write ``data`` through a temporary file beside ``path`` renamed over it; a folder, a
     device or another special file at ``path`` is refused (the rename would replace it)."""
@@ -96,6 +106,11 @@ def _atomic_bytes(path: Path, data: bytes) -> Path:
     kind = _special(path)
     if kind is not None:
         raise RgbdError(f"{path}: is {kind}, expected a regular file path to write")
+    blocker = _file_above(path)
+    if blocker is not None:
+        raise RgbdError(
+            f"{path}: could not be written ({blocker} is a file, expected a folder to write in)"
+        )
     tmp = path.with_name(f".{path.name}.tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -240,6 +255,10 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     if raw.startswith(PNG_SIGNATURE) and PNG_END not in raw:
         # Caught here: OpenCV would print its own warning line before returning nothing.
         raise RgbdError(f"{path}: corrupt or truncated image (no PNG end chunk)")
+    if raw.startswith(PNG_SIGNATURE):
+        bad = _bad_png_chunk(raw)
+        if bad:  # caught here: libpng would print its own error line before OpenCV fails
+            raise RgbdError(f"{path}: corrupt or truncated image ({bad})")
     if raw.startswith(PNG_SIGNATURE) and len(raw) >= 24 and raw[12:16] == b"IHDR":
         # The header's size, checked before OpenCV allocates (or refuses) the pixels.
         width, height = int.from_bytes(raw[16:20], "big"), int.from_bytes(raw[20:24], "big")
@@ -258,6 +277,25 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     if rgb and img.ndim == 3:
         img = np.ascontiguousarray(img[:, :, 2::-1])
     return np.asarray(img)
+
+
+def _bad_png_chunk(raw: bytes) -> str:
+    """What is wrong with the chunk structure of a PNG's bytes (a chunk running past the end of
+    the file, or one whose CRC does not match its bytes), or ``""`` if nothing is."""
+    pos = len(PNG_SIGNATURE)
+    while pos + 12 <= len(raw):
+        length = int.from_bytes(raw[pos : pos + 4], "big")
+        kind = raw[pos + 4 : pos + 8]
+        name = kind.decode("latin-1")
+        end = pos + 8 + length
+        if end + 4 > len(raw):
+            return f"chunk {name!r} runs past the end of the file"
+        if zlib.crc32(raw[pos + 4 : end]) != int.from_bytes(raw[end : end + 4], "big"):
+            return f"chunk {name!r} fails its CRC check"
+        if kind == b"IEND":
+            return ""
+        pos = end + 4
+    return "no PNG end chunk"
 
 
 def write_json(path: str | Path, obj: Any) -> Path:

@@ -289,6 +289,8 @@ def _read_off(path: Path) -> Mesh:
             pos += 1 + k
         if not _fits_float32(v):
             raise ValueError("vertex coordinates beyond float32 range or not finite")
+        if not tris:
+            raise ValueError("no faces of three or more vertices: a mesh needs triangles")
     except (ValueError, IndexError) as exc:
         raise RgbdError(f"{path}: not a valid OFF mesh ({exc})") from exc
     return Mesh(v.astype(np.float32), np.asarray(tris, np.uint32).reshape(-1, 3))

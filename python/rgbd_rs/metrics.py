@@ -94,7 +94,9 @@ def bad_pixel_rate(
         raise InvalidArgumentError(
             "mask: got no pixel where estimate and truth are both finite, expected at least one"
         )
-    return float(np.mean(np.abs(e[keep] - g[keep]) > t))
+    # In float64: a float32 difference of two huge values, or a threshold beyond float32's
+    # range, would overflow (with a numpy warning) instead of comparing.
+    return float(np.mean(np.abs(e[keep].astype(np.float64) - g[keep]) > t))
 
 
 def edge_band(
@@ -120,7 +122,9 @@ def depth_edges(
     d = _validate.array("depth", depth, shape=(None, None))
     rel_step = _validate.real("rel_step", rel_step, positive=True)
     edges = np.zeros(d.shape, bool)
-    with np.errstate(invalid="ignore"):
+    # A step beyond float32's range marks nothing (no numpy overflow warning on the way).
+    rel_step = min(rel_step, float(np.finfo(np.float32).max))
+    with np.errstate(invalid="ignore", over="ignore"):
         for a, b, ea, eb in (
             (d[:, :-1], d[:, 1:], edges[:, :-1], edges[:, 1:]),
             (d[:-1, :], d[1:, :], edges[:-1, :], edges[1:, :]),
@@ -156,7 +160,9 @@ def edge_alignment(depth: npt.ArrayLike, image: npt.ArrayLike, max_distance: flo
     edges = depth_edges(d)
     if not edges.any():
         raise InvalidArgumentError("depth: got a map without depth edges, expected at least one")
-    return float((dist[edges] <= max_distance).mean())
+    # Every distance is finite, so a limit beyond float32's range is float32's largest value.
+    limit = np.float32(min(max_distance, float(np.finfo(np.float32).max)))
+    return float((dist[edges] <= limit).mean())
 
 
 # -- segmentation metrics ----------------------------------------------------------------------

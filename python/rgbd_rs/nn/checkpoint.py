@@ -345,6 +345,8 @@ def load_checkpoint(
         raise InvalidArgumentError(
             f"map_location: got {map_location!r}, expected 'cpu', 'cuda[:N]' or a torch.device"
         ) from None
+    if path.is_dir():
+        raise RgbdError(f"{path}: is a folder, expected a checkpoint file (.pt)")
     if not path.is_file():
         raise RgbdError(f"{path}: checkpoint file not found")
     try:

@@ -106,8 +106,8 @@ POINT_SUFFIXES = (".npy", ".npz", ".pcd", ".ply")
 
 def load_shape(path: str | os.PathLike[str]) -> Shape:
     """A :class:`~rgbd_rs.meshes.Mesh` (.off, .obj, or .ply with faces) or an ``N x 3`` float32
-    point cloud (.npy, .npz with a ``points`` array or a single array, .ply without faces,
-    .pcd ASCII or binary). A file that is not a mesh or point cloud raises :class:`RgbdError`
+    point cloud (.npy, .npz with a ``points`` array or a single array, .ply or .obj without
+    faces, .pcd ASCII or binary). A file that is not a mesh or point cloud raises :class:`RgbdError`
     naming it."""
     from rgbd_rs.meshes import load_mesh
 
@@ -123,16 +123,12 @@ def load_shape(path: str | os.PathLike[str]) -> Shape:
             f"{sorted(set(MESH_SUFFIXES + POINT_SUFFIXES))}"
         )
     if suffix == ".off":
-        mesh = load_mesh(p)
-    elif suffix in (".ply", ".obj"):
+        return load_mesh(p)  # a face-less OFF is refused there
+    if suffix in (".ply", ".obj"):
         return _trimesh_file(p, suffix)
-    elif suffix == ".pcd":
+    if suffix == ".pcd":
         return _points(f"{p}", _read_pcd(p), file=True)
-    else:
-        return _points(f"{p}", _read_array(p, suffix), file=True)
-    if mesh.triangles.size == 0:
-        raise RgbdError(f"{p}: mesh has no faces")
-    return mesh
+    return _points(f"{p}", _read_array(p, suffix), file=True)
 
 
 def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.float32]:
@@ -199,6 +195,11 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
     f = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))))
     if len(v) == 0:
         raise RgbdError(f"{p}: no vertices or points, expected a mesh or point cloud")
+    if v.ndim != 2 or v.shape[1] != 3:  # an OBJ cut inside a vertex line reads as N x 2
+        raise RgbdError(
+            f"{p}: its vertices have shape {v.shape}, expected three coordinates each "
+            "(truncated file?)"
+        )
     if suffix == ".ply":
         _check_ply_vertices(p, len(v))
     if len(f) == 0:  # a point cloud: its non-finite points are dropped, as other files' are
@@ -441,10 +442,7 @@ class OffTree(ShapeSource):
         from rgbd_rs.meshes import load_mesh
 
         path = self.files[self._index(index)]
-        mesh = load_mesh(path)
-        if mesh.triangles.size == 0:
-            raise RgbdError(f"{path}: mesh has no faces")
-        return mesh
+        return load_mesh(path)  # a face-less mesh is refused there
 
 
 def open_shapes(data: str | os.PathLike[str]) -> ShapeSource:
