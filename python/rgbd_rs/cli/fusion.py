@@ -335,16 +335,20 @@ def run_fuse(args: argparse.Namespace) -> int:
         )
     if net_flags:
         from rgbd_rs.fusion._inputs import far_camera_warning, with_reference
-        from rgbd_rs.nn.confidence import WEIGHTS_FAR, ConfidenceEstimator
+        from rgbd_rs.fusion.fuse import shipped_estimator
+        from rgbd_rs.nn.confidence import ConfidenceEstimator
 
-        weights = args.weights
-        if weights is None:  # --precision alone: the shipped network fuse() would pick
+        precision = args.precision or "auto"
+        if args.weights is None:  # --precision alone: the shipped network fuse() would pick
             fused_on = rig if args.reference is None else with_reference(rig, args.reference)
-            weights = WEIGHTS_FAR if far_camera_warning(fused_on) is not None else None
-        conf = named(
-            net_flags[0],
-            lambda: ConfidenceEstimator.load(weights, precision=args.precision or "auto"),
-        )
+            far = far_camera_warning(fused_on) is not None
+            conf = named(
+                "--precision", lambda: shipped_estimator(far=far).with_precision(precision)
+            )
+        else:
+            conf = named(
+                "--weights", lambda: ConfidenceEstimator.load(args.weights, precision=precision)
+            )
     if args.tof_confidence is not None:
         conf = (
             load_map("--tof-confidence", args.tof_confidence),
