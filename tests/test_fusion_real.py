@@ -506,3 +506,29 @@ def test_the_band_of_a_rendered_scene_follows_the_tof() -> None:
     band = outside_target_view(gt, 1) & np.isfinite(gt) & np.isfinite(out.disparity)
     assert band.sum() > 300
     assert np.mean(np.abs(out.disparity - gt)[band] > 2) < 0.05
+
+
+def test_a_few_scenes_of_a_split_in_its_order(
+    tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Named out of order: they come in the split's (manifest) order, for every protocol.
+    names = [s.name for s in real_samples("val", 1, scenes=["Midd1", "Books"])]
+    assert names == ["Books_law0", "Midd1_law0"]
+    dense = [s.name for s in dense_protocol_samples("val", scenes=["Midd1"])]
+    assert dense == ["Midd1_dense"]
+    for bad, why in (
+        (["Cones"], r"^scenes: got 'Cones', expected scenes of the val split: Baby1, Books"),
+        ([], r"^scenes: got no scene, expected scenes of the val split"),
+        ("Books", r"^scenes: got 'Books', expected a list of scene names"),
+    ):
+        with pytest.raises(InvalidArgumentError, match=why):
+            real_samples("val", 1, scenes=bad)  # type: ignore[arg-type]
+    args = ["eval", "fusion", "--real", "val", "--laws", "1", "--quiet", "--out", str(tmp_path)]
+    assert main([*args, "--scenes", "Midd1,Books"]) == 0
+    text = (tmp_path / "real_val" / "table.md").read_text()
+    assert "Books_law0" in text and "Midd1_law0" in text and "Baby1" not in text
+    capsys.readouterr()
+    assert main([*args, "--scenes", "Aloe"]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: --scenes: got 'Aloe', expected")
+    assert main(["eval", "fusion", "--middlebury", "--scenes", "Aloe", "--out", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.startswith("rgbd: error: --scenes: got it without --real")

@@ -193,6 +193,11 @@ def register(commands: Commands) -> None:
     )
     ef.add_argument("--limit", type=integer(1), help="first N synthetic scenes / real cases only")
     ef.add_argument(
+        "--scenes",
+        metavar="NAME[,NAME]",
+        help="with --real: only these scenes of the split (e.g. Cones,Teddy), in its order",
+    )
+    ef.add_argument(
         "--stride",
         type=integer(1),
         default=2,
@@ -442,6 +447,8 @@ def run_eval(args: argparse.Namespace) -> int:
         raise InvalidArgumentError("--dense: got it without --real, expected --real SPLIT too")
     if args.view != "left" and args.real is None:
         raise InvalidArgumentError("--view: got it without --real, expected --real SPLIT too")
+    if args.scenes is not None and args.real is None:
+        raise InvalidArgumentError("--scenes: got it without --real, expected --real SPLIT too")
     if args.view != "left" and args.dense:
         raise InvalidArgumentError("--view: got right with --dense, expected the --laws protocol")
     if args.synth is None and not args.middlebury and args.real is None:
@@ -471,14 +478,18 @@ def run_eval(args: argparse.Namespace) -> int:
         from rgbd_rs.fusion.evaluate_real import evaluate_real, markdown
         from rgbd_rs.fusion.real_scenes import dense_protocol_samples, real_samples
 
+        scenes = None if args.scenes is None else [n for n in args.scenes.split(",") if n]
         if args.dense:
             title = f"real {args.real} split, dense 512x424 ToF"
-            real_cases = dense_protocol_samples(args.real)
+            real_cases = named("--scenes", lambda: dense_protocol_samples(args.real, scenes=scenes))
             folder = args.out / f"real_{args.real}_dense"
         else:
             per = "1 ToF law" if args.laws == 1 else f"{args.laws} ToF laws"
             title = f"real {args.real} split ({per} per scene)"
-            real_cases = real_samples(args.real, args.laws, view=args.view)
+            real_cases = named(
+                "--scenes",
+                lambda: real_samples(args.real, args.laws, view=args.view, scenes=scenes),
+            )
             folder = args.out / f"real_{args.real}"
             if args.view == "right":
                 title = f"{title}, fused on the right camera (far from the ToF)"

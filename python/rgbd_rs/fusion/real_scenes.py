@@ -24,7 +24,7 @@ epoch for training (``tools/train_confidence_real.py`` trains on a fixed pool of
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -148,11 +148,13 @@ def real_samples(
     root: str | None = None,
     dense_laws: int = 0,
     view: str = "left",
+    scenes: Sequence[str] | None = None,
 ) -> Iterator[Sample]:
-    """Every scene of ``split`` under ``laws`` sensor laws each, then ``dense_laws`` laws of the
-    dense family (scene-major order; at least one law in all). The arguments are checked at the
-    call, the scenes read as the iterator is consumed. ``view``: as :func:`real_sample`; with
-    ``"right"`` the scenes without right-view ground truth are left out."""
+    """Every scene of ``split`` (or only ``scenes``, names of that split, in the split's order)
+    under ``laws`` sensor laws each, then ``dense_laws`` laws of the dense family (scene-major
+    order; at least one law in all). The arguments are checked at the call, the scenes read as
+    the iterator is consumed. ``view``: as :func:`real_sample`; with ``"right"`` the scenes
+    without right-view ground truth are left out."""
     _validate.choice("split", split, SPLITS)
     laws = _validate.integer("laws", laws, minimum=0, maximum=64)
     dense_laws = _validate.integer("dense_laws", dense_laws, minimum=0, maximum=64)
@@ -163,7 +165,7 @@ def real_samples(
     if epoch is not None:
         epoch = _validate.integer("epoch", epoch, minimum=0)
     side = _validate.choice("view", view, ("left", "right"))
-    names = scene_names(split, root)
+    names = _chosen_scenes(split, root, scenes)
 
     def cases() -> Iterator[Sample]:
         for name in names:
@@ -178,15 +180,37 @@ def real_samples(
     return cases()
 
 
-def dense_protocol_samples(split: str, *, root: str | None = None) -> Iterator[Sample]:
-    """Every scene of ``split`` with the dense protocol's ToF frame (:data:`DENSE_PROTOCOL_SIZE`
-    of the default :class:`~rgbd_rs.render.ToFModel`, seed :data:`DENSE_PROTOCOL_SEED`): finer
-    than the ~450 px wide colour images and far more precise than the stereo map. Named
-    ``<scene>_dense``; ``split`` is checked at the call."""
+def _chosen_scenes(split: str, root: str | None, scenes: Sequence[str] | None) -> list[str]:
+    """The scene names of ``split``, or those of ``scenes`` (each a scene of that split; at least
+    one) in the split's order."""
+    names = scene_names(split, root)
+    if scenes is None:
+        return names
+    if isinstance(scenes, str) or not isinstance(scenes, Sequence):
+        raise InvalidArgumentError(
+            f"scenes: got {scenes!r}, expected a list of scene names (or None for all)"
+        )
+    unknown = [n for n in scenes if n not in names]
+    if unknown or not scenes:
+        got = repr(unknown[0]) if unknown else "no scene"
+        raise InvalidArgumentError(
+            f"scenes: got {got}, expected scenes of the {split} split: {', '.join(names)}"
+        )
+    return [n for n in names if n in scenes]
+
+
+def dense_protocol_samples(
+    split: str, *, root: str | None = None, scenes: Sequence[str] | None = None
+) -> Iterator[Sample]:
+    """Every scene of ``split`` (or only ``scenes``, as in :func:`real_samples`) with the dense
+    protocol's ToF frame (:data:`DENSE_PROTOCOL_SIZE` of the default
+    :class:`~rgbd_rs.render.ToFModel`, seed :data:`DENSE_PROTOCOL_SEED`): finer than the ~450 px
+    wide colour images and far more precise than the stereo map. Named ``<scene>_dense``;
+    ``split`` and ``scenes`` are checked at the call."""
     from rgbd_rs.render import ToFModel
 
     _validate.choice("split", split, SPLITS)
-    names = scene_names(split, root)
+    names = _chosen_scenes(split, root, scenes)
 
     def cases() -> Iterator[Sample]:
         for name in names:
