@@ -656,7 +656,8 @@ def _shape_arg(name: str, shape: object) -> Shape:
 def shape_inputs(shape: Mesh | npt.ArrayLike, spec: InputSpec | None = None) -> dict[str, Any]:
     """The network inputs of one shape: ``{representation: float32 array}`` of the shapes in
     ``spec.shapes`` (depth ``6 x R x R``, volume ``3 x Rv x Rv``, curvature ``6 x 2 x R x R``),
-    each map normalised. ``shape``: a Mesh or an ``N x 3`` point cloud."""
+    each map normalised. ``shape``: a Mesh or an ``N x 3`` point cloud, z up (turn another
+    up axis with :func:`~rgbd_rs.shapes.classify.to_z_up` first)."""
     s = InputSpec() if spec is None else spec
     if not isinstance(s, InputSpec):
         raise InvalidArgumentError(f"spec: got {type(s).__name__}, expected an InputSpec")

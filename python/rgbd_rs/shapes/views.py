@@ -3,7 +3,8 @@
 **Frame.** The views are taken from the faces of the shape's bounding *cube* (the convention of
 :mod:`rgbd_rs.shapes.voxels`): the largest bounding-box extent spans the cube and the shape is
 centred along the other axes, so proportions survive; a single point gets a cube of side 1.
-z is up (ModelNet).
+z is up (ModelNet): turn a y-up or x-up shape with :func:`rgbd_rs.shapes.to_z_up` first (what
+``classify(..., up=)`` does), or its side views show it lying on its back.
 
 **Views** (:data:`VIEW_NAMES`), each ``R x R``, row 0 at the top, column 0 on the left:
 
