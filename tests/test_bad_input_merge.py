@@ -9,7 +9,7 @@ import pytest
 import rgbd_rs.segmentation.merge as M
 from bad_input import Case, check, params
 from rgbd_rs import InvalidArgumentError, PinholeCamera, ShapeMismatchError
-from rgbd_rs.segmentation import segment
+from rgbd_rs.segmentation import fill_depth_holes, segment
 from rgbd_rs.surface import SegmentFits
 
 SHAPE = ShapeMismatchError
@@ -108,6 +108,16 @@ CASES: list[Case] = [
     Case("segment", lambda: segment(RGB[:, :-1], DEPTH, CAM), SHAPE, r"rgb|depth", "size"),
     Case("segment", lambda: segment(RGB, DEPTH * np.nan, CAM), ARG, r"^depth", "no-depth"),
     Case("segment", lambda: segment(RGB, DEPTH, CAM, n_segments=10**6), ARG, r"n_segments", "k>n"),
+    Case("segment", lambda: segment(RGB, DEPTH, CAM, fill_radius=-2), ARG, r"^fill_radius: got -2"),
+    Case("fill_depth_holes", lambda: fill_depth_holes(DEPTH[0]), SHAPE, r"^depth: got shape"),
+    Case("fill_depth_holes", lambda: fill_depth_holes(DEPTH, "2"), ARG, r"^radius: got '2'", "str"),
+    Case(
+        "fill_depth_holes",
+        lambda: fill_depth_holes(DEPTH.astype(bool)),
+        ARG,
+        r"^depth: got dtype bool",
+        "bool",
+    ),
     Case(
         "MergeResult.labels_after",
         lambda: M.merge_regions(L, P).labels_after(99),

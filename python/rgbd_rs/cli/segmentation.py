@@ -21,6 +21,7 @@ from rgbd_rs.cli._args import (
     real,
 )
 from rgbd_rs.cli.fusion import DEPTH_SCALE_HELP, DEPTH_SCALE_RANGE
+from rgbd_rs.holes import DEFAULT_FILL_RADIUS
 
 DESCRIPTION = (
     "Segment an RGB-D frame: 9-D colour/position/normal features (eq. 4.1), normalized-cuts "
@@ -62,6 +63,7 @@ SEGMENT_FLAGS = {
     "camera": "--calib",
     "pdfs": "--pdfs",
     "n_segments": "--segments",
+    "fill_radius": "--fill-radius",
     "cues": "--rgb/--depth",  # the labeling network's input, made from both
 }
 
@@ -123,6 +125,13 @@ def register(commands: Commands) -> None:
         default="mean",
         help="class of each final segment: argmax of its mean PDF (mean, default) or its most "
         "common per-pixel class (majority)",
+    )
+    p.add_argument(
+        "--fill-radius",
+        type=real(0, 1000, low_open=False),
+        default=DEFAULT_FILL_RADIUS,
+        help="depth holes within this many pixels of a measured pixel take its depth first "
+        f"(default {DEFAULT_FILL_RADIUS}: scattered holes, sparse ToF depth; 0 keeps every hole)",
     )
     p.add_argument("--frames", type=integer(1), help="write every N-th merge step as a PNG")
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed (0)")
@@ -191,6 +200,7 @@ def run_segment(args: argparse.Namespace) -> int:
             n_segments=n,
             touching=args.touching,
             pooling=args.pooling,
+            fill_radius=args.fill_radius,
             seed=args.seed,
             quiet=args.quiet,
         ),

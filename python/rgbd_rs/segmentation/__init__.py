@@ -10,6 +10,7 @@ that define them; import a module's other names with ``from rgbd_rs.segmentation
 hha_details`` (``import rgbd_rs.segmentation.hha as m`` would give the function).
 """
 
+from rgbd_rs.holes import fill_depth_holes
 from rgbd_rs.segmentation.cues import SemanticCues, cue_maps, semantic_cues
 from rgbd_rs.segmentation.features import Features, features, lab_colour
 from rgbd_rs.segmentation.hha import HhaResult, hha, hha_details, square_normals
@@ -74,6 +75,7 @@ __all__ = [
     "downsample_cues",
     "downsample_labels",
     "features",
+    "fill_depth_holes",
     "hha",
     "hha_details",
     "lab_colour",

@@ -19,6 +19,7 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.holes import DEFAULT_FILL_RADIUS, SPARSE_SHARE, _isolated_share, fill_depth_holes
 from rgbd_rs.segmentation.features import Features, features
 from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
 from rgbd_rs.segmentation.merge import MergeResult, merge_regions
@@ -100,9 +101,10 @@ def _suggested_depth_scale(median_m: float, scale: float) -> float | None:
 class Segmentation:
     """What :func:`segment` returns."""
 
-    #: ``H x W`` int32 over-segmentation (§4.4), -1 where the depth is missing.
+    #: ``H x W`` int32 over-segmentation (§4.4), -1 where the depth is missing (after the
+    #: holes within ``fill_radius`` of a measured pixel were filled).
     over: np.ndarray
-    #: ``H x W`` int32 final segments after merging, -1 where the depth is missing.
+    #: ``H x W`` int32 final segments after merging, -1 where the depth is missing (as ``over``).
     labels: np.ndarray
     #: The merging's history and, with PDFs, the class of each final segment.
     merge: MergeResult
@@ -148,11 +150,17 @@ def segment(
     n_segments: int = DEFAULT_N_SEGMENTS,
     touching: bool = False,
     pooling: str = DEFAULT_POOLING,
+    fill_radius: float = DEFAULT_FILL_RADIUS,
     seed: int = 0,
     quiet: bool = True,
 ) -> Segmentation:
     """Segments an RGB-D frame: ``rgb`` ``H x W x 3`` uint8, ``depth`` ``H x W`` float32 metres
-    (NaN or 0 = missing), ``camera`` the intrinsics of both (registered depth).
+    (NaN, 0 or negative = missing), ``camera`` the intrinsics of both (registered depth).
+
+    Holes in the depth within ``fill_radius`` pixels of a measured pixel take its depth first
+    (scattered holes, sparse depth; 0 keeps every hole), and the ConvNet's HHA cue is computed
+    on the depth with every hole filled, as the network was trained
+    (:mod:`rgbd_rs.holes`). Pixels still without depth are ``-1`` in the output.
 
     ``pdfs`` (``H x W x C`` per-pixel class probabilities) switch the merging from the fit-only
     baseline to Algorithm 1 and label every final segment. Without them, ``labeler`` computes
@@ -174,6 +182,7 @@ def segment(
         )
     n = _validate.integer("n_segments", n_segments, minimum=2)
     pooling = _validate.choice("pooling", pooling, POOLINGS)
+    radius = _validate.real("fill_radius", fill_radius, nonnegative=True)
     seconds: dict[str, float] = {}
     t = time.perf_counter()
 
@@ -184,8 +193,22 @@ def segment(
         t = now
 
     net = None if pdfs is not None else _resolve_labeler(labeler)  # loaded once per process
-    # With the ConvNet, HHA is a cue; its 7x7 normals are the features' normals (computed once).
-    hh = None if net is None else hha_details(depth, camera)
+    depth = fill_depth_holes(depth, radius)  # NaN where still missing
+    lonely = _isolated_share(depth)
+    if lonely > SPARSE_SHARE:
+        warnings.warn(
+            f"depth: {lonely:.0%} of its measured pixels have no measured neighbour after "
+            f"filling the holes within fill_radius={radius:g} px: each becomes a segment of "
+            "its own; densify the depth (`rgbd reproject --splat-radius`) or raise fill_radius",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    # With the ConvNet, HHA is a cue, on the depth with every hole filled (as Gupta et al. and
+    # the network's NYUv2 training frames) and the remaining holes left out of its 7x7 normals,
+    # which are the features' normals too (computed once).
+    hh = None
+    if net is not None:
+        hh = hha_details(fill_depth_holes(depth, None), camera, raw_depth=depth)
     f = features(rgb, depth, camera, normals=None if hh is None else hh.normals)
     unit = _depth_unit_warning(f.points)
     if unit is not None:
