@@ -341,9 +341,9 @@ def run_fuse(args: argparse.Namespace) -> int:
     if net_flags:
         from rgbd_rs.fusion._inputs import far_camera_warning, with_reference
         from rgbd_rs.fusion.fuse import shipped_estimator
-        from rgbd_rs.nn.confidence import ConfidenceEstimator
+        from rgbd_rs.nn.confidence import ConfidenceEstimator, Precision
 
-        precision = args.precision or "auto"
+        precision: Precision = args.precision or "auto"
         if args.weights is None:  # --precision alone: the shipped network fuse() would pick
             fused_on = rig if args.reference is None else with_reference(rig, args.reference)
             far = far_camera_warning(fused_on) is not None
