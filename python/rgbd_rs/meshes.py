@@ -10,6 +10,7 @@ Example:
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -293,7 +294,7 @@ def _read_off(path: Path) -> Mesh:
             raise ValueError("no faces of three or more vertices: a mesh needs triangles")
     except (ValueError, IndexError) as exc:
         raise RgbdError(f"{path}: not a valid OFF mesh ({exc})") from exc
-    return Mesh(v.astype(np.float32), np.asarray(tris, np.uint32).reshape(-1, 3))
+    return Mesh(_near_origin(path, v), np.asarray(tris, np.uint32).reshape(-1, 3))
 
 
 def _ply_vertex_count(path: Path) -> int | None:
@@ -337,4 +338,49 @@ def _read_ply(path: Path) -> Mesh:
         raise RgbdError(f"{path}: PLY faces are not triangles indexing its {len(v)} vertices")
     if not _fits_float32(v):
         raise RgbdError(f"{path}: PLY vertex coordinates beyond float32 range or not finite")
-    return Mesh(v.astype(np.float32), f.astype(np.uint32))
+    return Mesh(_near_origin(path, v), f.astype(np.uint32))
+
+
+def _near_origin(path: Path, vertices: np.ndarray) -> F32:
+    """A file's vertices as float32, moved to the origin first (with a warning) when float32
+    could not hold the shape's detail where it lies (map coordinates)."""
+    return np.asarray(_far_from_origin(str(path), vertices), np.float32)
+
+
+#: A shape whose bounding-box centre lies farther from the origin than this many times its
+#: largest side is moved to the origin in float64 before it becomes float32: float32 resolves
+#: 1e-7 of a coordinate, so far out (map coordinates) it blurs the shape. ModelNet's shapes, in
+#: the unit sphere, are never moved.
+FAR_FACTOR = 100.0
+
+
+def _far_centre(points: npt.NDArray[np.floating]) -> npt.NDArray[np.float64] | None:
+    """The bounding-box centre of ``points`` (``N x 3``, finite) when it lies more than
+    :data:`FAR_FACTOR` times the box's largest side from the origin, else None."""
+    if len(points) == 0:
+        return None
+    p = np.asarray(points, np.float64)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    centre: npt.NDArray[np.float64] = (lo + hi) / 2
+    if np.abs(centre).max() > FAR_FACTOR * float((hi - lo).max()):
+        return centre
+    return None
+
+
+def _far_from_origin(name: str, points: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
+    """``points`` as read from a file, moved to the origin (in their own precision) with a
+    warning when :func:`_far_centre` says float32, the type they are kept in, would blur them
+    where they are; otherwise unchanged."""
+    if points.ndim != 2 or points.shape[1:] != (3,) or not np.isfinite(points).all():
+        return points  # the caller's checks name what is wrong
+    centre = _far_centre(points)
+    if centre is None:
+        return points
+    warnings.warn(
+        f"{name}: its shape lies at {np.array2string(centre, precision=4)}, over "
+        f"{FAR_FACTOR:g} times its size from the origin, where float32 (the type shapes are "
+        "kept in) would blur it: moved to the origin",
+        RuntimeWarning,
+        stacklevel=4,
+    )
+    return np.asarray(points, np.float64) - centre

@@ -112,7 +112,8 @@ def run_classify(args: argparse.Namespace) -> int:
         "--checkpoint",
         lambda: ShapeClassifier.load(args.checkpoint, dataset=args.dataset),
     )
-    where = {"path": "FILE", "shape": "FILE"}  # the library's argument names
+    # The library's argument names: a path error quotes the path itself; a shape's names it.
+    where = {"path": "FILE", "shape": str(args.file)}
     best, probs = flagged(where, lambda: clf(load_shape(args.file), up=args.up, turns=args.turns))
     print(f"{args.file}: {best}")
     for name, prob in list(probs.items())[: args.top]:

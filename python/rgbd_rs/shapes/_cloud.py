@@ -7,6 +7,10 @@ import numpy.typing as npt
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.meshes import _far_centre as far_centre
+from rgbd_rs.meshes import _far_from_origin as far_from_origin
+
+__all__ = ["centred_cloud", "check_extent", "cloud", "far_centre", "far_from_origin"]
 
 #: The largest bounding-box side the native shape kernels accept (their ``MAX_EXTENT``).
 MAX_EXTENT = 1e30
@@ -32,3 +36,17 @@ def cloud(name: str, value: object, *, fix: str = "") -> npt.NDArray[np.float32]
     pts = _validate.array(name, value, shape=(None, 3), finite=True, fix=fix)
     check_extent(name, pts)
     return pts
+
+
+def centred_cloud(
+    name: str, value: object, *, fix: str = ""
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float64]]:
+    """:func:`cloud`, moved to the origin in float64 first when :func:`far_centre` says it lies
+    far out; returns the points and the shift subtracted (zeros when none). For functions whose
+    result does not depend on where the shape is (its views, its class)."""
+    pts = cloud(name, value, fix=fix)  # every check, in float32 as everywhere
+    exact = np.asarray(_validate.asarray(name, value), np.float64)
+    centre = far_centre(exact)
+    if centre is None:
+        return pts, np.zeros(3)
+    return (exact - centre).astype(np.float32), centre

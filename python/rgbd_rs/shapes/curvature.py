@@ -60,6 +60,7 @@ from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.shapes import views as _views
+from rgbd_rs.shapes._cloud import centred_cloud
 from rgbd_rs.surface import DEFAULT_LAMBDA
 
 __all__ = [
@@ -242,5 +243,5 @@ def curvature_maps(
         if shape.triangles.size == 0:
             raise InvalidArgumentError("shape: got a mesh with no triangles, expected at least one")
         return _mesh_maps(shape, r, depth)
-    points = _validate.array("shape", shape, shape=(None, 3), finite=True)
+    points, _ = centred_cloud("shape", shape)  # the maps do not depend on where the shape is
     return _point_maps(points, r, depth)

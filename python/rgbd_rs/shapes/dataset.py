@@ -56,7 +56,7 @@ from rgbd_rs.nn.shapes import (
     _input_shapes,
     _parse_representations,
 )
-from rgbd_rs.shapes._cloud import check_extent, cloud
+from rgbd_rs.shapes._cloud import centred_cloud, check_extent, cloud, far_from_origin
 
 from .._reasons import reason
 
@@ -131,19 +131,23 @@ def load_shape(path: str | os.PathLike[str]) -> Shape:
     return _points(f"{p}", _read_array(p, suffix), file=True)
 
 
-def _points(name: str, value: object, *, file: bool = False) -> npt.NDArray[np.float32]:
+def _points(
+    name: str, value: object, *, file: bool = False, centre: bool = False
+) -> npt.NDArray[np.float32]:
     """``value`` as ``N x 3`` finite points. A file's points that are not finite (an organised
-    depth-camera cloud marks its holes with NaN) are dropped with a warning; an array given in
-    Python must be finite."""
+    depth-camera cloud marks its holes with NaN) are dropped with a warning, and a file's cloud
+    far from the origin is moved there with a warning (:func:`far_from_origin`); an array given
+    in Python must be finite, and with ``centre`` is moved to the origin silently when far out
+    (for results that do not depend on where the shape is)."""
     try:
         if file:  # in the file's own dtype: a float64 beyond float32's range is not a hole
             raw = _validate.asarray(name, value)
             if raw.ndim == 2 and raw.shape[1] == 3 and raw.dtype.kind == "f":
-                value = _finite_rows(name, raw)
+                value = far_from_origin(name, _finite_rows(name, raw))
         fix = (
             "" if file else "drop the non-finite points first (points[np.isfinite(points).all(1)])"
         )
-        pts = cloud(name, value, fix=fix)
+        pts = centred_cloud(name, value, fix=fix)[0] if centre else cloud(name, value, fix=fix)
     except (InvalidArgumentError, ShapeMismatchError) as exc:
         if file:  # a bad file's content is an RgbdError naming the file
             raise RgbdError(f"not a point cloud: {exc}") from None
@@ -210,6 +214,7 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
         raise RgbdError(f"{p}: {bad} of {len(v)} {what} have non-finite coordinates")
     if np.abs(v).max() > np.finfo(np.float32).max:
         raise RgbdError(f"{p}: vertex coordinates beyond float32 range")
+    v = far_from_origin(str(p), v)
     if len(f) == 0:
         return v.astype(np.float32)
     if f.ndim != 2 or f.shape[1] != 3 or f.min() < 0 or f.max() >= len(v):
@@ -642,7 +647,10 @@ def _normalise_maps(maps: np.ndarray, how: str, window: int | None) -> npt.NDArr
     return np.clip(y, -_F16_MAX, _F16_MAX)
 
 
-def _shape_arg(name: str, shape: object) -> Shape:
+def _shape_arg(name: str, shape: object, *, centre: bool = True) -> Shape:
+    """A validated shape. With ``centre`` (for inputs, which do not depend on where the shape
+    is) a cloud far from the origin comes back moved there, in float64 before float32 blurs
+    it."""
     if isinstance(shape, Mesh):
         if shape.triangles.size == 0:
             raise InvalidArgumentError(
@@ -650,7 +658,7 @@ def _shape_arg(name: str, shape: object) -> Shape:
             )
         check_extent(name, shape.vertices, "a mesh")
         return shape
-    return _points(name, shape)
+    return _points(name, shape, centre=centre)
 
 
 def shape_inputs(shape: Mesh | npt.ArrayLike, spec: InputSpec | None = None) -> dict[str, Any]:

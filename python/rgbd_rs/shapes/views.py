@@ -72,7 +72,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh
-from rgbd_rs.shapes._cloud import check_extent, cloud
+from rgbd_rs.shapes._cloud import centred_cloud, check_extent
 
 __all__ = [
     "BACKGROUND",
@@ -152,7 +152,7 @@ def local_contrast_normalize(
 
 
 def _points(name: str, shape: object) -> np.ndarray:
-    return cloud(name, shape)
+    return centred_cloud(name, shape)[0]  # the views do not depend on where the shape is
 
 
 def _resolution(resolution: object) -> int:

@@ -18,7 +18,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh
-from rgbd_rs.shapes._cloud import check_extent, cloud
+from rgbd_rs.shapes._cloud import centred_cloud, check_extent
 
 __all__ = ["DEFAULT_RESOLUTION", "VoxelGrid", "density_profiles", "voxelize"]
 
@@ -69,8 +69,9 @@ def voxelize(
             raise InvalidArgumentError(
                 f"fill: got {fill!r} for a point cloud, expected 'surface' (points have no inside)"
             )
-        pts = cloud("shape", shape)
+        pts, shift = centred_cloud("shape", shape)
         filled, origin, size = _rgbd_rs.voxelize_points(pts, r, d)
+        origin = (np.asarray(origin, np.float64) + shift).astype(np.asarray(origin).dtype)
     return VoxelGrid(filled=filled.astype(bool), origin=origin, size=float(size))
 
 
