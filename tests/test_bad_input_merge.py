@@ -106,6 +106,13 @@ CASES: list[Case] = [
     Case("segment", lambda: segment(RGB, DEPTH, "cam"), ARG, r"^camera: got str"),  # type: ignore[arg-type]
     Case("segment", lambda: segment(RGB, DEPTH, CAM, n_segments=1), ARG, r"^n_segments", "k"),
     Case("segment", lambda: segment(RGB[:, :-1], DEPTH, CAM), SHAPE, r"rgb|depth", "size"),
+    Case(
+        "segment",
+        lambda: segment(RGB, DEPTH[::2, ::2], CAM),
+        SHAPE,
+        r"^depth: got 16x12 pixels, expected the rgb image's 32x24: register the depth",
+        "lattice",
+    ),
     Case("segment", lambda: segment(RGB, DEPTH * np.nan, CAM), ARG, r"^depth", "no-depth"),
     Case("segment", lambda: segment(RGB, DEPTH, CAM, n_segments=10**6), ARG, r"n_segments", "k>n"),
     Case("segment", lambda: segment(RGB, DEPTH, CAM, fill_radius=-2), ARG, r"^fill_radius: got -2"),

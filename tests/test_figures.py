@@ -47,6 +47,37 @@ def test_class_picture_legend_and_no_data() -> None:
         class_legend(names, colors[:2], 320)
 
 
+def test_segment_colours_are_never_grey_and_class_colours_apart() -> None:
+    """A helper read a (70, 70, 70) segment as no data and the window class as ceiling."""
+    import cv2
+
+    from rgbd_rs.data.synth_indoor import LABEL13_COLORS
+    from rgbd_rs.viz import paint_segments
+
+    labels = np.arange(-1, 5000, dtype=np.int32).reshape(1, -1)
+    img = paint_segments(labels, boundaries=False)
+    assert (img[0, 0] == NO_DATA_BGR).all()
+    hsv = cv2.cvtColor(img[:, 1:], cv2.COLOR_BGR2HSV).reshape(-1, 3).astype(int)
+    assert hsv[:, 1].min() >= 150 and hsv[:, 2].min() >= 175  # saturated and bright
+    assert (np.abs(img[0, 1:].astype(int) - NO_DATA_BGR).max(axis=1) > 40).all()
+    # Same label, same colour (merge animations); neighbours' colours differ.
+    np.testing.assert_array_equal(paint_segments(labels[:, 10:20], False), img[:, 10:20])
+    colours = np.array(LABEL13_COLORS[1:], float)
+    gaps = np.linalg.norm(colours[:, None] - colours[None], axis=-1)
+    np.fill_diagonal(gaps, np.inf)
+    assert gaps.min() > 40, gaps.min()
+
+
+def test_a_long_title_wraps_instead_of_running_off_a_narrow_panel() -> None:
+    img = np.zeros((40, 80, 3), np.uint8)
+    one = image_panel(img, "109 segments", width=320)
+    long = image_panel(img, "109 segments (labels.png in colour; white: boundaries)", width=320)
+    assert long.shape[1] == one.shape[1] == 320
+    assert long.shape[0] == one.shape[0] + 22  # one more line of title
+    strip = long[: long.shape[0] - one.shape[0] + 28]
+    assert (strip[:, -6:] == 255).all(), "no text in the right margin"
+
+
 def test_grid_pads_panels_with_white() -> None:
     a = image_panel(np.zeros((10, 20, 3), np.uint8), "a", width=100)
     b = image_panel(np.zeros((20, 20, 3), np.uint8), "b", width=100)

@@ -127,6 +127,19 @@ def test_cli_a_frame_too_small_for_the_labeler_names_the_inputs(
     assert main([*argv, "--segments", "10"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("rgbd: error: --rgb/--depth: got a 64x48 frame, smaller than the "), err
+    # A grey image for --rgb, and a depth on its own (smaller) lattice, each named with a way out.
+    cv2.imwrite(str(tmp_path / "grey.png"), np.full((48, 64), 90, np.uint8))
+    grey = [*argv]
+    grey[2] = str(tmp_path / "grey.png")
+    assert main(grey) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --rgb: {tmp_path / 'grey.png'}: got a grey image"), err
+    np.save(tmp_path / "small.npy", np.full((24, 32), 2.0, np.float32))
+    small = [*argv]
+    small[4] = str(tmp_path / "small.npy")
+    assert main(small) == 2
+    err = capsys.readouterr().err
+    assert "got 32x24 pixels, expected the --calib camera's 64x48 (depth on its own" in err, err
 
 
 def _tiny_labeler():  # type: ignore[no-untyped-def]
@@ -251,6 +264,8 @@ def test_cli_warns_on_a_wrong_depth_unit_naming_the_flag(
         err = capsys.readouterr().err.strip()
         assert err.startswith("rgbd: error: --depth: got a median valid depth of"), err
         assert err.endswith("; --depth-scale 0.0001 brings it to 3.04 m"), err
+        # The library's "divide by" (for an array) gives way to the flag that was given.
+        assert "m (read with --depth-scale 1)," in err and "divide by" not in err, err
 
 
 @pytest.mark.parametrize(

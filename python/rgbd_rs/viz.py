@@ -137,8 +137,19 @@ _FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
 def _title_strip(title: str, width: int) -> U8:
-    strip = np.full((28, width, 3), 255, np.uint8)
-    cv2.putText(strip, title, (5, 20), _FONT, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+    """``title`` on white, word-wrapped to ``width`` pixels (22 px a line after the first)."""
+    lines: list[str] = []
+    for word in title.split(" "):
+        wider = f"{lines[-1]} {word}" if lines else word
+        if lines and cv2.getTextSize(wider, _FONT, 0.55, 1)[0][0] > width - 10:
+            lines.append(word)
+        elif lines:
+            lines[-1] = wider
+        else:
+            lines = [word]
+    strip = np.full((28 + 22 * (len(lines) - 1), width, 3), 255, np.uint8)
+    for k, line in enumerate(lines):
+        cv2.putText(strip, line, (5, 20 + 22 * k), _FONT, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
     return strip
 
 
@@ -380,18 +391,33 @@ def outline_segments(
     return img
 
 
+def _hsv_bgr(hue: np.ndarray, sat: np.ndarray, val: np.ndarray) -> U8:
+    """BGR uint8 of hue, saturation and value in [0, 1] (per pixel, the same for any image
+    size: OpenCV's conversion rounds differently in its vector and scalar paths)."""
+    sector = np.floor(hue * 6) % 6
+    f = hue * 6 - np.floor(hue * 6)
+    p, q, t = val * (1 - sat), val * (1 - sat * f), val * (1 - sat * (1 - f))
+    r = np.select([sector == k for k in range(6)], [val, q, p, p, t, val])
+    g = np.select([sector == k for k in range(6)], [t, val, val, q, p, p])
+    b = np.select([sector == k for k in range(6)], [p, p, t, val, val, q])
+    return np.ascontiguousarray(np.round(np.stack([b, g, r], axis=-1) * 255).astype(np.uint8))
+
+
 def paint_segments(labels: npt.ArrayLike, boundaries: bool = True) -> U8:
     """A BGR picture of ``labels`` (``H x W`` int): one colour per label (a hash of the label,
-    so the same label has the same colour in every frame of a merge animation; never darker than
-    70 levels, so no segment passes for no data), negative labels (no data) in the "no data"
-    grey :data:`NO_DATA_BGR`, boundaries white unless ``boundaries=False``."""
+    so the same label has the same colour in every frame of a merge animation; saturated and
+    bright, hue, saturation 60-100 % and value 70-100 % drawn from the hash, so no segment is
+    grey and none passes for no data), negative labels (no data) in the "no data" grey
+    :data:`NO_DATA_BGR`, boundaries white unless ``boundaries=False``."""
     lab = _label_image("labels", labels)
     if not isinstance(boundaries, bool):
         raise InvalidArgumentError(f"boundaries: got {boundaries!r}, expected True or False")
-    h = (lab.astype(np.uint64) * np.uint64(2654435761)) & np.uint64(0xFFFFFFFF)
-    rgb = np.stack([(h >> np.uint64(s)) & np.uint64(255) for s in (0, 8, 16)], axis=-1)
-    img = (70 + rgb.astype(np.uint16) * 185 // 255).astype(np.uint8)
-    img[lab < 0] = NO_DATA_BGR
+    ids, where = np.unique(lab, return_inverse=True)  # one colour computed per label
+    h = (ids.astype(np.uint64) * np.uint64(2654435761)) & np.uint64(0xFFFFFFFF)
+    byte = [((h >> np.uint64(s)) & np.uint64(255)).astype(np.float64) / 255 for s in (0, 8, 16)]
+    colours = _hsv_bgr(byte[0], 0.6 + 0.4 * byte[1], 0.7 + 0.3 * byte[2])
+    colours[ids < 0] = NO_DATA_BGR
+    img = colours[where.reshape(lab.shape)]
     if boundaries:
         img[_boundaries(lab, 1)] = 255
     return np.ascontiguousarray(img)

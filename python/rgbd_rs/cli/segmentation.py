@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -152,6 +153,7 @@ def class_names(pdfs: np.ndarray | None) -> list[str]:
 def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.cli.fusion import depth_png_scale, load_map
     from rgbd_rs.data.calibration import load_camera
+    from rgbd_rs.errors import ShapeMismatchError
     from rgbd_rs.io import read_npy, read_png, write_png
     from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
     from rgbd_rs.segmentation.pipeline import segment
@@ -165,17 +167,26 @@ def run_segment(args: argparse.Namespace) -> int:
     )
 
     rgb = named("--rgb", lambda: read_png(args.rgb))
+    if rgb.ndim == 2 or (rgb.ndim == 3 and rgb.shape[2] < 3):
+        raise ShapeMismatchError(
+            f"--rgb: {args.rgb}: got a {'grey' if rgb.ndim == 2 else 'grey + alpha'} image, "
+            "expected a colour (RGB) image: the features and the ConvNet read colour"
+        )
     scale = depth_png_scale("--depth", args.depth, args.depth_scale)
     depth = load_map("--depth", args.depth, png_scale=scale, depth=True)
     camera = named("--calib", lambda: load_camera(args.calib))
     size = (camera.height, camera.width)
     for flag, path, arr in (("--rgb", args.rgb, rgb), ("--depth", args.depth, depth)):
         if arr.shape[:2] != size:
-            from rgbd_rs.errors import ShapeMismatchError
-
+            hint = ""
+            if flag == "--depth" and rgb.shape[:2] == size:
+                hint = (
+                    " (depth on its own sensor's lattice? register it to the colour camera "
+                    "first: rgbd reproject)"
+                )
             raise ShapeMismatchError(
                 f"{flag}: {path}: got {arr.shape[1]}x{arr.shape[0]} pixels, expected the --calib "
-                f"camera's {camera.width}x{camera.height}"
+                f"camera's {camera.width}x{camera.height}{hint}"
             )
     pdfs = None if args.pdfs is None else named("--pdfs", lambda: read_npy(args.pdfs))
     n = DEFAULT_N_SEGMENTS if args.segments is None else args.segments
@@ -290,6 +301,12 @@ def _naming_the_depth_scale(path: Path, depth: np.ndarray, scale: float) -> Call
         fix = _suggested_depth_scale(med, scale)
         if fix is None:
             return text
+        # The library's "divide by N" is for an array; for a PNG the flag is the fix.
+        text = re.sub(
+            r": depth looks like \w+; divide by [0-9.e+]+",
+            f" m (read with --depth-scale {scale:g})",
+            text,
+        )
         return text + f"; --depth-scale {fix:g} brings it to {med / scale * fix:.3g} m"
 
     return amend

@@ -82,7 +82,7 @@ LABEL13_COLORS: tuple[tuple[int, int, int], ...] = (
     (188, 189, 34),  # table
     (23, 190, 207),  # tv
     (199, 199, 199),  # wall
-    (158, 218, 229),  # window
+    (255, 240, 110),  # window (light yellow: the light blue it was read as ceiling)
 )
 
 

@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _validate
 from rgbd_rs.camera import PinholeCamera
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.holes import DEFAULT_FILL_RADIUS, SPARSE_SHARE, _isolated_share, fill_depth_holes
 from rgbd_rs.segmentation.features import Features, features
 from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
@@ -194,6 +194,13 @@ def segment(
 
     net = None if pdfs is not None else _resolve_labeler(labeler)  # loaded once per process
     depth = fill_depth_holes(depth, radius)  # NaN where still missing
+    colour = _validate.asarray("rgb", rgb)
+    if colour.ndim >= 2 and colour.shape[:2] != depth.shape:
+        raise ShapeMismatchError(
+            f"depth: got {depth.shape[1]}x{depth.shape[0]} pixels, expected the rgb image's "
+            f"{colour.shape[1]}x{colour.shape[0]}: register the depth to the colour camera first "
+            "(rgbd_rs.reproject_depth, or `rgbd reproject` for an Azure Kinect recording)"
+        )
     lonely = _isolated_share(depth)
     if lonely > SPARSE_SHARE:
         warnings.warn(
