@@ -574,6 +574,13 @@ def test_png_and_camera_errors_name_the_file(
     with pytest.raises(RgbdError, match=r"f\.png: corrupt .*'IDAT' fails its CRC check"):
         read_png(tmp_path / "f.png")
     assert "libpng" not in capfd.readouterr().err, "no libpng line before our error"
+    # A text chunk whose CRC fails is skipped, as libpng would (after a warning line).
+    iend = good.rindex(b"IEND") - 4
+    text = b"tEXtComment\0hello"
+    bad_text = len(text[4:]).to_bytes(4, "big") + text + b"\0\0\0\0"  # a wrong CRC
+    (tmp_path / "x.png").write_bytes(good[:iend] + bad_text + good[iend:])
+    np.testing.assert_array_equal(read_png(tmp_path / "x.png"), read_png(cut.with_name("tail.png")))
+    assert "libpng" not in capfd.readouterr().err
     cam = tmp_path / "c.json"
     cam.write_text('{"fx": -500, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480}')
     with pytest.raises(

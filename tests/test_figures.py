@@ -60,8 +60,10 @@ def test_segment_colours_are_never_grey_and_class_colours_apart() -> None:
     hsv = cv2.cvtColor(img[:, 1:], cv2.COLOR_BGR2HSV).reshape(-1, 3).astype(int)
     assert hsv[:, 1].min() >= 150 and hsv[:, 2].min() >= 175  # saturated and bright
     assert (np.abs(img[0, 1:].astype(int) - NO_DATA_BGR).max(axis=1) > 40).all()
-    # Same label, same colour (merge animations); neighbours' colours differ.
+    # Same label, same colour (merge animations); consecutive labels' colours differ.
     np.testing.assert_array_equal(paint_segments(labels[:, 10:20], False), img[:, 10:20])
+    steps = np.abs(np.diff(img[0, 1:].astype(int), axis=0)).max(axis=1)
+    assert (steps > 0).all() and np.median(steps) > 60
     colours = np.array(LABEL13_COLORS[1:], float)
     gaps = np.linalg.norm(colours[:, None] - colours[None], axis=-1)
     np.fill_diagonal(gaps, np.inf)
@@ -76,6 +78,12 @@ def test_a_long_title_wraps_instead_of_running_off_a_narrow_panel() -> None:
     assert long.shape[0] == one.shape[0] + 22  # one more line of title
     strip = long[: long.shape[0] - one.shape[0] + 28]
     assert (strip[:, -6:] == 255).all(), "no text in the right margin"
+    v = np.linspace(0, 1, 40 * 80, dtype=np.float32).reshape(40, 80)
+    one = map_panel(v, "error", unit="px", width=320)
+    long = map_panel(
+        v, "the fused map's error against the ground truth, 0-3 px", unit="px", width=320
+    )
+    assert long.shape[0] == one.shape[0] + 22 and (long[:50, -6:] == 255).all()
 
 
 def test_grid_pads_panels_with_white() -> None:

@@ -532,3 +532,9 @@ def test_a_few_scenes_of_a_split_in_its_order(
     assert capsys.readouterr().err.startswith("rgbd: error: --scenes: got 'Aloe', expected")
     assert main(["eval", "fusion", "--middlebury", "--scenes", "Aloe", "--out", str(tmp_path)]) == 2
     assert capsys.readouterr().err.startswith("rgbd: error: --scenes: got it without --real")
+    # Names are trimmed; a scene without right-view ground truth is named with --view right.
+    assert main([*args, "--scenes", "Midd1 , Books"]) == 0
+    capsys.readouterr()
+    assert main([*args, "--view", "right", "--scenes", "Tsukuba"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rgbd: error: --scenes: got 'Tsukuba' with view='right', expected"), err

@@ -38,6 +38,15 @@ def test_a_hole_takes_its_nearest_measured_depth_within_the_radius() -> None:
     np.testing.assert_array_equal(filled[f > 0], f[f > 0])
 
 
+def test_the_radius_is_euclidean() -> None:
+    one = np.full((41, 41), nan, np.float32)
+    one[20, 20] = 1.0
+    yy, xx = np.mgrid[:41, :41]
+    for r in (1, 3, 7, 8, 12.5):
+        disk = (yy - 20) ** 2 + (xx - 20) ** 2 <= r * r
+        np.testing.assert_array_equal(np.isfinite(fill_depth_holes(one, r)), disk)
+
+
 def test_edge_cases_and_bad_input() -> None:
     assert np.isnan(fill_depth_holes(np.zeros((3, 4)), None)).all()  # nothing measured
     full = np.ones((3, 4), np.float32)
@@ -97,6 +106,12 @@ def test_scattered_holes_leave_the_network_labels_as_they_were(
     assert (out.labels >= 0).all()  # the holes filled: every pixel segmented
     kept = segment(rgb, holed, NYUV2_CAMERA, labeler=None, fill_radius=0)
     assert ((kept.labels < 0) == (holed == 0)).all()  # radius 0: every hole stays one
+    big = holed.copy()
+    big[100:200, 100:300] = 0  # a hole far wider than the radius
+    near = segment(rgb, big, NYUV2_CAMERA, labeler=None)
+    assert (near.labels[140:160, 140:260] < 0).all()  # stays a hole, but for its rim
+    every = segment(rgb, big, NYUV2_CAMERA, labeler=None, fill_radius=None)
+    assert (every.labels >= 0).all()
 
 
 def test_the_cli_passes_the_radius_and_names_its_flag(

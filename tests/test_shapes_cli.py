@@ -426,6 +426,13 @@ def test_where_a_shape_lies_and_repeated_points_do_not_change_its_class(
 
     with pytest.warns(RuntimeWarning, match=r"utm\.off: its shape lies at"):
         assert np.abs(load_mesh(off).vertices).max() < 2
+    # A 10 cm triangle 20 m out (200 sizes) keeps its place: float32 holds it to 2e-5 of its
+    # size, and a general mesh reader must not move a scene's meshes.
+    near = tmp_path / "near.off"
+    near.write_text("OFF\n3 1 0\n20 0 0\n20.1 0 0\n20 0.1 0\n3 0 1 2\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_allclose(load_mesh(near).vertices[1], [20.1, 0, 0], rtol=1e-6)
     # A sparse cloud warns; a degenerate file is named by its path on the command line.
     with pytest.warns(RuntimeWarning, match=r"^shape: 100 points, where the network was trained"):
         clf(clouds[0][:100])

@@ -256,7 +256,7 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
         # Caught here: OpenCV would print its own warning line before returning nothing.
         raise RgbdError(f"{path}: corrupt or truncated image (no PNG end chunk)")
     if raw.startswith(PNG_SIGNATURE):
-        bad = _bad_png_chunk(raw)
+        bad, raw = _checked_png_chunks(raw)
         if bad:  # caught here: libpng would print its own error line before OpenCV fails
             raise RgbdError(f"{path}: corrupt or truncated image ({bad})")
     if raw.startswith(PNG_SIGNATURE) and len(raw) >= 24 and raw[12:16] == b"IHDR":
@@ -279,23 +279,30 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     return np.asarray(img)
 
 
-def _bad_png_chunk(raw: bytes) -> str:
+def _checked_png_chunks(raw: bytes) -> tuple[str, bytes]:
     """What is wrong with the chunk structure of a PNG's bytes (a chunk running past the end of
-    the file, or one whose CRC does not match its bytes), or ``""`` if nothing is."""
+    the file, or a critical chunk whose CRC does not match its bytes; ``""`` if nothing is) and
+    the bytes to decode: an *ancillary* chunk (text, time, ...) whose CRC fails is left out, as
+    libpng would skip it after printing a warning."""
     pos = len(PNG_SIGNATURE)
+    kept = [raw[:pos]]
     while pos + 12 <= len(raw):
         length = int.from_bytes(raw[pos : pos + 4], "big")
         kind = raw[pos + 4 : pos + 8]
         name = kind.decode("latin-1")
         end = pos + 8 + length
         if end + 4 > len(raw):
-            return f"chunk {name!r} runs past the end of the file"
-        if zlib.crc32(raw[pos + 4 : end]) != int.from_bytes(raw[end : end + 4], "big"):
-            return f"chunk {name!r} fails its CRC check"
+            return f"chunk {name!r} runs past the end of the file", raw
+        crc_ok = zlib.crc32(raw[pos + 4 : end]) == int.from_bytes(raw[end : end + 4], "big")
+        critical = kind[:1].isupper()
+        if not crc_ok and critical:
+            return f"chunk {name!r} fails its CRC check", raw
+        if crc_ok or critical:
+            kept.append(raw[pos : end + 4])
         if kind == b"IEND":
-            return ""
+            return "", b"".join(kept)
         pos = end + 4
-    return "no PNG end chunk"
+    return "no PNG end chunk", raw
 
 
 def write_json(path: str | Path, obj: Any) -> Path:

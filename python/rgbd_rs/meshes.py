@@ -344,43 +344,55 @@ def _read_ply(path: Path) -> Mesh:
 def _near_origin(path: Path, vertices: np.ndarray) -> F32:
     """A file's vertices as float32, moved to the origin first (with a warning) when float32
     could not hold the shape's detail where it lies (map coordinates)."""
-    return np.asarray(_far_from_origin(str(path), vertices), np.float32)
+    # Reached from load_mesh through its reader: the warning points at load_mesh's caller.
+    return np.asarray(_far_from_origin(str(path), vertices, stacklevel=4), np.float32)
 
 
-#: A shape whose bounding-box centre lies farther from the origin than this many times its
-#: largest side is moved to the origin in float64 before it becomes float32: float32 resolves
-#: 1e-7 of a coordinate, so far out (map coordinates) it blurs the shape. ModelNet's shapes, in
-#: the unit sphere, are never moved.
+#: Where a shape's results do not depend on its position (its class, views, voxels), a shape
+#: whose bounding-box centre lies farther from the origin than this many times its largest side
+#: is moved to the origin in float64 before it becomes float32 (float32 resolves 6e-8 of a
+#: coordinate; ModelNet's shapes, in the unit sphere, are never moved).
 FAR_FACTOR = 100.0
+#: A mesh or cloud *file* is moved (with a warning) only where float32 would blur it by over
+#: 1e-3 of its size: farther than this many times its size from the origin (map coordinates).
+#: Nearer, the reader keeps the file's coordinates.
+BLUR_FACTOR = 8e3
 
 
-def _far_centre(points: npt.NDArray[np.floating]) -> npt.NDArray[np.float64] | None:
+def _far_centre(
+    points: npt.NDArray[np.floating], factor: float = FAR_FACTOR
+) -> npt.NDArray[np.float64] | None:
     """The bounding-box centre of ``points`` (``N x 3``, finite) when it lies more than
-    :data:`FAR_FACTOR` times the box's largest side from the origin, else None."""
+    ``factor`` times the box's largest side from the origin, else None (and None for a box of
+    no size: a single point is not blurred, it is refused elsewhere)."""
     if len(points) == 0:
         return None
     p = np.asarray(points, np.float64)
     lo, hi = p.min(axis=0), p.max(axis=0)
     centre: npt.NDArray[np.float64] = (lo + hi) / 2
-    if np.abs(centre).max() > FAR_FACTOR * float((hi - lo).max()):
+    size = float((hi - lo).max())
+    if size > 0 and np.abs(centre).max() > factor * size:
         return centre
     return None
 
 
-def _far_from_origin(name: str, points: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
-    """``points`` as read from a file, moved to the origin (in their own precision) with a
-    warning when :func:`_far_centre` says float32, the type they are kept in, would blur them
-    where they are; otherwise unchanged."""
+def _far_from_origin(
+    name: str, points: npt.NDArray[np.floating], stacklevel: int = 2
+) -> npt.NDArray[np.floating]:
+    """``points`` as read from a file, moved to the origin (in float64) with a warning when they
+    lie over :data:`BLUR_FACTOR` times their size from it, where float32, the type they are kept
+    in, would blur them; otherwise unchanged. ``stacklevel``: the warning's, counted from the
+    caller of this function."""
     if points.ndim != 2 or points.shape[1:] != (3,) or not np.isfinite(points).all():
         return points  # the caller's checks name what is wrong
-    centre = _far_centre(points)
+    centre = _far_centre(points, BLUR_FACTOR)
     if centre is None:
         return points
     warnings.warn(
         f"{name}: its shape lies at {np.array2string(centre, precision=4)}, over "
-        f"{FAR_FACTOR:g} times its size from the origin, where float32 (the type shapes are "
+        f"{BLUR_FACTOR:g} times its size from the origin, where float32 (the type shapes are "
         "kept in) would blur it: moved to the origin",
         RuntimeWarning,
-        stacklevel=4,
+        stacklevel=stacklevel + 1,
     )
     return np.asarray(points, np.float64) - centre

@@ -125,9 +125,7 @@ def colorize_with_bar(
         img = np.pad(img, ((0, 0), (0, panel.shape[1] - w), (0, 0)), constant_values=255)
     parts = [img, panel]
     if title:
-        strip = np.full((text_h + 6, panel.shape[1], 3), 255, np.uint8)
-        cv2.putText(strip, title, (5, text_h - 2), font, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
-        parts.insert(0, strip)
+        parts.insert(0, _title_strip(title, panel.shape[1]))
     return np.ascontiguousarray(np.vstack(parts))
 
 

@@ -95,6 +95,12 @@ def scene_names(split: str | None = None, root: str | Path | None = None) -> lis
     return [r["scene"] for r in _manifest(folder) if split is None or r["split"] == split]
 
 
+def _right_view_scenes(root: str | Path | None = None) -> list[str]:
+    """The scenes with right-view ground truth (all but the 2001 sets' Tsukuba), in manifest
+    order."""
+    return [r["scene"] for r in _manifest(_folder(root)) if r["gt_right"]]
+
+
 def load_stereo_scene(name: str, root: str | Path | None = None) -> StereoScene:
     """One scene by name (e.g. ``"Cones"``); ``root`` defaults to ``<data>/stereo``."""
     folder = _folder(root)

@@ -32,7 +32,13 @@ import numpy as np
 
 from rgbd_rs import _validate
 from rgbd_rs.data import tof_variation
-from rgbd_rs.data.stereo_scenes import SPLITS, StereoScene, load_stereo_scene, scene_names
+from rgbd_rs.data.stereo_scenes import (
+    SPLITS,
+    StereoScene,
+    _right_view_scenes,
+    load_stereo_scene,
+    scene_names,
+)
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import with_reference
 from rgbd_rs.fusion.evaluate import PROTOCOL_TOF_SIZE, Sample, simulate_tof
@@ -166,6 +172,13 @@ def real_samples(
         epoch = _validate.integer("epoch", epoch, minimum=0)
     side = _validate.choice("view", view, ("left", "right"))
     names = _chosen_scenes(split, root, scenes)
+    if side == "right" and scenes is not None:
+        blind = [n for n in names if n not in _right_view_scenes(root)]
+        if blind:
+            raise InvalidArgumentError(
+                f"scenes: got {blind[0]!r} with view='right', expected scenes with right-view "
+                "ground truth"
+            )
 
     def cases() -> Iterator[Sample]:
         for name in names:

@@ -150,7 +150,7 @@ def segment(
     n_segments: int = DEFAULT_N_SEGMENTS,
     touching: bool = False,
     pooling: str = DEFAULT_POOLING,
-    fill_radius: float = DEFAULT_FILL_RADIUS,
+    fill_radius: float | None = DEFAULT_FILL_RADIUS,
     seed: int = 0,
     quiet: bool = True,
 ) -> Segmentation:
@@ -158,7 +158,8 @@ def segment(
     (NaN, 0 or negative = missing), ``camera`` the intrinsics of both (registered depth).
 
     Holes in the depth within ``fill_radius`` pixels of a measured pixel take its depth first
-    (scattered holes, sparse depth; 0 keeps every hole), and the ConvNet's HHA cue is computed
+    (scattered holes, sparse depth; 0 keeps every hole, None fills them all), and the ConvNet's
+    HHA cue is computed
     on the depth with every hole filled, as the network was trained
     (:mod:`rgbd_rs.holes`). Pixels still without depth are ``-1`` in the output.
 
@@ -182,7 +183,11 @@ def segment(
         )
     n = _validate.integer("n_segments", n_segments, minimum=2)
     pooling = _validate.choice("pooling", pooling, POOLINGS)
-    radius = _validate.real("fill_radius", fill_radius, nonnegative=True)
+    radius = (
+        None
+        if fill_radius is None
+        else _validate.real("fill_radius", fill_radius, nonnegative=True)
+    )
     seconds: dict[str, float] = {}
     t = time.perf_counter()
 
@@ -201,15 +206,6 @@ def segment(
             f"{colour.shape[1]}x{colour.shape[0]}: register the depth to the colour camera first "
             "(rgbd_rs.reproject_depth, or `rgbd reproject` for an Azure Kinect recording)"
         )
-    lonely = _isolated_share(depth)
-    if lonely > SPARSE_SHARE:
-        warnings.warn(
-            f"depth: {lonely:.0%} of its measured pixels have no measured neighbour after "
-            f"filling the holes within fill_radius={radius:g} px: each becomes a segment of "
-            "its own; densify the depth (`rgbd reproject --splat-radius`) or raise fill_radius",
-            RuntimeWarning,
-            stacklevel=2,
-        )
     # With the ConvNet, HHA is a cue, on the depth with every hole filled (as Gupta et al. and
     # the network's NYUv2 training frames) and the remaining holes left out of its 7x7 normals,
     # which are the features' normals too (computed once).
@@ -220,6 +216,15 @@ def segment(
     unit = _depth_unit_warning(f.points)
     if unit is not None:
         warnings.warn(unit, RuntimeWarning, stacklevel=2)
+    lonely = _isolated_share(depth)  # after the features' checks of the frame's size
+    if lonely > SPARSE_SHARE:
+        warnings.warn(
+            f"depth: {lonely:.0%} of its measured pixels have no measured neighbour after "
+            f"filling the holes within fill_radius={radius:g} px: each becomes a segment of "
+            "its own; densify the depth (`rgbd reproject --splat-radius`) or raise fill_radius",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     lap("features")
     over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
     lap("oversegment")

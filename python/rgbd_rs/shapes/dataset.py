@@ -143,7 +143,7 @@ def _points(
         if file:  # in the file's own dtype: a float64 beyond float32's range is not a hole
             raw = _validate.asarray(name, value)
             if raw.ndim == 2 and raw.shape[1] == 3 and raw.dtype.kind == "f":
-                value = far_from_origin(name, _finite_rows(name, raw))
+                value = far_from_origin(name, _finite_rows(name, raw), stacklevel=3)
         fix = (
             "" if file else "drop the non-finite points first (points[np.isfinite(points).all(1)])"
         )
@@ -214,7 +214,7 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
         raise RgbdError(f"{p}: {bad} of {len(v)} {what} have non-finite coordinates")
     if np.abs(v).max() > np.finfo(np.float32).max:
         raise RgbdError(f"{p}: vertex coordinates beyond float32 range")
-    v = far_from_origin(str(p), v)
+    v = far_from_origin(str(p), v, stacklevel=3)
     if len(f) == 0:
         return v.astype(np.float32)
     if f.ndim != 2 or f.shape[1] != 3 or f.min() < 0 or f.max() >= len(v):
