@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 import warnings
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -581,6 +582,26 @@ def test_png_and_camera_errors_name_the_file(
     (tmp_path / "x.png").write_bytes(good[:iend] + bad_text + good[iend:])
     np.testing.assert_array_equal(read_png(tmp_path / "x.png"), read_png(cut.with_name("tail.png")))
     assert "libpng" not in capfd.readouterr().err
+    # Valid CRCs, odd content: a junk colour profile reads silently (the pixels are fine); a
+    # header that disagrees with the pixel data is refused with libpng's reason, not printed.
+    import struct
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+        )
+
+    sig, ihdr, rest = good[:8], good[8:33], good[33:]
+    (tmp_path / "icc.png").write_bytes(
+        sig + ihdr + chunk(b"iCCP", b"icc\0\0" + zlib.compress(b"junk")) + rest
+    )
+    assert read_png(tmp_path / "icc.png").shape == (480, 640, 3)
+    small = chunk(b"IHDR", struct.pack(">IIBBBBB", 3, 2, 8, 2, 0, 0, 0))
+    (tmp_path / "hdr.png").write_bytes(sig + small + rest)
+    with pytest.raises(RgbdError, match=r"hdr\.png: corrupt or truncated image \(IDAT: Too much"):
+        read_png(tmp_path / "hdr.png")
+    err = capfd.readouterr().err
+    assert "libpng" not in err and "grfmt" not in err, err
     cam = tmp_path / "c.json"
     cam.write_text('{"fx": -500, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480}')
     with pytest.raises(

@@ -11,10 +11,12 @@ import io
 import json
 import os
 import stat
+import sys
 import tempfile
+import threading
 import zipfile
 import zlib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -268,15 +270,58 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
                 f"{path}: the PNG header says {width}x{height} pixels, expected sides "
                 f"1..{side} and at most {MAX_PNG_PIXELS} pixels"
             )
-    try:
-        img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
-    except cv2.error:
-        img = None
-    if img is None:
-        raise RgbdError(f"{path}: corrupt or truncated image")
+    with _decoder_messages() as said:
+        try:
+            img = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error:
+            img = None
+    why = _decoder_trouble(said())
+    if img is None or why:
+        raise RgbdError(f"{path}: corrupt or truncated image{f' ({why})' if why else ''}")
     if rgb and img.ndim == 3:
         img = np.ascontiguousarray(img[:, :, 2::-1])
     return np.asarray(img)
+
+
+#: What libpng or OpenCV print about an image whose pixels cannot be trusted (the others, such
+#: as an odd colour profile, are dropped: the pixels are fine).
+_CORRUPT_MARKS = ("error", "IDAT", "image data", "CRC", "decompress", "zlib")
+#: OpenCV's image-codec sources, which its own log lines name.
+_DECODER_SOURCES = ("grfmt", "loadsave", "imgcodecs")
+_stderr_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _decoder_messages() -> Iterator[Callable[[], str]]:
+    """Captures what the image decoder (libpng through OpenCV) prints on the process's stderr
+    while the block runs, instead of letting it reach the user's terminal; yields a function
+    returning the captured text. Holds a lock: one decode at a time captures."""
+    with _stderr_lock, tempfile.TemporaryFile() as sink:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        text = ""
+        try:
+            os.dup2(sink.fileno(), 2)
+            yield lambda: text
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            text = sink.read().decode(errors="replace")
+
+
+def _decoder_trouble(text: str) -> str:
+    """The first line of the decoder's ``text`` that says the pixels are corrupt, else ``""``.
+    Lines that are not the decoder's (another thread's, printed meanwhile) go on to stderr."""
+    trouble, others = "", []
+    for line in text.splitlines(keepends=True):
+        if not line.startswith("libpng") and not any(m in line for m in _DECODER_SOURCES):
+            others.append(line)
+        elif not trouble and any(mark in line for mark in _CORRUPT_MARKS):
+            trouble = line.strip().removeprefix("libpng error: ").removeprefix("libpng warning: ")
+    if others:
+        sys.stderr.write("".join(others))
+    return trouble
 
 
 def _checked_png_chunks(raw: bytes) -> tuple[str, bytes]:
