@@ -460,6 +460,20 @@ CASES: list[Case] = [
         "file as folder",
     ),
     Case("read_json", lambda: read_json(_file("bad.json", "{")), FILE, r"bad\.json: malformed"),
+    Case(
+        "write_json",
+        lambda: write_json(TMP / ("a" * 300 + ".json"), {}),
+        ARG,
+        r"^path: got a name of 305 bytes \('a{20}'\.\.\.\), expected names of at most 255 bytes",
+        "long name",
+    ),
+    Case(
+        "read_png",
+        lambda: read_png(TMP / "d" / ("b" * 256 + ".png")),
+        ARG,
+        r"^path: got a name of 260 bytes",
+        "long name",
+    ),
     Case("sha256", lambda: sha256(TMP / "nothing"), FILE, r"nothing: file not found"),
     # -- viz ------------------------------------------------------------------------------------
     Case(
@@ -607,3 +621,8 @@ def test_metric_limits_beyond_float32_give_the_limiting_answer_without_warnings(
         assert depth_edges(truth, 0.5).any()
         assert not edge_band(truth, 2, 1e300).any()
         assert edge_alignment(truth, image, 1e300) == 1.0
+        # Finite values beyond float32 are errors to count, not missing pixels.
+        assert bad_pixel_rate(np.array([[1e39, 1.0]]), np.array([[0.0, 1.0]]), 1) == 0.5
+    # Holes stored as 0, negative or infinite make no edge, as NaN does.
+    for hole in (0.0, -1.0, np.inf, np.nan):
+        assert not depth_edges(np.array([[1.0, hole, 1.0]], np.float32)).any(), hole

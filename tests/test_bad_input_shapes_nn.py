@@ -65,6 +65,7 @@ TMP = Path(_TMP.name)
 (TMP / "nan.off").write_text("OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n")
 (TMP / "junk.ply").write_bytes(b"ply\nformat nonsense\n")
 (TMP / "cut.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0")  # cut inside a vertex line
+(TMP / "cutf.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2")  # a face
 (TMP / "junk.pcd").write_text("# .PCD\nFIELDS x y\n")
 _PCD = "FIELDS {f}\nSIZE 4 4 4\nTYPE F F F\nCOUNT {c}\nWIDTH 1\nPOINTS 1\nDATA ascii\n0 0 0\n"
 (TMP / "no_x.pcd").write_text(_PCD.format(f="a y z", c="1 1 1"))
@@ -322,8 +323,15 @@ ALL_CASES: list[Case] = [
         "load_shape",
         lambda: load_shape(TMP / "cut.obj"),
         RgbdError,
-        r"cut\.obj: its vertices have shape \(\d+, 2\), expected three coordinates each",
+        r"cut\.obj: the file ends inside the line 'v 0 0' \(truncated file\?\)",
         "truncated obj",
+    ),
+    Case(
+        "load_shape",
+        lambda: load_shape(TMP / "cutf.obj"),
+        RgbdError,
+        r"cutf\.obj: the file ends inside the line 'f 1 2' \(truncated file\?\)",
+        "truncated obj face",
     ),
     Case(
         "load_shape",

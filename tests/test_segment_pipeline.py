@@ -134,6 +134,11 @@ def test_cli_a_frame_too_small_for_the_labeler_names_the_inputs(
     assert main(grey) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"rgbd: error: --rgb: {tmp_path / 'grey.png'}: got a grey image"), err
+    cv2.imwrite(str(tmp_path / "deep.png"), np.full((48, 64, 3), 900, np.uint16))
+    grey[2] = str(tmp_path / "deep.png")
+    assert main(grey) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --rgb: {tmp_path / 'deep.png'}: got a 16-bit image"), err
     np.save(tmp_path / "small.npy", np.full((24, 32), 2.0, np.float32))
     small = [*argv]
     small[4] = str(tmp_path / "small.npy")

@@ -433,9 +433,17 @@ def test_where_a_shape_lies_and_repeated_points_do_not_change_its_class(
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         np.testing.assert_allclose(load_mesh(near).vertices[1], [20.1, 0, 0], rtol=1e-6)
-    # A sparse cloud warns; a degenerate file is named by its path on the command line.
+    # A sparse cloud warns, repeated points or not; a degenerate file is named by its path.
     with pytest.warns(RuntimeWarning, match=r"^shape: 100 points, where the network was trained"):
         clf(clouds[0][:100])
+    with pytest.warns(RuntimeWarning, match=r"^shape: 100 points, where the network was trained"):
+        clf(np.repeat(clouds[0][:100], 10, axis=0))
+    # A mesh built in code far out is blurred by float32 at construction: said there.
+    from rgbd_rs.meshes import Mesh, box
+
+    cube = box((1.0, 2.0, 0.5))
+    with pytest.warns(RuntimeWarning, match=r"^vertices: a shape at .* subtract its centre first"):
+        Mesh(cube.vertices.astype(np.float64) + 1e8, cube.triangles)
     np.save(tmp_path / "one.npy", np.zeros((1, 3)))
     assert main(["classify", str(tmp_path / "one.npy"), "--dataset", "modelnet10"]) == 2
     err = capsys.readouterr().err

@@ -226,8 +226,19 @@ def path(name: str, value: object) -> Path:
                 f"{name}: got {text!r}, which holds a NUL character; expected a file path"
             )
         if isinstance(text, str) and text:
+            long = [p for p in Path(text).parts if len(os.fsencode(p)) > NAME_MAX]
+            if long:
+                raise InvalidArgumentError(
+                    f"{name}: got a name of {len(os.fsencode(long[0]))} bytes "
+                    f"({long[0][:20]!r}...), expected names of at most {NAME_MAX} bytes (the "
+                    "file systems' limit)"
+                )
             return Path(text)
     raise InvalidArgumentError(f"{name}: got {_short(value)}, expected a file or folder path")
+
+
+#: The longest file or folder name (bytes) the common file systems hold (ext4, NTFS, APFS).
+NAME_MAX = 255
 
 
 def out_folder(name: str, value: object) -> Path:

@@ -249,7 +249,9 @@ PNG_END = b"IEND\xaeB`\x82"
 
 
 def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
-    """Read a PNG unchanged (8/16 bit; 3 channels returned as RGB); bad files raise RgbdError."""
+    """Read a PNG (8/16 bit, grey as H x W): with ``rgb``, colour comes back as RGB, a 4-channel
+    file without its alpha; with ``rgb=False`` as OpenCV reads it (BGR, BGRA). Bad files raise
+    RgbdError."""
     path = _path(path)
     if not isinstance(rgb, (bool, np.bool_)):
         raise InvalidArgumentError(f"rgb: got {rgb!r}, expected True or False")

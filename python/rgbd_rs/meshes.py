@@ -54,7 +54,18 @@ class Mesh:
     triangles: U32
 
     def __post_init__(self) -> None:
-        v = _validate.array("vertices", self.vertices, shape=(None, 3), finite=True)
+        given = self.vertices
+        v = _validate.array("vertices", given, shape=(None, 3), finite=True)
+        if isinstance(given, np.ndarray) and given.dtype == np.float64:
+            centre = _far_centre(given, BLUR_FACTOR)
+            if centre is not None:
+                warnings.warn(
+                    f"vertices: a shape at {np.array2string(centre, precision=4)}, over "
+                    f"{BLUR_FACTOR:g} times its size from the origin, where float32 (the mesh's "
+                    "vertex type) blurs it; subtract its centre first",
+                    RuntimeWarning,
+                    stacklevel=3,
+                )
         t = _validate.asarray("triangles", self.triangles)
         if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
             raise InvalidArgumentError(

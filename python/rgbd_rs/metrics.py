@@ -80,8 +80,9 @@ def bad_pixel_rate(
     """Fraction of the compared pixels (both finite, and ``mask``) whose absolute error exceeds
     ``threshold`` (the ">1 px" / ">2 px" bad-pixel rates of stereo benchmarks)."""
     t = _validate.real("threshold", threshold, nonnegative=True)
-    e = _validate.array("estimate", estimate, shape=(None, None))
-    g = _validate.array("truth", truth, shape=e.shape)
+    # float64: a finite value beyond float32's range is an error to count, not a missing pixel.
+    e = _validate.array("estimate", estimate, shape=(None, None), dtype=np.float64)
+    g = _validate.array("truth", truth, shape=e.shape, dtype=np.float64)
     keep = np.isfinite(e) & np.isfinite(g)
     if mask is not None:
         m = _validate.asarray("mask", mask)
@@ -94,9 +95,8 @@ def bad_pixel_rate(
         raise InvalidArgumentError(
             "mask: got no pixel where estimate and truth are both finite, expected at least one"
         )
-    # In float64: a float32 difference of two huge values, or a threshold beyond float32's
-    # range, would overflow (with a numpy warning) instead of comparing.
-    return float(np.mean(np.abs(e[keep].astype(np.float64) - g[keep]) > t))
+    with np.errstate(over="ignore"):  # two values near float64's limit: an infinite error
+        return float(np.mean(np.abs(e[keep] - g[keep]) > t))
 
 
 def edge_band(
@@ -118,8 +118,11 @@ def depth_edges(
     depth: npt.ArrayLike, rel_step: float = DEPTH_EDGE_REL_STEP
 ) -> npt.NDArray[np.bool_]:
     """Pixels whose right or lower neighbour differs in depth by more than ``rel_step`` (relative),
-    marked on the nearer side (the occluding contour). Needs both samples valid."""
+    marked on the nearer side (the occluding contour). Needs both samples valid: NaN, infinite,
+    0 and negative values are holes (no edge at a hole's border)."""
     d = _validate.array("depth", depth, shape=(None, None))
+    with np.errstate(invalid="ignore"):
+        d = np.where(np.isfinite(d) & (d > 0), d, np.float32(np.nan)).astype(np.float32)
     rel_step = _validate.real("rel_step", rel_step, positive=True)
     edges = np.zeros(d.shape, bool)
     # A step beyond float32's range marks nothing (no numpy overflow warning on the way).

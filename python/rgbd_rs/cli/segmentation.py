@@ -153,7 +153,7 @@ def class_names(pdfs: np.ndarray | None) -> list[str]:
 def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.cli.fusion import depth_png_scale, load_map
     from rgbd_rs.data.calibration import load_camera
-    from rgbd_rs.errors import ShapeMismatchError
+    from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
     from rgbd_rs.io import read_npy, read_png, write_png
     from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS
     from rgbd_rs.segmentation.pipeline import segment
@@ -171,6 +171,10 @@ def run_segment(args: argparse.Namespace) -> int:
         raise ShapeMismatchError(
             f"--rgb: {args.rgb}: got a {'grey' if rgb.ndim == 2 else 'grey + alpha'} image, "
             "expected a colour (RGB) image: the features and the ConvNet read colour"
+        )
+    if rgb.dtype != np.uint8:
+        raise InvalidArgumentError(
+            f"--rgb: {args.rgb}: got a {8 * rgb.itemsize}-bit image, expected an 8-bit colour image"
         )
     scale = depth_png_scale("--depth", args.depth, args.depth_scale)
     depth = load_map("--depth", args.depth, png_scale=scale, depth=True)

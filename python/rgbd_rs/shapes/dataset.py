@@ -180,8 +180,22 @@ def _read_array(p: Path, suffix: str) -> np.ndarray:
     raise RgbdError(f"{p}: npz holds {sorted(arrays)}, expected a 'points' array (N x 3)")
 
 
+def _obj_cut(p: Path) -> str:
+    """The last line of an OBJ file when it is a vertex or face line with under three numbers
+    (a file cut inside that line, which the parser drops without a word), else ``""``."""
+    with open(p, "rb") as fh:
+        fh.seek(max(0, fh.seek(0, 2) - 4096))
+        tail = fh.read().decode(errors="replace").rstrip("\n\r\t ").splitlines()
+    last = tail[-1].split() if tail else []
+    return " ".join(last) if last[:1] in (["v"], ["f"]) and len(last) < 4 else ""
+
+
 def _trimesh_file(p: Path, suffix: str) -> Shape:
     import trimesh
+
+    cut = _obj_cut(p) if suffix == ".obj" else ""
+    if cut:
+        raise RgbdError(f"{p}: the file ends inside the line {cut!r} (truncated file?)")
 
     loaded: Any
     try:
