@@ -538,3 +538,25 @@ def test_a_few_scenes_of_a_split_in_its_order(
     assert main([*args, "--view", "right", "--scenes", "Tsukuba"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("rgbd: error: --scenes: got 'Tsukuba' with view='right', expected"), err
+
+
+def test_a_misregistered_or_wrong_tof_input_warns(shared_data: Path) -> None:
+    """The amplitude given as the depth (inside the rig's depth range, so the unit check lets it
+    through) and a pose translation 1000x too long (millimetres) are named, not fused silently;
+    correct inputs stay quiet."""
+    import warnings
+
+    from rgbd_rs.camera import Pose
+
+    s = real_sample("Books", 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig)
+    with pytest.warns(RuntimeWarning, match=r"^tof_depth/rig: the ToF and the stereo map agree"):
+        fuse(s.left, s.right, s.tof_amplitude, s.tof_amplitude, s.rig)
+    p = s.rig.tof_to_reference
+    mm = dataclasses.replace(s.rig, tof_to_reference=Pose(p.rotation, p.translation * 1000))
+    with pytest.warns(
+        RuntimeWarning, match=r"no valid ToF pixel .*\(check the ToF's pose in the rig"
+    ):
+        fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, mm)

@@ -18,6 +18,7 @@ from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import (
     F32,
     U8,
+    disagreement_warning,
     far_camera_warning,
     map2d,
     negative_depth_error,
@@ -354,9 +355,15 @@ def fuse(
         st_map = match(lft, rgt, reference=r.reference, max_disparity=dmax)
     no_tof = not np.isfinite(tof.disparity).any()
     if no_tof:
+        pose = ""
+        with np.errstate(invalid="ignore"):
+            measured = bool((np.isfinite(depth_map) & (depth_map > 0)).any())
+        if measured:  # depths that land nowhere: the pose may be off (a translation in mm)
+            shift = float(np.linalg.norm(r.tof_to_reference.translation))
+            pose = f" (check the ToF's pose in the rig: it sits {shift:.3g} m from the camera)"
         warnings.warn(
             "tof_depth: no valid ToF pixel reaches the reference camera; returning the "
-            "stereo-only LC result",
+            f"stereo-only LC result{pose}",
             RuntimeWarning,
             stacklevel=2,
         )
@@ -369,6 +376,9 @@ def fuse(
     if swapped is not None:
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
+    apart = None if swapped is not None else disagreement_warning(tof_disp, st_map)
+    if apart is not None:
+        warnings.warn(apart, RuntimeWarning, stacklevel=2)
     if not np.isfinite(st_map).any() and no_tof:
         raise InvalidArgumentError(
             "left/right: stereo matching found no valid disparity and the ToF has none either; "
