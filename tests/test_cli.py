@@ -678,3 +678,37 @@ def test_flagged_words_the_error_and_can_let_warnings_through_as_they_come() -> 
             with pytest.raises(InvalidArgumentError, match=r"^--exclude-names: got 'x'"):
                 flagged({"exclude": "--exclude-names"}, call, warnings_too=too)
         assert [str(w.message) for w in caught] == [shown] and when
+
+
+def test_fuse_preview_shows_the_source_and_a_saturated_depth_png_is_named(
+    fuse_inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The preview carries the source map the guide tells users to mask; a rig in millimetres
+    (every length x1000) fuses the same disparities, whose depths overflow depth_mm.png: said."""
+    import dataclasses
+
+    import cv2
+
+    from rgbd_rs.camera import Pose, StereoRig
+    from rgbd_rs.data import load_rig, save_rig
+
+    assert main(_fuse_argv(fuse_inputs, out=tmp_path / "m")) == 0
+    preview = cv2.imread(str(tmp_path / "m" / "preview.png"))
+    assert preview.shape[0] > 900, "three rows of panels: the source map is the seventh"
+    capsys.readouterr()
+    rig = load_rig(fuse_inputs["--calib"])
+    p = rig.tof_to_reference
+    mm = dataclasses.replace(
+        rig,
+        stereo=StereoRig(rig.stereo.left, rig.stereo.right, rig.stereo.baseline * 1000),
+        tof_to_reference=Pose(p.rotation, p.translation * 1000),
+    )
+    save_rig(tmp_path / "mm.json", mm)
+    np.save(tmp_path / "depth_mm.npy", np.full((424, 512), 1000.0, np.float32))
+    argv = _fuse_argv(fuse_inputs, calib=tmp_path / "mm.json", tof_depth=tmp_path / "depth_mm.npy")
+    assert main([*argv[:-2], "--out", str(tmp_path / "mm")]) == 0
+    err = capsys.readouterr().err
+    assert "rgbd: warning: depth_mm.png: 100% of the pixels lie beyond 65.535 m" in err, err
+    a = np.load(tmp_path / "m" / "fused.npz")["disparity"]
+    b = np.load(tmp_path / "mm" / "fused.npz")["disparity"]
+    np.testing.assert_allclose(a, b, atol=0.01)

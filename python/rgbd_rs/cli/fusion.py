@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import textwrap
 import time
 from itertools import islice
@@ -18,6 +19,19 @@ from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 #: Width of each panel of `rgbd fuse`'s preview.png (pixels).
 PREVIEW_WIDTH = 400
+#: Names and colours (RGB) of the values of ``FusionResult.source`` (0-5) in the preview.
+SOURCE_NAMES = (
+    "none",
+    "LC",
+    "ToF (LC empty)",
+    "stereo (LC empty)",
+    "ToF carried to the border",
+    "LC, neither measured",
+)
+SOURCE_COLOURS = ((0, 0, 0), (44, 160, 44), (31, 119, 180), (255, 127, 14), (148, 103, 189),
+                  (214, 39, 40))  # fmt: skip
+#: The largest depth depth_mm.png holds (65535 mm).
+DEPTH_PNG_MAX_M = 65.535
 
 #: fuse()'s parameters -> the flags that gave them (errors name the flag).
 FUSE_FLAGS = {
@@ -309,7 +323,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     from rgbd_rs.data.calibration import load_rig
     from rgbd_rs.fusion import LcParams, fuse
     from rgbd_rs.io import read_png, write_npz, write_png
-    from rgbd_rs.viz import as_bgr, grid, image_panel, map_panel, save_png
+    from rgbd_rs.viz import as_bgr, class_picture, grid, image_panel, map_panel, save_png
 
     if (args.tof_confidence is None) != (args.stereo_confidence is None):
         raise InvalidArgumentError(
@@ -407,7 +421,21 @@ def run_fuse(args: argparse.Namespace) -> int:
                   width=PREVIEW_WIDTH),
         map_panel(out.depth, "fused: depth", unit="m", width=PREVIEW_WIDTH),
     ]  # fmt: skip
+    if out.source is not None:  # where each fused pixel comes from (mask 5 for no guesses)
+        panels.append(
+            class_picture(out.source.astype(np.int64), SOURCE_NAMES, SOURCE_COLOURS,
+                          "fused: source of each pixel (fused.npz 'source')",
+                          width=PREVIEW_WIDTH)
+        )  # fmt: skip
     save_png(args.out / "preview.png", grid(panels, columns=3))
+    saturated = np.isfinite(out.depth) & (out.depth > DEPTH_PNG_MAX_M)
+    if saturated.mean() > 0.01:
+        print(
+            f"rgbd: warning: depth_mm.png: {saturated.mean():.0%} of the pixels lie beyond "
+            f"{DEPTH_PNG_MAX_M:g} m, the most a 16-bit millimetre PNG holds, and read 65535 "
+            "there: check the rig's units (metres); fused.npz holds them exactly",
+            file=sys.stderr,
+        )
     how = "--max-disparity" if args.max_disparity is not None else "from the ToF disparities"
     print(f"SGM search range: 0-{out.max_disparity} px ({how})")
 
