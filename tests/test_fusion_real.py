@@ -414,11 +414,13 @@ def test_the_strip_before_the_first_tof_pixel_takes_its_value(sign: int) -> None
     # A 12-px row per case, the border the other camera cannot see on the left for a left
     # reference (target x - d), on the right for a right one. Row 0: the first ToF pixel is
     # 4 px in at d = 6, so all 4 px before it are unseen at that disparity and take it. Row 1:
-    # d = 2 at 4 px in: only the 2 px nearest the border are unseen at d = 2. Row 2: unseen but
-    # unconfirmed (confidence 0). Row 3: no ToF at all.
+    # d = 2 at 4 px in: only the 2 px nearest the border are unseen at d = 2. Row 2: its first
+    # ToF pixel unconfirmed (confidence 0): the strip before it takes the first confirmed
+    # pixel's value (d = 5, one further in), not the unconfirmed one's. Row 3: no ToF at all.
     w, nan = 12, np.nan
     tof = np.full((4, w), nan, np.float32)
     tof[0, 4:], tof[1, 4:], tof[2, 4:] = 6.0, 2.0, 6.0
+    tof[2, 5:] = 5.0
     conf = np.full((4, w), 0.7, np.float32)
     conf[2, 4] = 0.0
     if sign > 0:
@@ -428,8 +430,8 @@ def test_the_strip_before_the_first_tof_pixel_takes_its_value(sign: int) -> None
     source = np.full((4, w), FUSE.SOURCE_LC, np.uint8)
     FUSE._carry_tof_to_border(disp, plaus, source, tof, conf, sign)
     strip = np.zeros((4, w), bool)
-    strip[0, :4] = strip[1, :2] = True
-    value = np.where(np.arange(4)[:, None] == 1, 2.0, 6.0)
+    strip[0, :4] = strip[1, :2] = strip[2, :4] = True
+    value = np.array([6.0, 2.0, 5.0, 6.0])[:, None]
     if sign > 0:
         strip = strip[:, ::-1]
     np.testing.assert_array_equal(disp, np.where(strip, value, 9.0).astype(np.float32))
@@ -437,8 +439,9 @@ def test_the_strip_before_the_first_tof_pixel_takes_its_value(sign: int) -> None
     np.testing.assert_array_equal(
         source, np.where(strip, FUSE.SOURCE_TOF_CARRIED, FUSE.SOURCE_LC).astype(np.uint8)
     )
-    FUSE._carry_tof_to_border(disp, plaus, source, tof, None, sign)  # uniform weights: row 2 too
-    assert (source == FUSE.SOURCE_TOF_CARRIED).sum() == 10 and (plaus[2][source[2] == 4] == 1).all()
+    FUSE._carry_tof_to_border(disp, plaus, source, tof, None, sign)  # uniform weights: row 2's
+    assert (source == FUSE.SOURCE_TOF_CARRIED).sum() == 10  # first pixel itself is carried
+    assert (plaus[2][source[2] == 4] == 1).all() and (disp[2][source[2] == 4] == 6).all()
 
 
 def test_the_border_the_other_camera_cannot_see_is_not_left_to_lc(shared_data: Path) -> None:
