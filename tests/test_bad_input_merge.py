@@ -116,6 +116,15 @@ CASES: list[Case] = [
     Case("segment", lambda: segment(RGB, DEPTH * np.nan, CAM), ARG, r"^depth", "no-depth"),
     Case("segment", lambda: segment(RGB, DEPTH, CAM, n_segments=10**6), ARG, r"n_segments", "k>n"),
     Case("segment", lambda: segment(RGB, DEPTH, CAM, fill_radius=-2), ARG, r"^fill_radius: got -2"),
+    Case(
+        "segment",
+        lambda: segment(
+            RGB, np.where(np.arange(768).reshape(24, 32) < 100, DEPTH, 0), CAM, fill_radius=0
+        ),
+        ARG,
+        r"^depth: got 100 pixels with usable depth .* expected at least n_segments=230",
+        "too few",
+    ),
     Case("fill_depth_holes", lambda: fill_depth_holes(DEPTH[0]), SHAPE, r"^depth: got shape"),
     Case("fill_depth_holes", lambda: fill_depth_holes(DEPTH, "2"), ARG, r"^radius: got '2'", "str"),
     Case(

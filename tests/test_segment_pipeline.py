@@ -134,6 +134,23 @@ def test_cli_a_frame_too_small_for_the_labeler_names_the_inputs(
     assert main(grey) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"rgbd: error: --rgb: {tmp_path / 'grey.png'}: got a grey image"), err
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+        )
+
+    rows = b"".join(b"\0" + bytes([90, 255]) * 64 for _ in range(48))  # grey 90, opaque
+    la = chunk(b"IHDR", struct.pack(">IIBBBBB", 64, 48, 8, 4, 0, 0, 0))  # colour type 4
+    (tmp_path / "la.png").write_bytes(
+        b"\x89PNG\r\n\x1a\n" + la + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b"")
+    )
+    grey[2] = str(tmp_path / "la.png")
+    assert main(grey) == 2  # OpenCV reads it as colour; its header says grey + alpha
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --rgb: {tmp_path / 'la.png'}: got a grey image"), err
     cv2.imwrite(str(tmp_path / "deep.png"), np.full((48, 64, 3), 900, np.uint16))
     grey[2] = str(tmp_path / "deep.png")
     assert main(grey) == 2

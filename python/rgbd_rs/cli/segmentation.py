@@ -167,10 +167,11 @@ def run_segment(args: argparse.Namespace) -> int:
     )
 
     rgb = named("--rgb", lambda: read_png(args.rgb))
-    if rgb.ndim == 2 or (rgb.ndim == 3 and rgb.shape[2] < 3):
+    grey = rgb.ndim == 2 or rgb.shape[2] < 3 or _png_colour_type(args.rgb) in (0, 4)
+    if grey:  # OpenCV reads a grey + alpha PNG as colour: its header says what it is
         raise ShapeMismatchError(
-            f"--rgb: {args.rgb}: got a {'grey' if rgb.ndim == 2 else 'grey + alpha'} image, "
-            "expected a colour (RGB) image: the features and the ConvNet read colour"
+            f"--rgb: {args.rgb}: got a grey image, expected a colour (RGB) image: the features "
+            "and the ConvNet read colour"
         )
     if rgb.dtype != np.uint8:
         raise InvalidArgumentError(
@@ -289,6 +290,14 @@ def run_segment(args: argparse.Namespace) -> int:
         )
         print(f"wrote in {out}/: {written}")
     return 0
+
+
+def _png_colour_type(path: Path) -> int | None:
+    """The colour type a PNG's header declares (0 grey, 2 RGB, 3 palette, 4 grey + alpha,
+    6 RGBA), None for another file."""
+    with open(path, "rb") as fh:
+        head = fh.read(26)
+    return head[25] if len(head) == 26 and head[12:16] == b"IHDR" else None
 
 
 def _naming_the_depth_scale(path: Path, depth: np.ndarray, scale: float) -> Callable[[str], str]:

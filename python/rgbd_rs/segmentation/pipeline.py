@@ -226,6 +226,13 @@ def segment(
             stacklevel=2,
         )
     lap("features")
+    usable = int(np.count_nonzero(~np.isnan(f.vectors).any(axis=2)))
+    if usable < n:  # said of the depth: the caller may never have set n_segments
+        raise InvalidArgumentError(
+            f"depth: got {usable} pixels with usable depth (after filling the holes within "
+            f"fill_radius), expected at least n_segments={n} (the over-segmentation's clusters):"
+            " give denser depth, or fewer n_segments"
+        )
     over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
     lap("oversegment")
     # The ConvNet's cues need the surface fits; the merging alone needs only the seam test.
