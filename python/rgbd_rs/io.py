@@ -242,10 +242,8 @@ MAX_PNG_PIXELS = 2**30
 #: An ``.npy`` file's first 6 bytes.
 NPY_MAGIC = b"\x93NUMPY"
 
-#: A PNG file's first 8 bytes, and its IEND chunk (type + CRC), its last 8 (a truncated file
-#: lacks it).
+#: A PNG file's first 8 bytes.
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-PNG_END = b"IEND\xaeB`\x82"
 
 
 def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
@@ -256,11 +254,8 @@ def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
     if not isinstance(rgb, (bool, np.bool_)):
         raise InvalidArgumentError(f"rgb: got {rgb!r}, expected True or False")
     raw = _read_bytes(path)
-    if raw.startswith(PNG_SIGNATURE) and PNG_END not in raw:
-        # Caught here: OpenCV would print its own warning line before returning nothing.
-        raise RgbdError(f"{path}: corrupt or truncated image (no PNG end chunk)")
     if raw.startswith(PNG_SIGNATURE):
-        bad, raw = _checked_png_chunks(raw)
+        bad, raw = _checked_png_chunks(raw)  # a truncated file included (no end chunk)
         if bad:  # caught here: libpng would print its own error line before OpenCV fails
             raise RgbdError(f"{path}: corrupt or truncated image ({bad})")
     if raw.startswith(PNG_SIGNATURE) and len(raw) >= 24 and raw[12:16] == b"IHDR":

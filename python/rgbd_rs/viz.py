@@ -138,13 +138,10 @@ def _title_strip(title: str, width: int) -> U8:
     """``title`` on white, word-wrapped to ``width`` pixels (22 px a line after the first)."""
     lines: list[str] = []
     for word in title.split(" "):
-        wider = f"{lines[-1]} {word}" if lines else word
-        if lines and cv2.getTextSize(wider, _FONT, 0.55, 1)[0][0] > width - 10:
-            lines.append(word)
-        elif lines:
-            lines[-1] = wider
+        if lines and cv2.getTextSize(f"{lines[-1]} {word}", _FONT, 0.55, 1)[0][0] <= width - 10:
+            lines[-1] = f"{lines[-1]} {word}"
         else:
-            lines = [word]
+            lines.append(word)
     strip = np.full((28 + 22 * (len(lines) - 1), width, 3), 255, np.uint8)
     for k, line in enumerate(lines):
         cv2.putText(strip, line, (5, 20 + 22 * k), _FONT, 0.55, (0, 0, 0), 1, cv2.LINE_AA)

@@ -506,8 +506,8 @@ def run_eval(args: argparse.Namespace) -> int:
         from rgbd_rs.fusion.evaluate_real import evaluate_real, markdown
         from rgbd_rs.fusion.real_scenes import dense_protocol_samples, real_samples
 
-        scenes = None if args.scenes is None else [n.strip() for n in args.scenes.split(",")]
-        scenes = None if scenes is None else [n for n in scenes if n]
+        given = [] if args.scenes is None else args.scenes.split(",")
+        scenes = None if args.scenes is None else [n.strip() for n in given if n.strip()]
         if args.dense:
             title = f"real {args.real} split, dense 512x424 ToF"
             real_cases = named("--scenes", lambda: dense_protocol_samples(args.real, scenes=scenes))

@@ -172,19 +172,19 @@ def real_samples(
         epoch = _validate.integer("epoch", epoch, minimum=0)
     side = _validate.choice("view", view, ("left", "right"))
     names = _chosen_scenes(split, root, scenes)
-    if side == "right" and scenes is not None:
-        blind = [n for n in names if n not in _right_view_scenes(root)]
-        if blind:
+    if side == "right":  # the manifest says which scenes have right-view ground truth
+        seen = set(_right_view_scenes(root))
+        blind = [n for n in names if n not in seen]
+        if blind and scenes is not None:
             raise InvalidArgumentError(
                 f"scenes: got {blind[0]!r} with view='right', expected scenes with right-view "
                 "ground truth"
             )
+        names = [n for n in names if n in seen]
 
     def cases() -> Iterator[Sample]:
         for name in names:
             scene = load_stereo_scene(name, root)
-            if side == "right" and scene.disparity_right is None:
-                continue
             for k in range(laws):
                 yield real_sample(scene, k, epoch=epoch, view=side)
             for k in range(dense_laws):
