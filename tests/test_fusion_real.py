@@ -543,6 +543,34 @@ def test_a_few_scenes_of_a_split_in_its_order(
     assert err.startswith("rgbd: error: --scenes: got 'Tsukuba' with view='right', expected"), err
 
 
+def test_a_pose_given_the_wrong_way_round_is_named(shared_data: Path) -> None:
+    """A ToF pose given inverted, or measured from the other camera, agrees with the stereo map
+    on most pixels (the generic disagreement check cannot see it) but less than the pose meant:
+    fuse() names the reading that fits, and the generic warning does not repeat it."""
+    import warnings
+
+    from rgbd_rs.fusion._pose_check import pose_warning
+
+    s = real_sample("Books", 0)
+    r = s.rig
+    inverted = dataclasses.replace(r, tof_to_reference=r.tof_to_reference.inverse())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, inverted)
+    texts = [str(w.message) for w in caught]
+    assert sum("if that pose were inverted (the reference camera's" in t for t in texts) == 1
+    assert not any(t.startswith("tof_depth/rig:") for t in texts), texts
+    # The pose as meant: quiet (the stereo map is the same).
+    assert pose_warning(s.tof_depth, r, out.stereo_disparity) is None
+    other = "right" if r.reference == "left" else "left"
+    with pytest.warns(RuntimeWarning, match=rf"were measured from the {r.reference} camera"):
+        fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, dataclasses.replace(r, reference=other))
+    # Too few ToF pixels to judge: no verdict.
+    sparse = np.full_like(s.tof_depth, np.nan)
+    sparse[0, :50] = 1.0
+    assert pose_warning(sparse, inverted, out.stereo_disparity) is None
+
+
 def test_a_misregistered_or_wrong_tof_input_warns(shared_data: Path) -> None:
     """The amplitude given as the depth (inside the rig's depth range, so the unit check lets it
     through) and a pose translation 1000x too long (millimetres) are named, not fused silently;

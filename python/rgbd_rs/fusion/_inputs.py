@@ -210,7 +210,8 @@ AGREE_PX = 2.0
 #: scenes) agree on 0.435-1.000 of those pixels (Middlebury 0.730-1.000); the amplitude passed
 #: as depth on 0.000-0.108 (16 cases the unit check let through), a pose translation 10x too
 #: long on 0.082-0.938 (6 of 20 below the limit). A pose given inverted (0.557-0.992) or
-#: measured from the other camera (0.373-0.993) overlaps the correct cases: not caught.
+#: measured from the other camera (0.373-0.993) overlaps the correct cases: those are left to
+#: :func:`rgbd_rs.fusion._pose_check.pose_warning`.
 AGREE_SHARE = 0.25
 
 

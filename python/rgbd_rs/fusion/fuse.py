@@ -29,6 +29,7 @@ from rgbd_rs.fusion._inputs import (
     views,
     with_reference,
 )
+from rgbd_rs.fusion._pose_check import pose_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
@@ -268,9 +269,10 @@ def fuse(
     ToF depths that look like millimetres (or kilometres) for the rig are refused
     (:class:`~rgbd_rs.InvalidArgumentError`, before any work). Other implausible input warns
     once each (:class:`RuntimeWarning`), saying what to check: depths beyond the stereo range
-    of the rig, a left/right pair that looks swapped, and an output camera farther from the ToF
+    of the rig, a left/right pair that looks swapped, an output camera farther from the ToF
     than the other one (fuse on the camera beside the ToF: the stereo pair's occlusions are then
-    what the ToF sees).
+    what the ToF sees), a ToF pose that fits the stereo map better inverted or read from the
+    other camera, and a ToF that agrees with the stereo map almost nowhere.
     """
     r = rig_arg(rig)
     if reference is not None:
@@ -376,7 +378,11 @@ def fuse(
     if swapped is not None:
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
-    apart = None if swapped is not None else disagreement_warning(tof_disp, st_map)
+    # A pose read the wrong way round is named; other disagreement only in general terms.
+    wrong_way = None if swapped is not None else pose_warning(depth_map, r, st_map)
+    if wrong_way is not None:
+        warnings.warn(wrong_way, RuntimeWarning, stacklevel=2)
+    apart = None if swapped or wrong_way else disagreement_warning(tof_disp, st_map)
     if apart is not None:
         warnings.warn(apart, RuntimeWarning, stacklevel=2)
     if not np.isfinite(st_map).any() and no_tof:

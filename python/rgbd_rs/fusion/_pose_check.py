@@ -1,0 +1,129 @@
+"""Is the ToF's pose in the rig given the wrong way round? A check against the stereo map.
+
+The two mistakes a calibration file invites most are a pose in the opposite direction (the
+reference camera's frame to the ToF's instead of the ToF's to the reference camera's) and a pose
+measured from the other camera of the pair. Neither makes the ToF disagree with the stereo map
+everywhere (the ToF sits a few centimetres from the camera, so most surfaces still land near
+their stereo match), which is why :func:`~rgbd_rs.fusion._inputs.disagreement_warning` cannot
+see them. But the pose the user *meant* then agrees with the stereo map better than the pose
+given, and that is what this check measures: it projects a few thousand ToF pixels into the
+reference camera under the pose as given and under the three readings of it (inverted, measured
+from the other camera, both) and compares their disparities with the matcher's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Literal
+
+import numpy as np
+
+from rgbd_rs.camera import Pose, ToFStereoRig
+from rgbd_rs.fusion._inputs import AGREE_PX, F32, with_reference
+
+#: ToF pixels projected per reading of the pose (evenly spaced over the valid ones).
+POSE_SAMPLES = 4096
+#: The check speaks when another reading of the pose agrees with the stereo map on at least this
+#: much larger a share of the projected pixels than the pose as given. Measured
+#: (docs/experiments.md, "a warning for a pose given the wrong way round"): on 111 correct
+#: train/val cases (Middlebury under three ToF laws, the dense law and the far camera; 12
+#: rendered val scenes) no other reading gains more than 0.008; of the 40 wrong Middlebury rigs
+#: (pose inverted, pose from the other camera) 35 gain more than 0.03, of the 24 rendered 18.
+POSE_GAIN = 0.03
+
+_READINGS = {
+    "inverse": "inverted (the reference camera's frame to the ToF's)",
+    "other": "measured from the {other} camera",
+    "inverse_other": "inverted and measured from the {other} camera",
+}
+
+
+def _readings(rig: ToFStereoRig) -> dict[str, Pose]:
+    """The pose as given and its three other readings, each as ToF -> reference camera."""
+    other: Literal["left", "right"] = "right" if rig.reference == "left" else "left"
+    inv = dataclasses.replace(rig, tof_to_reference=rig.tof_to_reference.inverse())
+    return {
+        "given": rig.tof_to_reference,
+        "inverse": inv.tof_to_reference,
+        "other": with_reference(
+            dataclasses.replace(rig, reference=other), rig.reference
+        ).tof_to_reference,
+        "inverse_other": with_reference(
+            dataclasses.replace(inv, reference=other), rig.reference
+        ).tof_to_reference,
+    }
+
+
+def _agreement(
+    points: np.ndarray, pose: Pose, rig: ToFStereoRig, stereo: F32, tol: float
+) -> tuple[int, float]:
+    """(pixels compared, share within ``tol``) of ToF ``points`` moved by ``pose``."""
+    cam = rig.reference_camera
+    moved = pose.apply(points)
+    z = moved[:, 2]
+    with np.errstate(invalid="ignore"):
+        front = np.isfinite(z) & (z > 0)
+    if not front.any():
+        return 0, 0.0
+    uv = np.rint(cam.project(moved[front]))
+    h, w = stereo.shape
+    with np.errstate(invalid="ignore"):
+        inside = (
+            np.isfinite(uv).all(axis=1)
+            & (uv[:, 0] >= 0)
+            & (uv[:, 0] < w)
+            & (uv[:, 1] >= 0)
+            & (uv[:, 1] < h)
+        )
+    if not inside.any():
+        return 0, 0.0
+    u = uv[inside, 0].astype(np.intp)
+    v = uv[inside, 1].astype(np.intp)
+    tof = rig.stereo.baseline * rig.stereo.focal / z[front][inside]
+    st = stereo[v, u]
+    both = np.isfinite(st) & np.isfinite(tof)
+    n = int(both.sum())
+    if n == 0:
+        return 0, 0.0
+    return n, float((np.abs(tof[both] - st[both]) <= tol).mean())
+
+
+def pose_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | None:
+    """A warning when another reading of ``rig.tof_to_reference`` (inverted, measured from the
+    other camera, or both) makes the ToF agree clearly better with the stereo map, else None.
+
+    ``depth`` is the ToF frame (metres; NaN/<=0 invalid), ``stereo_disparity`` the matcher's
+    map on the reference camera. Deterministic (evenly spaced ToF pixels, no random draw).
+    """
+    with np.errstate(invalid="ignore"):
+        valid = np.flatnonzero(np.isfinite(depth) & (depth > 0))
+    if valid.size < 100:
+        return None
+    pick = valid[np.linspace(0, valid.size - 1, min(POSE_SAMPLES, valid.size)).astype(np.intp)]
+    v, u = np.divmod(pick, depth.shape[1])
+    points = rig.tof.backproject(np.column_stack([u, v]).astype(np.float64), depth.flat[pick])
+    tol = AGREE_PX * max(1.0, stereo_disparity.shape[1] / 960)
+    shares = {
+        k: _agreement(points, p, rig, stereo_disparity, tol) for k, p in _readings(rig).items()
+    }
+    n_given, given = shares.pop("given")
+    if n_given < 100:
+        return None
+    best = max(
+        (k for k, (n, _) in shares.items() if n >= 100),
+        key=lambda k: shares[k][1],
+        default=None,
+    )
+    if best is None:
+        return None
+    alt = shares[best][1]
+    if alt - given < POSE_GAIN:
+        return None
+    other = "right" if rig.reference == "left" else "left"
+    reading = _READINGS[best].format(other=other)
+    return (
+        f"rig: the ToF agrees with the stereo map within {tol:g} px on {given:.1%} of the "
+        f"pixels it reaches with tof_to_reference as given, but on {alt:.1%} if that pose were "
+        f"{reading}: check the pose's direction (ToF frame to the {rig.reference} camera's "
+        "frame) and the camera it is relative to (the rig's reference)"
+    )
