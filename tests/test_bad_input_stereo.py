@@ -158,6 +158,20 @@ CASES = [
         "CensusParams", lambda: F.CensusParams(uniqueness=100), ARG, r"^uniqueness: got 100", "uniq"
     ),
     Case(
+        "CensusParams",
+        lambda: F.CensusParams(vertical_tolerance=-1),
+        ARG,
+        r"^vertical_tolerance: got -1, expected",
+        "vtol",
+    ),
+    Case(
+        "CensusParams",
+        lambda: F.CensusParams(vertical_tolerance=1.5),
+        ARG,
+        r"^vertical_tolerance: got 1.5",
+        "vtol-float",
+    ),
+    Case(
         "CensusParams.replace",
         lambda: F.CensusParams().replace(p3=1),
         ARG,

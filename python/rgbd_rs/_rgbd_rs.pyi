@@ -286,6 +286,7 @@ class SgmConfig:
         median: int,
         speckle_size: int,
         speckle_range: float,
+        vertical_tolerance: int,
         stats: bool,
     ) -> SgmConfig: ...
 

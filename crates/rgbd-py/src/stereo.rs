@@ -55,7 +55,7 @@ impl PySgmConfig {
     #[new]
     #[pyo3(signature = (min_disparity, max_disparity, census_width, census_height,
         census_reference, p1, p2, p2_contrast, paths, subpixel, lr_tolerance, uniqueness,
-        median, speckle_size, speckle_range, stats))]
+        median, speckle_size, speckle_range, vertical_tolerance, stats))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         min_disparity: usize,
@@ -73,6 +73,7 @@ impl PySgmConfig {
         median: usize,
         speckle_size: usize,
         speckle_range: f32,
+        vertical_tolerance: usize,
         stats: bool,
     ) -> PyResult<Self> {
         let p = SgmParams {
@@ -91,6 +92,7 @@ impl PySgmConfig {
             median,
             speckle_size,
             speckle_range,
+            vertical_tolerance,
             stats,
         };
         p.validate(usize::MAX).map_err(to_py)?;
@@ -129,6 +131,8 @@ fn sgm_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("median", p.median)?;
     d.set_item("speckle_size", p.speckle_size)?;
     d.set_item("speckle_range", p.speckle_range)?;
+    d.set_item("vertical_tolerance", p.vertical_tolerance)?;
+    d.set_item("max_vertical", rgbd_stereo::MAX_VERTICAL)?;
     d.set_item("max_p2", rgbd_stereo::MAX_P2)?;
     d.set_item("max_median", rgbd_stereo::MAX_MEDIAN)?;
     Ok(d)

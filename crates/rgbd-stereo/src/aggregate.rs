@@ -17,7 +17,7 @@
 use rayon::prelude::*;
 use rgbd_error::{check_interrupt, Result};
 
-use crate::kernel::{costs, multiversion, start, step, Kernel, EDGE};
+use crate::kernel::{costs, costs_min, multiversion, start, step, Kernel, EDGE};
 use crate::layout::Layout;
 use crate::params::{SgmParams, DIRECTIONS};
 
@@ -36,6 +36,8 @@ pub(crate) struct Problem<'a> {
     pub cmax: u8,
     pub p1: u16,
     pub p2: [u16; 256],
+    /// Target rows searched above and below (see `SgmParams::vertical_tolerance`).
+    pub vertical: usize,
     pub layout: Layout,
 }
 
@@ -53,6 +55,18 @@ impl Problem<'_> {
         match self.census {
             Strings::Narrow(r, t) => costs(r[at], &t[from..], valid, self.cmax, out),
             Strings::Wide(r, t) => costs(r[at], &t[from..], valid, self.cmax, out),
+        }
+        // Other target rows (clamped at the border; a clamped row repeats one already taken).
+        let (lo, hi) = (
+            y.saturating_sub(self.vertical),
+            (y + self.vertical).min(self.h - 1),
+        );
+        for ty in (lo..=hi).filter(|&ty| ty != y) {
+            let from = ty * w + w - 1 - x + dmin;
+            match self.census {
+                Strings::Narrow(r, t) => costs_min(r[at], &t[from..], valid, out),
+                Strings::Wide(r, t) => costs_min(r[at], &t[from..], valid, out),
+            }
         }
     }
 

@@ -175,6 +175,15 @@ pub(crate) fn costs<T: Word>(cref: T, rev: &[T], valid: usize, cmax: u8, out: &m
     outside.fill(cmax);
 }
 
+/// [`costs`] of another target row, folded in: each of the `valid` costs becomes the smaller of
+/// itself and this row's (the rest already cost `cmax`).
+#[inline(always)]
+pub(crate) fn costs_min<T: Word>(cref: T, rev: &[T], valid: usize, out: &mut [u8]) {
+    for (o, &t) in out[..valid].iter_mut().zip(rev) {
+        *o = (*o).min(cref.distance(t));
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -218,6 +227,8 @@ mod tests {
         let mut cst = [0u8; 5];
         costs(0b1011u64, &[0b0011, 0b1011, 0], 2, 9, &mut cst);
         assert_eq!(cst, [1, 0, 9, 9, 9]);
+        costs_min(0b1011u64, &[0b1011, 0b0000, 0], 2, &mut cst);
+        assert_eq!(cst, [0, 0, 9, 9, 9]);
         assert!(Kernel::available().contains(&Kernel::best()));
     }
 }

@@ -35,7 +35,7 @@ use rgbd_error::{check_len, checked_len, image_len, Result};
 
 pub use census::CensusReference;
 pub use kernel::Kernel;
-pub use params::{Paths, SgmParams, Subpixel, DIRECTIONS, MAX_MEDIAN, MAX_P2};
+pub use params::{Paths, SgmParams, Subpixel, DIRECTIONS, MAX_MEDIAN, MAX_P2, MAX_VERTICAL};
 
 /// Which view the disparity map lies on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -239,6 +239,7 @@ fn problem<'a>(
         cmax: params.max_cost() as u8,
         p1: params.p1,
         p2: params.p2_table(),
+        vertical: params.vertical_tolerance,
         layout,
     }
 }

@@ -35,8 +35,13 @@ fn naive_sum(r_img: &[u8], t_img: &[u8], w: usize, h: usize, p: &SgmParams) -> V
         for x in 0..w {
             for k in 0..nd {
                 let d = p.min_disparity + k;
+                // The smallest over the target rows within the vertical tolerance.
+                let v = p.vertical_tolerance;
                 cost[idx(x, y, k)] = if x >= d {
-                    i64::from((cr[y * w + x] ^ ct[y * w + x - d]).count_ones())
+                    (y.saturating_sub(v)..=(y + v).min(h - 1))
+                        .map(|ty| i64::from((cr[y * w + x] ^ ct[ty * w + x - d]).count_ones()))
+                        .min()
+                        .unwrap()
                 } else {
                     cmax
                 };
@@ -156,6 +161,7 @@ proptest! {
         seed in any::<u64>(), right in any::<bool>(),
         lr in prop_oneof![Just(None), (0u16..3).prop_map(Some)], uniqueness in 0u8..20,
         median in prop_oneof![Just(1usize), Just(3), Just(5)], speckle in 0usize..6,
+        vertical in 0usize..3,
     ) {
         let max_disparity = dmin + nd - 1;
         prop_assume!(max_disparity < w);
@@ -172,6 +178,7 @@ proptest! {
             uniqueness,
             median,
             speckle_size: speckle,
+            vertical_tolerance: vertical,
             ..SgmParams::new(max_disparity)
         };
         let l = noise_image(w, h, seed);

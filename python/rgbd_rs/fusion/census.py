@@ -32,6 +32,8 @@ _DEFAULTS = _rgbd_rs.sgm_defaults()
 #: Largest ``p2`` (eight paths of cost + P2 must fit a u16 sum) and median window side.
 MAX_P2: int = _DEFAULTS["max_p2"]
 MAX_MEDIAN: int = _DEFAULTS["max_median"]
+#: Largest ``vertical_tolerance`` (target rows searched above and below).
+MAX_VERTICAL: int = _DEFAULTS["max_vertical"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,9 @@ class CensusParams:
         median: median filter side (1 = off; odd, at most ``MAX_MEDIAN``).
         speckle_size: connected regions (within ``speckle_range`` px) smaller than this many
             pixels are removed (0 = off).
+        vertical_tolerance: target rows searched above and below each pixel's row (0 to
+            ``MAX_VERTICAL``): its matching cost is the smallest over them. 0 = the rectified
+            row only; 1 for a rig whose rectification leaves a vertical error near a pixel.
     """
 
     census_width: int = _DEFAULTS["census_width"]
@@ -67,6 +72,7 @@ class CensusParams:
     median: int = _DEFAULTS["median"]
     speckle_size: int = _DEFAULTS["speckle_size"]
     speckle_range: float = _DEFAULTS["speckle_range"]
+    vertical_tolerance: int = _DEFAULTS["vertical_tolerance"]
 
     def __post_init__(self) -> None:
         _validate.integer("census_width", self.census_width, minimum=1, maximum=15)
@@ -86,6 +92,9 @@ class CensusParams:
             raise InvalidArgumentError(f"median: got {self.median}, expected an odd side")
         _validate.integer("speckle_size", self.speckle_size, minimum=0, maximum=2**31)
         _validate.real("speckle_range", self.speckle_range, nonnegative=True, f32=True)
+        _validate.integer(
+            "vertical_tolerance", self.vertical_tolerance, minimum=0, maximum=MAX_VERTICAL
+        )
         bits = self.census_width * self.census_height - (self.census_reference == "center")
         if self.census_width % 2 == 0 or self.census_height % 2 == 0 or bits > 64:
             raise InvalidArgumentError(
@@ -200,6 +209,7 @@ def census_match(
         params.median,
         params.speckle_size,
         float(params.speckle_range),
+        params.vertical_tolerance,
         stats,
     )
     disp, best, second = _rgbd_rs.census_sgm(lft, rgt, ref, config)
