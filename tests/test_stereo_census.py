@@ -147,6 +147,17 @@ def test_cli_stereo_writes_the_maps(tmp_path: Path) -> None:
     assert np.nanmedian(d[:, 24:]) == pytest.approx(9, abs=0.5)
     assert (out / "preview.png").stat().st_size > 1000 and (out / "disparity.png").exists()
     assert main([*argv, "--max-disparity", "200", "--out", str(out)]) == 2
+    # The row search: 0 gives the rectified-row-only map, as the API does.
+    flat = tmp_path / "flat"
+    assert (
+        main([*argv, "--max-disparity", "24", "--vertical-tolerance", "0", "--out", str(flat)]) == 0
+    )
+    want = census_match(
+        left, right, reference="left", max_disparity=24, params=CensusParams(vertical_tolerance=0)
+    ).disparity
+    np.testing.assert_array_equal(read_npz(flat / "disparity.npz")["disparity"], want)
+    opencv = [*argv, "--max-disparity", "24", "--method", "opencv", "--vertical-tolerance", "1"]
+    assert main([*opencv, "--out", str(flat)]) == 2
 
 
 def test_cli_stereo_warns_on_a_swapped_pair(

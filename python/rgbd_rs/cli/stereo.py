@@ -50,6 +50,14 @@ def register(commands: Commands) -> None:
     st.add_argument(
         "--method", choices=("census", "opencv"), default="census", help="default census (ours)"
     )
+    st.add_argument(
+        "--vertical-tolerance",
+        type=int,
+        choices=(0, 1, 2),
+        default=None,
+        help="census: target rows searched above and below each row (default 1, for a rig "
+        "rectified to within about a pixel; 0 for a pair rectified to a fraction of one)",
+    )
     st.add_argument("--out", type=folder, required=True, help="output folder")
 
     ev = commands.group_command(
@@ -111,6 +119,7 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
 def run_stereo(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from rgbd_rs.fusion.census import CensusParams
     from rgbd_rs.fusion.stereo import BLOCK_SIZE, DISPARITY_STEP, _max_search, sgm
     from rgbd_rs.io import read_png, write_npz, write_png
     from rgbd_rs.viz import colorize_with_bar, save_png
@@ -118,6 +127,14 @@ def run_stereo(args: argparse.Namespace) -> int:
     left = named("--left", lambda: read_png(args.left))
     right = named("--right", lambda: read_png(args.right))
     dmax = _search_range(args, left.shape[1], left.shape[0])
+    params = None
+    if args.vertical_tolerance is not None:
+        if args.method == "opencv":
+            raise InvalidArgumentError(
+                "--vertical-tolerance: got it with --method opencv, expected --method census "
+                "(OpenCV's SGBM searches the rectified row only)"
+            )
+        params = CensusParams(vertical_tolerance=args.vertical_tolerance)
     if args.method == "opencv":
         if _max_search(left.shape[1]) < 1:
             raise InvalidArgumentError(
@@ -129,7 +146,14 @@ def run_stereo(args: argparse.Namespace) -> int:
     out = output_folder(args.out, STEREO_OUTPUTS)
     disp = flagged(
         {"left": "--left", "right": "--right", "max_disparity": "--max-disparity"},
-        lambda: sgm(left, right, reference=args.reference, max_disparity=dmax, method=args.method),
+        lambda: sgm(
+            left,
+            right,
+            reference=args.reference,
+            max_disparity=dmax,
+            method=args.method,
+            params=params,
+        ),
     )
     write_npz(out / "disparity.npz", {"disparity": disp})
     write_png(out / "disparity.png", disparity_png16(disp), rgb=False)
