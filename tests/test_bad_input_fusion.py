@@ -373,6 +373,41 @@ CASES: list[Case] = [
         r"^segmentation: got 'yes'",
         "segmentation",
     ),
+    Case(
+        "refine_tof_pose",
+        lambda: F.refine_tof_pose(TOF, "rig", np.zeros((135, 240), np.float32)),
+        ARG,
+        r"^rig: got str",
+        "rig",
+    ),
+    Case(
+        "refine_tof_pose",
+        lambda: F.refine_tof_pose(TOF[:-1], RIG, np.zeros((135, 240), np.float32)),
+        SHAPE,
+        r"^tof_depth: got shape \(423, 512\)",
+        "depth",
+    ),
+    Case(
+        "refine_tof_pose",
+        lambda: F.refine_tof_pose(TOF, RIG, np.zeros((135, 239), np.float32)),
+        SHAPE,
+        r"^stereo_disparity: got shape \(135, 239\)",
+        "stereo",
+    ),
+    Case(
+        "refine_tof_pose",
+        lambda: F.refine_tof_pose(TOF, RIG, np.zeros((135, 240), np.float32), max_degrees=0),
+        ARG,
+        r"^max_degrees: got 0",
+        "zero",
+    ),
+    Case(
+        "refine_tof_pose",
+        lambda: F.refine_tof_pose(TOF, RIG, np.zeros((135, 240), np.float32), max_degrees=30),
+        ARG,
+        r"^max_degrees: got 30, expected at most 10",
+        "large",
+    ),
 ]
 
 

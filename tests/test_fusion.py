@@ -330,3 +330,30 @@ def test_cli_fuse(scene: SynthSample, tmp_path: Path, capsys: pytest.CaptureFixt
     argv[argv.index(str(tmp_path / "c.json"))] = str(tmp_path / "bad.json")
     assert cli.main(argv) == 2
     assert "baseline" in capsys.readouterr().err
+
+
+def test_cli_fuse_keep_pose_passes_the_pose_as_given(
+    scene: SynthSample, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`rgbd fuse --keep-pose` is fuse(refine_pose=False); without it the refinement runs."""
+    import rgbd_rs.fusion
+
+    seen: list[bool] = []
+    real = rgbd_rs.fusion.fuse
+
+    def spy(*args: object, **kwargs: object) -> object:
+        seen.append(bool(kwargs["refine_pose"]))
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rgbd_rs.fusion, "fuse", spy)
+    write_png(tmp_path / "l.png", scene.left)
+    write_png(tmp_path / "r.png", scene.right)
+    np.save(tmp_path / "d.npy", scene.tof_depth)
+    np.save(tmp_path / "a.npy", scene.tof_amplitude)
+    save_rig(tmp_path / "c.json", RIG)
+    argv = ["fuse", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png")]
+    argv += ["--tof-depth", str(tmp_path / "d.npy"), "--tof-amplitude", str(tmp_path / "a.npy")]
+    argv += ["--calib", str(tmp_path / "c.json")]
+    assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 0
+    assert cli.main([*argv, "--keep-pose", "--out", str(tmp_path / "b")]) == 0
+    assert seen == [True, False]

@@ -549,6 +549,7 @@ def test_a_pose_given_the_wrong_way_round_is_named(shared_data: Path) -> None:
     fuse() names the reading that fits, and the generic warning does not repeat it."""
     import warnings
 
+    from rgbd_rs.fusion._inputs import with_reference
     from rgbd_rs.fusion._pose_check import pose_warning
 
     s = real_sample("Books", 0)
@@ -561,14 +562,65 @@ def test_a_pose_given_the_wrong_way_round_is_named(shared_data: Path) -> None:
     assert sum("if that pose were inverted (the reference camera's" in t for t in texts) == 1
     assert not any(t.startswith("tof_depth/rig:") for t in texts), texts
     # The pose as meant: quiet (the stereo map is the same).
-    assert pose_warning(s.tof_depth, r, out.stereo_disparity) is None
+    assert pose_warning(s.tof_depth, r, r, out.stereo_disparity) is None
     other = "right" if r.reference == "left" else "left"
     with pytest.warns(RuntimeWarning, match=rf"were measured from the {r.reference} camera"):
         fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, dataclasses.replace(r, reference=other))
     # Too few ToF pixels to judge: no verdict.
     sparse = np.full_like(s.tof_depth, np.nan)
     sparse[0, :50] = 1.0
-    assert pose_warning(sparse, inverted, out.stereo_disparity) is None
+    assert pose_warning(sparse, inverted, inverted, out.stereo_disparity) is None
+    # A rig relative to the right camera, its pose inverted, fused on the left one: the reading
+    # named is the caller's (inverted), not one of the pose converted to the left camera.
+    right_rig = with_reference(r, "right")
+    inverted_right = dataclasses.replace(
+        right_rig, tof_to_reference=right_rig.tof_to_reference.inverse()
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, inverted_right, reference="left")
+    named = [str(w.message) for w in caught if "if that pose were" in str(w.message)]
+    assert len(named) == 1 and "were inverted (the reference" in named[0], named
+    # A rotation rounded as a calibration file holds it: Pose accepts it but refuses its
+    # inverse (|R R^T - I| > 1e-5); the checks skip that reading instead of raising.
+    from rgbd_rs.camera import Pose
+
+    rounded = np.array(
+        [[0.9983, -0.04538, 0.03662], [0.0403, 0.99079, 0.12925], [-0.04215, -0.12756, 0.99094]]
+    )
+    edge = dataclasses.replace(r, tof_to_reference=Pose(rounded, r.tof_to_reference.translation))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, edge, confidence="uniform")
+
+
+def test_a_tof_turned_by_a_fraction_of_a_degree_is_refined(shared_data: Path) -> None:
+    """A ToF orientation 0.4 degrees off in yaw: refine_tof_pose finds the turn back, fuse()
+    fuses with it (and says so), and the fused map is as good as with the exact pose; the
+    exact pose is left alone (the quiet run of the test below)."""
+
+    from rgbd_rs.fusion import refine_tof_pose
+    from rgbd_rs.fusion.pose_refine import _turned
+    from rgbd_rs.fusion.score import score_result
+
+    s = real_sample("Books", 0)
+    off = dataclasses.replace(s.rig, tof_to_reference=_turned(s.rig.tof_to_reference, 0.4, 0.0))
+    plain = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, off, refine_pose=False)
+    found = refine_tof_pose(s.tof_depth, off, plain.stereo_disparity)
+    assert found.clear and abs(found.yaw + 0.4) <= 0.1 and abs(found.pitch) <= 0.1, found
+    assert found.error_after < 0.8 * found.error_before
+    with pytest.warns(RuntimeWarning, match=r"^rig: the ToF fits the stereo map better turned"):
+        fixed = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, off)
+    exact = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig)
+    rms = {
+        k: score_result(s, o).rms["fused"]
+        for k, o in (("plain", plain), ("fixed", fixed), ("exact", exact))
+    }
+    assert rms["fixed"] <= 1.1 * rms["exact"] and rms["fixed"] < 0.7 * rms["plain"], rms
+    assert refine_tof_pose(s.tof_depth, s.rig, exact.stereo_disparity).clear is False
+    # Nothing to compare with: the given pose back, no verdict.
+    none = refine_tof_pose(np.full_like(s.tof_depth, np.nan), off, plain.stereo_disparity)
+    assert none.pixels == 0 and none.pose is off.tof_to_reference and not none.clear
 
 
 def test_a_misregistered_or_wrong_tof_input_warns(shared_data: Path) -> None:

@@ -166,6 +166,12 @@ def register(commands: Commands) -> None:
     fz.add_argument(
         "--cross-check", action="store_true", help="keep only pixels both views agree on (eq. 2.18)"
     )
+    fz.add_argument(
+        "--keep-pose",
+        action="store_true",
+        help="fuse the ToF pose as given: by default a ToF orientation that fits the stereo map "
+        "clearly better turned by 0.1-1 degree is refined (with a warning naming the turn)",
+    )
 
     ef = commands.group_command(
         "eval",
@@ -387,6 +393,7 @@ def run_fuse(args: argparse.Namespace) -> int:
             params=params,
             max_disparity=args.max_disparity,
             reference=args.reference,
+            refine_pose=not args.keep_pose,
         ),
     )
     elapsed = time.perf_counter() - t0

@@ -7,7 +7,8 @@
    default), :func:`tof_confidence`, :func:`stereo_confidence` — deterministic ones, or your own;
 4. :func:`lc_fuse` — confidence-weighted locally consistent fusion; :func:`lc_refine` — plain LC.
 
-:func:`fuse` runs them all.
+:func:`fuse` runs them all (and :func:`refine_tof_pose`, which corrects a ToF orientation off by
+a fraction of a degree against the stereo map).
 
 Example:
     >>> from rgbd_rs.fusion import fuse  # doctest: +SKIP
@@ -20,6 +21,7 @@ from rgbd_rs.fusion.clues import compute_clues
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.fuse import FusionResult, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse, lc_refine
+from rgbd_rs.fusion.pose_refine import PoseRefinement, refine_tof_pose
 from rgbd_rs.fusion.stereo import cost_curve_stats, search_range, sgm
 from rgbd_rs.fusion.upsample import (
     ToFOnReference,
@@ -33,6 +35,7 @@ __all__ = [
     "CensusParams",
     "FusionResult",
     "LcParams",
+    "PoseRefinement",
     "ToFOnReference",
     "census_match",
     "compute_clues",
@@ -40,6 +43,7 @@ __all__ = [
     "fuse",
     "lc_fuse",
     "lc_refine",
+    "refine_tof_pose",
     "search_range",
     "segment_mean_shift",
     "sgm",

@@ -13,12 +13,15 @@ from the other camera, both) and compares their disparities with the matcher's.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
 
 from rgbd_rs.camera import Pose, ToFStereoRig
+from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import AGREE_PX, F32, with_reference
 
 #: ToF pixels projected per reading of the pose (evenly spaced over the valid ones).
@@ -28,8 +31,11 @@ POSE_SAMPLES = 4096
 #: (docs/experiments.md, "a warning for a pose given the wrong way round"): on 111 correct
 #: train/val cases (Middlebury under three ToF laws, the dense law and the far camera; 12
 #: rendered val scenes) no other reading gains more than 0.008; of the 40 wrong Middlebury rigs
-#: (pose inverted, pose from the other camera) 35 gain more than 0.03, of the 24 rendered 18.
+#: (pose inverted, pose from the other camera) 36 gain more than 0.03, of the 24 rendered 18.
 POSE_GAIN = 0.03
+#: ... and agrees on at least this share itself (correct rigs: 0.44 and more; a reading that
+#: fits worse than that is no diagnosis).
+POSE_FLOOR = 0.4
 
 _READINGS = {
     "inverse": "inverted (the reference camera's frame to the ToF's)",
@@ -38,20 +44,26 @@ _READINGS = {
 }
 
 
-def _readings(rig: ToFStereoRig) -> dict[str, Pose]:
-    """The pose as given and its three other readings, each as ToF -> reference camera."""
-    other: Literal["left", "right"] = "right" if rig.reference == "left" else "left"
-    inv = dataclasses.replace(rig, tof_to_reference=rig.tof_to_reference.inverse())
-    return {
-        "given": rig.tof_to_reference,
-        "inverse": inv.tof_to_reference,
-        "other": with_reference(
-            dataclasses.replace(rig, reference=other), rig.reference
-        ).tof_to_reference,
-        "inverse_other": with_reference(
-            dataclasses.replace(inv, reference=other), rig.reference
-        ).tof_to_reference,
-    }
+def _readings(asked: ToFStereoRig, fused_on: str) -> dict[str, Pose]:
+    """The pose as the caller gave it (relative to ``asked.reference``) and its three other
+    readings, each as ToF -> the camera fused on. A reading whose pose cannot be built (a
+    rotation at the edge of :class:`~rgbd_rs.camera.Pose`'s tolerance, whose inverse it
+    refuses) is left out: a check must not raise."""
+    other: Literal["left", "right"] = "right" if asked.reference == "left" else "left"
+    out: dict[str, Pose] = {}
+
+    def add(key: str, make: Callable[[], ToFStereoRig]) -> None:
+        with contextlib.suppress(RgbdError):
+            out[key] = with_reference(make(), fused_on).tof_to_reference
+
+    def inverted() -> ToFStereoRig:
+        return dataclasses.replace(asked, tof_to_reference=asked.tof_to_reference.inverse())
+
+    add("given", lambda: asked)
+    add("inverse", inverted)
+    add("other", lambda: dataclasses.replace(asked, reference=other))
+    add("inverse_other", lambda: dataclasses.replace(inverted(), reference=other))
+    return out
 
 
 def _agreement(
@@ -88,12 +100,15 @@ def _agreement(
     return n, float((np.abs(tof[both] - st[both]) <= tol).mean())
 
 
-def pose_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | None:
-    """A warning when another reading of ``rig.tof_to_reference`` (inverted, measured from the
+def pose_warning(
+    depth: F32, asked: ToFStereoRig, rig: ToFStereoRig, stereo_disparity: F32
+) -> str | None:
+    """A warning when another reading of ``asked.tof_to_reference`` (inverted, measured from the
     other camera, or both) makes the ToF agree clearly better with the stereo map, else None.
 
-    ``depth`` is the ToF frame (metres; NaN/<=0 invalid), ``stereo_disparity`` the matcher's
-    map on the reference camera. Deterministic (evenly spaced ToF pixels, no random draw).
+    ``depth`` is the ToF frame (metres; NaN/<=0 invalid); ``asked`` the rig as the caller gave
+    it, ``rig`` the same fused on its output camera (``fuse(reference=...)``), on which
+    ``stereo_disparity`` lies. Deterministic (evenly spaced ToF pixels, no random draw).
     """
     with np.errstate(invalid="ignore"):
         valid = np.flatnonzero(np.isfinite(depth) & (depth > 0))
@@ -103,9 +118,10 @@ def pose_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | 
     v, u = np.divmod(pick, depth.shape[1])
     points = rig.tof.backproject(np.column_stack([u, v]).astype(np.float64), depth.flat[pick])
     tol = AGREE_PX * max(1.0, stereo_disparity.shape[1] / 960)
-    shares = {
-        k: _agreement(points, p, rig, stereo_disparity, tol) for k, p in _readings(rig).items()
-    }
+    readings = _readings(asked, rig.reference)
+    if "given" not in readings:
+        return None
+    shares = {k: _agreement(points, p, rig, stereo_disparity, tol) for k, p in readings.items()}
     n_given, given = shares.pop("given")
     if n_given < 100:
         return None
@@ -117,13 +133,15 @@ def pose_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | 
     if best is None:
         return None
     alt = shares[best][1]
-    if alt - given < POSE_GAIN:
+    # A reading that fits no better than a wrong input is no diagnosis: the generic check's
+    # advice (the translation's unit, the amplitude) is the one that fits then.
+    if alt - given < POSE_GAIN or alt < POSE_FLOOR:
         return None
-    other = "right" if rig.reference == "left" else "left"
+    other = "right" if asked.reference == "left" else "left"
     reading = _READINGS[best].format(other=other)
     return (
         f"rig: the ToF agrees with the stereo map within {tol:g} px on {given:.1%} of the "
         f"pixels it reaches with tof_to_reference as given, but on {alt:.1%} if that pose were "
-        f"{reading}: check the pose's direction (ToF frame to the {rig.reference} camera's "
+        f"{reading}: check the pose's direction (ToF frame to the {asked.reference} camera's "
         "frame) and the camera it is relative to (the rig's reference)"
     )

@@ -12,7 +12,10 @@ winners read from the same sums (left-right check), and median- and speckle-filt
 One ``H x W x D`` u16 volume is the only large buffer (``2 W H D`` bytes); the inner loops are
 compiled for AVX-512, AVX2 and the portable baseline, chosen at run time, with the same bits.
 Every default (:class:`CensusParams`) is defined in Rust (``SgmParams::new``) and was chosen on
-the Middlebury train/val scenes (``rgbd eval stereo``).
+the Middlebury train/val scenes: the window, penalties and filters by ``rgbd eval stereo``'s
+measures (``tools/sweep_census.py``), ``vertical_tolerance=1`` on the same scenes with their
+right images perturbed as a real rig's are (it costs 0.5 points of bad-2 on the pairs as given;
+docs/experiments.md).
 """
 
 from __future__ import annotations

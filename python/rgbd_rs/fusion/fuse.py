@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import sys
 import warnings
@@ -33,6 +34,7 @@ from rgbd_rs.fusion._pose_check import pose_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
+from rgbd_rs.fusion.pose_refine import PoseRefinement, _refine_if_off
 from rgbd_rs.fusion.sources import (
     SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_LC_UNMEASURED,  # noqa: F401 (re-exported: FusionResult.source)
@@ -243,6 +245,7 @@ def fuse(
     max_disparity: int | None = None,
     reference: Literal["left", "right"] | None = None,
     stereo: StereoMatcher | None = None,
+    refine_pose: bool = True,
 ) -> FusionResult:
     """Fuse a ToF frame with a rectified stereo pair into one sub-pixel disparity map.
 
@@ -264,6 +267,9 @@ def fuse(
         stereo: the stereo matcher, ``"census"`` (ours) or ``"opencv"`` (SGBM); default the
             one the ConvNet was trained on (its clues come from the matcher), else
             :data:`DEFAULT_STEREO`.
+        refine_pose: when the ToF fits the stereo map clearly better turned by a fraction of a
+            degree (:func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose`, up to 1 degree of yaw
+            and pitch), fuse with that orientation and warn; ``False`` fuses the pose as given.
 
     A ToF frame without any valid pixel gives the stereo-only LC result with a warning.
     ToF depths that look like millimetres (or kilometres) for the rig are refused
@@ -274,9 +280,8 @@ def fuse(
     what the ToF sees), a ToF pose that fits the stereo map better inverted or read from the
     other camera, and a ToF that agrees with the stereo map almost nowhere.
     """
-    r = rig_arg(rig)
-    if reference is not None:
-        r = with_reference(r, reference)
+    asked = rig_arg(rig)
+    r = asked if reference is None else with_reference(asked, reference)
     far = far_camera_warning(r)
     if far is not None:
         warnings.warn(far, RuntimeWarning, stacklevel=2)
@@ -379,9 +384,18 @@ def fuse(
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
     # A pose read the wrong way round is named; other disagreement only in general terms.
-    wrong_way = None if swapped is not None else pose_warning(depth_map, r, st_map)
+    wrong_way = None if swapped is not None else pose_warning(depth_map, asked, r, st_map)
     if wrong_way is not None:
         warnings.warn(wrong_way, RuntimeWarning, stacklevel=2)
+    if refine_pose and swapped is None and wrong_way is None and not no_tof:
+        found = _refine_if_off(depth_map, r, st_map)
+        if found is not None and found.clear:
+            warnings.warn(_refined_message(found), RuntimeWarning, stacklevel=2)
+            r = dataclasses.replace(r, tof_to_reference=found.pose)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # said once already, for the given pose
+                tof = _densify_tof(_reproject_tof(depth_map, tof_amplitude, r), r, ref_img)
+            tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
     apart = None if swapped or wrong_way else disagreement_warning(tof_disp, st_map)
     if apart is not None:
         warnings.warn(apart, RuntimeWarning, stacklevel=2)
@@ -426,6 +440,17 @@ def fuse(
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
         disp, depth, plaus, tof, st_map, ct, cs, dmax, r.reference, tof_disp, matcher, source
+    )
+
+
+def _refined_message(found: PoseRefinement) -> str:
+    """The warning of a ToF orientation that ``fuse()`` refined against the stereo map."""
+    return (
+        f"rig: the ToF fits the stereo map better turned by {found.yaw:+.2f} degrees of yaw and "
+        f"{found.pitch:+.2f} of pitch (disparity difference {found.error_before:.2f} -> "
+        f"{found.error_after:.2f} px, truncated mean): fused with that orientation. Correct "
+        "tof_to_reference (rgbd_rs.fusion.refine_tof_pose returns the pose), or pass "
+        "refine_pose=False to fuse the pose as given"
     )
 
 
