@@ -23,6 +23,7 @@ import numpy as np
 from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import AGREE_PX, F32, with_reference
+from rgbd_rs.fusion._tof_points import paired_disparities, sample_points
 
 #: ToF pixels projected per reading of the pose (evenly spaced over the valid ones).
 POSE_SAMPLES = 4096
@@ -70,34 +71,10 @@ def _agreement(
     points: np.ndarray, pose: Pose, rig: ToFStereoRig, stereo: F32, tol: float
 ) -> tuple[int, float]:
     """(pixels compared, share within ``tol``) of ToF ``points`` moved by ``pose``."""
-    cam = rig.reference_camera
-    moved = pose.apply(points)
-    z = moved[:, 2]
-    with np.errstate(invalid="ignore"):
-        front = np.isfinite(z) & (z > 0)
-    if not front.any():
+    tof, st = paired_disparities(points, pose, rig, stereo)
+    if tof.size == 0:
         return 0, 0.0
-    uv = np.rint(cam.project(moved[front]))
-    h, w = stereo.shape
-    with np.errstate(invalid="ignore"):
-        inside = (
-            np.isfinite(uv).all(axis=1)
-            & (uv[:, 0] >= 0)
-            & (uv[:, 0] < w)
-            & (uv[:, 1] >= 0)
-            & (uv[:, 1] < h)
-        )
-    if not inside.any():
-        return 0, 0.0
-    u = uv[inside, 0].astype(np.intp)
-    v = uv[inside, 1].astype(np.intp)
-    tof = rig.stereo.baseline * rig.stereo.focal / z[front][inside]
-    st = stereo[v, u]
-    both = np.isfinite(st) & np.isfinite(tof)
-    n = int(both.sum())
-    if n == 0:
-        return 0, 0.0
-    return n, float((np.abs(tof[both] - st[both]) <= tol).mean())
+    return int(tof.size), float((np.abs(tof - st) <= tol).mean())
 
 
 def pose_warning(
@@ -110,13 +87,9 @@ def pose_warning(
     it, ``rig`` the same fused on its output camera (``fuse(reference=...)``), on which
     ``stereo_disparity`` lies. Deterministic (evenly spaced ToF pixels, no random draw).
     """
-    with np.errstate(invalid="ignore"):
-        valid = np.flatnonzero(np.isfinite(depth) & (depth > 0))
-    if valid.size < 100:
+    points = sample_points(depth, rig, POSE_SAMPLES)
+    if len(points) < 100:
         return None
-    pick = valid[np.linspace(0, valid.size - 1, min(POSE_SAMPLES, valid.size)).astype(np.intp)]
-    v, u = np.divmod(pick, depth.shape[1])
-    points = rig.tof.backproject(np.column_stack([u, v]).astype(np.float64), depth.flat[pick])
     tol = AGREE_PX * max(1.0, stereo_disparity.shape[1] / 960)
     readings = _readings(asked, rig.reference)
     if "given" not in readings:

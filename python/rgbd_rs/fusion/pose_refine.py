@@ -23,6 +23,7 @@ from rgbd_rs import _validate
 from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import map2d, rig_arg
+from rgbd_rs.fusion._tof_points import paired_disparities, sample_points
 
 #: ToF pixels projected per candidate rotation (evenly spaced over the valid ones).
 REFINE_SAMPLES = 2048
@@ -108,40 +109,15 @@ def _error(
     truncate: float,
 ) -> tuple[float, int]:
     """(truncated mean |d_ToF - d_stereo|, pixels compared) of ToF ``points`` moved by ``pose``."""
-    moved = pose.apply(points)
-    z = moved[:, 2]
-    with np.errstate(invalid="ignore"):
-        front = np.isfinite(z) & (z > 0)
-    if not front.any():
-        return float("inf"), 0
-    uv = np.rint(rig.reference_camera.project(moved[front]))
-    h, w = stereo.shape
-    with np.errstate(invalid="ignore"):
-        inside = (
-            np.isfinite(uv).all(axis=1)
-            & (uv[:, 0] >= 0)
-            & (uv[:, 0] < w)
-            & (uv[:, 1] >= 0)
-            & (uv[:, 1] < h)
-        )
-    st = stereo[uv[inside, 1].astype(np.intp), uv[inside, 0].astype(np.intp)]
-    tof = rig.stereo.baseline * rig.stereo.focal / z[front][inside]
-    both = np.isfinite(st) & np.isfinite(tof)
-    n = int(both.sum())
-    if n < 100:
-        return float("inf"), n
-    return float(np.minimum(np.abs(tof[both] - st[both]), truncate).mean()), n
+    tof, st = paired_disparities(points, pose, rig, stereo)
+    if tof.size < 100:
+        return float("inf"), int(tof.size)
+    return float(np.minimum(np.abs(tof - st), truncate).mean()), int(tof.size)
 
 
 def _points(depth: npt.NDArray[np.float32], rig: ToFStereoRig) -> npt.NDArray[np.float64]:
     """Up to :data:`REFINE_SAMPLES` evenly spaced valid ToF pixels as 3-D points (ToF frame)."""
-    with np.errstate(invalid="ignore"):
-        valid = np.flatnonzero(np.isfinite(depth) & (depth > 0))
-    if valid.size == 0:
-        return np.zeros((0, 3))
-    pick = valid[np.linspace(0, valid.size - 1, min(REFINE_SAMPLES, valid.size)).astype(np.intp)]
-    v, u = np.divmod(pick, depth.shape[1])
-    return rig.tof.backproject(np.column_stack([u, v]).astype(np.float64), depth.flat[pick])
+    return sample_points(depth, rig, REFINE_SAMPLES)
 
 
 def _search(
