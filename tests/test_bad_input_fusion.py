@@ -374,6 +374,13 @@ CASES: list[Case] = [
         "segmentation",
     ),
     Case(
+        "fuse",
+        lambda: F.fuse(LEFT, LEFT, TOF, TOF, RIG, refine_pose="no"),  # type: ignore[arg-type]
+        ARG,
+        r"^refine_pose: got 'no', expected True or False",
+        "refine",
+    ),
+    Case(
         "refine_tof_pose",
         lambda: F.refine_tof_pose(TOF, "rig", np.zeros((135, 240), np.float32)),
         ARG,

@@ -618,9 +618,33 @@ def test_a_tof_turned_by_a_fraction_of_a_degree_is_refined(shared_data: Path) ->
     }
     assert rms["fixed"] <= 1.1 * rms["exact"] and rms["fixed"] < 0.7 * rms["plain"], rms
     assert refine_tof_pose(s.tof_depth, s.rig, exact.stereo_disparity).clear is False
+    # The pose fused with comes back with the result: fused again as given, the same map.
+    assert fixed.tof_pose is not None and exact.tof_pose is not None
+    again_rig = dataclasses.replace(off, tof_to_reference=fixed.tof_pose)
+    again = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, again_rig, refine_pose=False)
+    np.testing.assert_array_equal(again.disparity, fixed.disparity)
+    np.testing.assert_allclose(exact.tof_pose.as_matrix(), s.rig.tof_to_reference.as_matrix())
     # Nothing to compare with: the given pose back, no verdict.
     none = refine_tof_pose(np.full_like(s.tof_depth, np.nan), off, plain.stereo_disparity)
     assert none.pixels == 0 and none.pose is off.tof_to_reference and not none.clear
+
+
+def test_a_turned_tof_on_a_flat_scene_is_refined_not_called_inverted(shared_data: Path) -> None:
+    """Poster (train), the ToF pitched by 0.5 degrees: the inverted reading fits the flat scene
+    better than the pitched pose as given, but not better than the refined one, so fuse()
+    refines instead of blaming the pose's direction (a review found it blamed it)."""
+    import warnings
+
+    from rgbd_rs.fusion.pose_refine import _turned
+
+    s = real_sample("Poster", 0)
+    off = dataclasses.replace(s.rig, tof_to_reference=_turned(s.rig.tof_to_reference, 0.0, 0.5))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, off)
+    texts = [str(w.message) for w in caught]
+    assert any("fits the stereo map better turned" in t for t in texts), texts
+    assert not any("if that pose were" in t for t in texts), texts
 
 
 def test_a_misregistered_or_wrong_tof_input_warns(shared_data: Path) -> None:

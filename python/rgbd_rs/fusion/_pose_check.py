@@ -32,7 +32,8 @@ POSE_SAMPLES = 4096
 #: (docs/experiments.md, "a warning for a pose given the wrong way round"): on 111 correct
 #: train/val cases (Middlebury under three ToF laws, the dense law and the far camera; 12
 #: rendered val scenes) no other reading gains more than 0.008; of the 40 wrong Middlebury rigs
-#: (pose inverted, pose from the other camera) 36 gain more than 0.03, of the 24 rendered 18.
+#: (pose inverted, pose from the other camera) 36 gain more than 0.03, of the 24 rendered 18
+#: (34 of the 40 named once the orientation refinement runs first: see ``fitted``).
 POSE_GAIN = 0.03
 #: ... and agrees on at least this share itself (correct rigs: 0.44 and more; a reading that
 #: fits worse than that is no diagnosis).
@@ -78,14 +79,22 @@ def _agreement(
 
 
 def pose_warning(
-    depth: F32, asked: ToFStereoRig, rig: ToFStereoRig, stereo_disparity: F32
+    depth: F32,
+    asked: ToFStereoRig,
+    rig: ToFStereoRig,
+    stereo_disparity: F32,
+    fitted: Pose | None = None,
 ) -> str | None:
     """A warning when another reading of ``asked.tof_to_reference`` (inverted, measured from the
     other camera, or both) makes the ToF agree clearly better with the stereo map, else None.
 
     ``depth`` is the ToF frame (metres; NaN/<=0 invalid); ``asked`` the rig as the caller gave
     it, ``rig`` the same fused on its output camera (``fuse(reference=...)``), on which
-    ``stereo_disparity`` lies. Deterministic (evenly spaced ToF pixels, no random draw).
+    ``stereo_disparity`` lies; ``fitted``, the given pose turned by a fraction of a degree where
+    :func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose` found that clearly better: another reading
+    must then fit at least as well as it (a turn can make the inverted reading beat the turned
+    pose as given on a flat scene; a translation's flip can look like a turn on a far one).
+    Deterministic (evenly spaced ToF pixels, no random draw).
     """
     points = sample_points(depth, rig, POSE_SAMPLES)
     if len(points) < 100:
@@ -98,6 +107,8 @@ def pose_warning(
     n_given, given = shares.pop("given")
     if n_given < 100:
         return None
+    # The given pose turned by refine_tof_pose: another reading must fit at least as well.
+    turned = 0.0 if fitted is None else _agreement(points, fitted, rig, stereo_disparity, tol)[1]
     best = max(
         (k for k, (n, _) in shares.items() if n >= 100),
         key=lambda k: shares[k][1],
@@ -108,7 +119,7 @@ def pose_warning(
     alt = shares[best][1]
     # A reading that fits no better than a wrong input is no diagnosis: the generic check's
     # advice (the translation's unit, the amplitude) is the one that fits then.
-    if alt - given < POSE_GAIN or alt < POSE_FLOOR:
+    if alt - given < POSE_GAIN or alt < POSE_FLOOR or alt < turned:
         return None
     other = "right" if asked.reference == "left" else "left"
     reading = _READINGS[best].format(other=other)

@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs.camera import Pose
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import (
     F32,
@@ -162,6 +163,10 @@ class FusionResult:
     #: and confidence), :data:`SOURCE_NONE` (nothing). With ``LcParams(cross_check=True)``
     #: nothing is filled (LC's unmeasured pixels are still marked).
     source: npt.NDArray[np.uint8] | None = None
+    #: The ToF pose fused with, ToF frame -> the ``reference`` camera's frame: the rig's,
+    #: carried to that camera, or the orientation :func:`refine_tof_pose` found when ``fuse``
+    #: refined it (write it into the calibration relative to ``reference``).
+    tof_pose: Pose | None = None
 
 
 def _is_estimator(value: object) -> TypeGuard[ConfidenceEstimator]:
@@ -281,6 +286,7 @@ def fuse(
     other camera, and a ToF that agrees with the stereo map almost nowhere.
     """
     asked = rig_arg(rig)
+    refine_pose = _validate.flag("refine_pose", refine_pose)
     r = asked if reference is None else with_reference(asked, reference)
     far = far_camera_warning(r)
     if far is not None:
@@ -383,19 +389,25 @@ def fuse(
     if swapped is not None:
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
-    # A pose read the wrong way round is named; other disagreement only in general terms.
-    wrong_way = None if swapped is not None else pose_warning(depth_map, asked, r, st_map)
+    # A ToF turned by a fraction of a degree is refined; a pose read the wrong way round is
+    # named (only when another reading beats even the refined pose: a turn can make the
+    # inverted reading fit a flat scene better than the turned pose as given); other
+    # disagreement only in general terms.
+    found = None
+    if refine_pose and swapped is None and not no_tof:
+        found = _refine_if_off(depth_map, r, st_map)
+        found = found if found is not None and found.clear else None
+    fitted = None if found is None else found.pose
+    wrong_way = None if swapped is not None else pose_warning(depth_map, asked, r, st_map, fitted)
     if wrong_way is not None:
         warnings.warn(wrong_way, RuntimeWarning, stacklevel=2)
-    if refine_pose and swapped is None and wrong_way is None and not no_tof:
-        found = _refine_if_off(depth_map, r, st_map)
-        if found is not None and found.clear:
-            warnings.warn(_refined_message(found), RuntimeWarning, stacklevel=2)
-            r = dataclasses.replace(r, tof_to_reference=found.pose)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # said once already, for the given pose
-                tof = _densify_tof(_reproject_tof(depth_map, tof_amplitude, r), r, ref_img)
-            tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
+    elif found is not None:
+        warnings.warn(_refined_message(found), RuntimeWarning, stacklevel=2)
+        r = dataclasses.replace(r, tof_to_reference=found.pose)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said once already, for the given pose
+            tof = _densify_tof(_reproject_tof(depth_map, tof_amplitude, r), r, ref_img)
+        tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
     apart = None if swapped or wrong_way else disagreement_warning(tof_disp, st_map)
     if apart is not None:
         warnings.warn(apart, RuntimeWarning, stacklevel=2)
@@ -439,7 +451,19 @@ def fuse(
         _carry_tof_to_border(disp, plaus, source, tof_disp, ct, sign)
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
-        disp, depth, plaus, tof, st_map, ct, cs, dmax, r.reference, tof_disp, matcher, source
+        disp,
+        depth,
+        plaus,
+        tof,
+        st_map,
+        ct,
+        cs,
+        dmax,
+        r.reference,
+        tof_disp,
+        matcher,
+        source,
+        r.tof_to_reference,
     )
 
 
@@ -449,8 +473,8 @@ def _refined_message(found: PoseRefinement) -> str:
         f"rig: the ToF fits the stereo map better turned by {found.yaw:+.2f} degrees of yaw and "
         f"{found.pitch:+.2f} of pitch (disparity difference {found.error_before:.2f} -> "
         f"{found.error_after:.2f} px, truncated mean): fused with that orientation. Correct "
-        "tof_to_reference (rgbd_rs.fusion.refine_tof_pose returns the pose), or pass "
-        "refine_pose=False to fuse the pose as given"
+        "the calibration (the result's tof_pose is the pose fused with, relative to its "
+        "reference camera), or pass refine_pose=False to fuse the pose as given"
     )
 
 

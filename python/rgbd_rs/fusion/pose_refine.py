@@ -35,13 +35,21 @@ COARSE_STEP = 0.25
 FINE_STEP = 0.05
 #: A refinement is *clear* when it lowers the truncated error by at least this share and turns
 #: the ToF by at least :data:`MIN_DEGREES` (smaller corrections are within the fit's noise:
-#: exact rigs of the val scenes gave 0-0.05 degrees and 0-4 % lower errors).
+#: exact rigs of the val scenes gave 0-0.1 degrees and 0-9 % lower errors).
 MIN_GAIN = 0.15
 MIN_DEGREES = 0.1
 #: ... and by at least this many pixels (at 960 px wide; scaled with the width): on a nearly
 #: planar, precise scene (Bull: 0.12 px) a turn of the whole ToF trades a few hundredths of a
 #: pixel, which the relative gain alone would call clear.
 MIN_DROP = 0.08
+#: ... and only from at least this many ToF pixels landing on stereo values (a review found 5 of
+#: 360 exact rigs turned with 130-400 ToF pixels, none with 400 or more).
+MIN_PIXELS = 500
+#: After the search, an axis whose turn lowers the error by less than this many pixels (scaled
+#: as :data:`MIN_DROP`) is set back to 0: on a flat scene a yaw can trade for a pitch.
+AXIS_DROP = 0.02
+#: The probe's rings (degrees): the eight turns at each distance are tried before a search.
+PROBE_RINGS = (0.1, 0.25)
 
 
 @dataclass(frozen=True)
@@ -74,6 +82,7 @@ class PoseRefinement:
         drop = self.error_before - self.error_after
         return bool(
             turned
+            and self.pixels >= MIN_PIXELS
             and self.error_after <= (1 - MIN_GAIN) * self.error_before
             and drop >= MIN_DROP * self.scale
         )
@@ -145,7 +154,22 @@ def _search(
                 if e < best[0] - 1e-12:
                     best = (e, float(yaw), float(pitch))
         centre = (best[1], best[2])
-    return best
+    err, yaw, pitch = best
+    # An axis that buys (almost) nothing goes back to 0 (a yaw traded for a pitch on a flat
+    # scene would otherwise be reported as an error of the calibration).
+    slack = AXIS_DROP * max(1.0, rig.reference_camera.width / 960)
+    for axis in ("yaw", "pitch"):
+        y0, p0 = (0.0, pitch) if axis == "yaw" else (yaw, 0.0)
+        if (y0, p0) == (yaw, pitch):
+            continue
+        e0 = (
+            before
+            if (y0, p0) == (0.0, 0.0)
+            else _error(points, _turned(given, y0, p0), rig, stereo, truncate)[0]
+        )
+        if e0 - err < slack:
+            err, yaw, pitch = e0, y0, p0
+    return err, yaw, pitch
 
 
 def _scale(rig: ToFStereoRig) -> float:
@@ -212,10 +236,11 @@ def _refine_if_off(
     truncate = _truncate(rig)
     given = rig.tof_to_reference
     before, n = _error(points, given, rig, stereo, truncate)
-    if n < 100:
+    if n < MIN_PIXELS:
         return None
     probe = min(
-        _error(points, _turned(given, a * COARSE_STEP, b * COARSE_STEP), rig, stereo, truncate)[0]
+        _error(points, _turned(given, a * ring, b * ring), rig, stereo, truncate)[0]
+        for ring in PROBE_RINGS
         for a in (-1, 0, 1)
         for b in (-1, 0, 1)
         if (a, b) != (0, 0)
