@@ -75,6 +75,7 @@ EXEMPT: dict[str, str] = {
     "StereoScene": "plain record of validated scene arrays, built by load_stereo_scene",
     "ToFOnReference": "result container built by tof_to_reference",
     "PoseRefinement": "result container built by refine_tof_pose",
+    "ScaleRefinement": "result container built by refine_tof_scale",
     "SurfaceMaps": "result container built by the surface fits",
     "SurfaceFit": "result container built by fit_mask / fit_grid",
     "SegmentFits.labels": "no arguments",

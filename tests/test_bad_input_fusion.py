@@ -381,6 +381,20 @@ CASES: list[Case] = [
         "refine",
     ),
     Case(
+        "refine_tof_scale",
+        lambda: F.refine_tof_scale(TOF, "rig", np.zeros((135, 240), np.float32)),
+        ARG,
+        r"^rig: got str",
+        "rig",
+    ),
+    Case(
+        "refine_tof_scale",
+        lambda: F.refine_tof_scale(TOF, RIG, np.zeros((134, 240), np.float32)),
+        SHAPE,
+        r"^stereo_disparity: got shape \(134, 240\)",
+        "stereo",
+    ),
+    Case(
         "refine_tof_pose",
         lambda: F.refine_tof_pose(TOF, "rig", np.zeros((135, 240), np.float32)),
         ARG,

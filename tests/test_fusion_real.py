@@ -647,6 +647,32 @@ def test_a_turned_tof_on_a_flat_scene_is_refined_not_called_inverted(shared_data
     assert not any("if that pose were" in t for t in texts), texts
 
 
+def test_a_tof_depth_scale_a_few_percent_off_is_refined(shared_data: Path) -> None:
+    """ToF depths 3 % too long (or a stereo baseline 3 % short): refine_tof_scale finds the
+    factor, fuse() fuses with the depths rescaled (and says so) about as well as with exact
+    ones; exact depths are left alone."""
+    from rgbd_rs.fusion import refine_tof_scale
+    from rgbd_rs.fusion.score import score_result
+
+    s = real_sample("Books", 0)
+    long = np.where(s.tof_depth > 0, s.tof_depth * 1.03, s.tof_depth).astype(np.float32)
+    plain = fuse(s.left, s.right, long, s.tof_amplitude, s.rig, refine_pose=False)
+    found = refine_tof_scale(long, s.rig, plain.stereo_disparity)
+    assert found.clear and abs(found.factor - 1.03) <= 0.006, found
+    with pytest.warns(RuntimeWarning, match=r"^tof_depth/rig: the ToF's depths fit the stereo"):
+        fixed = fuse(s.left, s.right, long, s.tof_amplitude, s.rig)
+    assert fixed.tof_scale == pytest.approx(found.factor)
+    exact = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig)
+    assert exact.tof_scale == 1.0
+    assert not refine_tof_scale(s.tof_depth, s.rig, exact.stereo_disparity).clear
+    rms = {
+        k: score_result(s, o).rms["fused"] for k, o in (("p", plain), ("f", fixed), ("e", exact))
+    }
+    assert rms["f"] <= 1.1 * rms["e"] and rms["f"] < 0.9 * rms["p"], rms
+    none = refine_tof_scale(np.full_like(s.tof_depth, np.nan), s.rig, exact.stereo_disparity)
+    assert none.factor == 1.0 and none.pixels == 0 and not none.clear
+
+
 def test_a_misregistered_or_wrong_tof_input_warns(shared_data: Path) -> None:
     """The amplitude given as the depth (inside the rig's depth range, so the unit check lets it
     through) and a pose translation 1000x too long (millimetres) are named, not fused silently;

@@ -22,6 +22,7 @@ from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.fuse import FusionResult, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse, lc_refine
 from rgbd_rs.fusion.pose_refine import PoseRefinement, refine_tof_pose
+from rgbd_rs.fusion.scale_refine import ScaleRefinement, refine_tof_scale
 from rgbd_rs.fusion.stereo import cost_curve_stats, search_range, sgm
 from rgbd_rs.fusion.upsample import (
     ToFOnReference,
@@ -36,6 +37,7 @@ __all__ = [
     "FusionResult",
     "LcParams",
     "PoseRefinement",
+    "ScaleRefinement",
     "ToFOnReference",
     "census_match",
     "compute_clues",
@@ -44,6 +46,7 @@ __all__ = [
     "lc_fuse",
     "lc_refine",
     "refine_tof_pose",
+    "refine_tof_scale",
     "search_range",
     "segment_mean_shift",
     "sgm",

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
-from rgbd_rs.camera import Pose
+from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import (
     F32,
@@ -35,7 +35,8 @@ from rgbd_rs.fusion._pose_check import pose_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.pose_refine import PoseRefinement, _refine_if_off
+from rgbd_rs.fusion.pose_refine import MIN_DROP, PoseRefinement, _pose_error, _refine_if_off
+from rgbd_rs.fusion.scale_refine import ScaleRefinement, _refine_scale
 from rgbd_rs.fusion.sources import (
     SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_LC_UNMEASURED,  # noqa: F401 (re-exported: FusionResult.source)
@@ -167,6 +168,9 @@ class FusionResult:
     #: carried to that camera, or the orientation :func:`refine_tof_pose` found when ``fuse``
     #: refined it (write it into the calibration relative to ``reference``).
     tof_pose: Pose | None = None
+    #: The factor the ToF's depths were divided by to fit the stereo pair's scale (1: as given;
+    #: see :func:`~rgbd_rs.fusion.scale_refine.refine_tof_scale`).
+    tof_scale: float = 1.0
 
 
 def _is_estimator(value: object) -> TypeGuard[ConfidenceEstimator]:
@@ -274,7 +278,9 @@ def fuse(
             :data:`DEFAULT_STEREO`.
         refine_pose: when the ToF fits the stereo map clearly better turned by a fraction of a
             degree (:func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose`, up to 1 degree of yaw
-            and pitch), fuse with that orientation and warn; ``False`` fuses the pose as given.
+            and pitch), fuse with that orientation and warn; likewise when its depths fit it
+            clearly better scaled by 1-6 % (:func:`~rgbd_rs.fusion.scale_refine.refine_tof_scale`).
+            ``False`` fuses the pose and the depths as given.
 
     A ToF frame without any valid pixel gives the stereo-only LC result with a warning.
     ToF depths that look like millimetres (or kilometres) for the rig are refused
@@ -389,23 +395,42 @@ def fuse(
     if swapped is not None:
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
-    # A ToF turned by a fraction of a degree is refined; a pose read the wrong way round is
-    # named (only when another reading beats even the refined pose: a turn can make the
-    # inverted reading fit a flat scene better than the turned pose as given); other
-    # disagreement only in general terms.
-    found = None
-    if refine_pose and swapped is None and not no_tof:
-        found = _refine_if_off(depth_map, r, st_map)
-        found = found if found is not None and found.clear else None
+    # The ToF's depth scale against the stereo pair's first (a scale error shifts every ToF
+    # disparity, which a turn would partly absorb), then a ToF turned by a fraction of a degree
+    # is refined; a pose read the wrong way round is named (only when another reading beats
+    # even the refined pose: a turn can make the inverted reading fit a flat scene better than
+    # the turned pose as given); other disagreement only in general terms.
+    refine = refine_pose and swapped is None and not no_tof
+    rescale = _refine_scale(depth_map, r, st_map) if refine else None
+    rescale = rescale if rescale is not None and rescale.clear else None
+    found = _clear_turn(depth_map, r, st_map) if refine else None
+    fit_depth = depth_map
+    if rescale is not None:
+        fit_depth = np.where(depth_map > 0, depth_map / rescale.factor, depth_map)
+        fit_depth = fit_depth.astype(np.float32)
+        # A pitch can pass for a scale on slanted surfaces: the rescaling stays only where,
+        # with its own turn, it fits clearly better than the turn alone.
+        turned = _clear_turn(fit_depth, r, st_map)
+        with_scale = _fit_error(fit_depth, r, st_map, turned)
+        without = _fit_error(depth_map, r, st_map, found)
+        if with_scale <= without - MIN_DROP * max(1.0, w / 960):
+            found = turned
+        else:
+            rescale, fit_depth = None, depth_map
     fitted = None if found is None else found.pose
     wrong_way = None if swapped is not None else pose_warning(depth_map, asked, r, st_map, fitted)
     if wrong_way is not None:
         warnings.warn(wrong_way, RuntimeWarning, stacklevel=2)
-    elif found is not None:
+        found = rescale = None  # fits made with a pose read the wrong way round
+    if rescale is not None:
+        warnings.warn(_rescaled_message(rescale), RuntimeWarning, stacklevel=2)
+        depth_map = fit_depth
+    if found is not None:
         warnings.warn(_refined_message(found), RuntimeWarning, stacklevel=2)
         r = dataclasses.replace(r, tof_to_reference=found.pose)
+    if found is not None or rescale is not None:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # said once already, for the given pose
+            warnings.simplefilter("ignore")  # said once already, for the given pose and depths
             tof = _densify_tof(_reproject_tof(depth_map, tof_amplitude, r), r, ref_img)
         tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
     apart = None if swapped or wrong_way else disagreement_warning(tof_disp, st_map)
@@ -464,6 +489,7 @@ def fuse(
         matcher,
         source,
         r.tof_to_reference,
+        1.0 if rescale is None else rescale.factor,
     )
 
 
@@ -475,6 +501,29 @@ def _refined_message(found: PoseRefinement) -> str:
         f"{found.error_after:.2f} px, truncated mean): fused with that orientation. Correct "
         "the calibration (the result's tof_pose is the pose fused with, relative to its "
         "reference camera), or pass refine_pose=False to fuse the pose as given"
+    )
+
+
+def _clear_turn(depth: F32, rig: ToFStereoRig, stereo: F32) -> PoseRefinement | None:
+    """The orientation refinement of ``fuse()`` when it is clear, else None."""
+    found = _refine_if_off(depth, rig, stereo)
+    return found if found is not None and found.clear else None
+
+
+def _fit_error(depth: F32, rig: ToFStereoRig, stereo: F32, turn: PoseRefinement | None) -> float:
+    """The truncated ToF-stereo disparity difference with ``turn``'s pose (or the rig's)."""
+    pose = rig.tof_to_reference if turn is None else turn.pose
+    return _pose_error(depth, dataclasses.replace(rig, tof_to_reference=pose), stereo)
+
+
+def _rescaled_message(found: ScaleRefinement) -> str:
+    """The warning of a ToF depth scale that ``fuse()`` refined against the stereo map."""
+    return (
+        f"tof_depth/rig: the ToF's depths fit the stereo map better divided by {found.factor:.3f} "
+        f"(disparity difference {found.error_before:.2f} -> {found.error_after:.2f} px, "
+        "truncated mean): fused with them rescaled. A ToF depth scale error, or a stereo "
+        "baseline that far off, reads so; the result's tof_scale is the factor. Pass "
+        "refine_pose=False to fuse the depths as given"
     )
 
 

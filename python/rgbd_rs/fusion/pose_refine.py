@@ -79,13 +79,18 @@ class PoseRefinement:
         """Whether the refinement is large and certain enough to act on (see
         :data:`MIN_GAIN`, :data:`MIN_DEGREES`)."""
         turned = max(abs(self.yaw), abs(self.pitch)) >= MIN_DEGREES - 1e-9
-        drop = self.error_before - self.error_after
-        return bool(
-            turned
-            and self.pixels >= MIN_PIXELS
-            and self.error_after <= (1 - MIN_GAIN) * self.error_before
-            and drop >= MIN_DROP * self.scale
-        )
+        return _clear_fit(turned, self.pixels, self.error_before, self.error_after, self.scale)
+
+
+def _clear_fit(changed: bool, pixels: int, before: float, after: float, scale: float) -> bool:
+    """Whether a fit that ``changed`` the calibration is certain enough to act on: enough
+    pixels, and an error :data:`MIN_GAIN` and :data:`MIN_DROP` px (x ``scale``) lower."""
+    return bool(
+        changed
+        and pixels >= MIN_PIXELS
+        and after <= (1 - MIN_GAIN) * before
+        and before - after >= MIN_DROP * scale
+    )
 
 
 def _rotation(yaw: float, pitch: float) -> npt.NDArray[np.float64]:
@@ -249,3 +254,17 @@ def _refine_if_off(
         return None
     err, yaw, pitch = _search(points, rig, stereo, truncate, 1.0, before)
     return PoseRefinement(_turned(given, yaw, pitch), yaw, pitch, before, err, n, _scale(rig))
+
+
+def _pose_error(
+    depth: npt.NDArray[np.float32], rig: ToFStereoRig, stereo: npt.NDArray[np.float32]
+) -> float:
+    """The truncated ToF-stereo disparity difference with the rig's pose (inf: too few pixels
+    or a lens the ToF pixels cannot be undistorted through)."""
+    try:
+        points = _points(depth, rig)
+    except RgbdError:
+        return float("inf")
+    if len(points) == 0:
+        return float("inf")
+    return _error(points, rig.tof_to_reference, rig, stereo, _truncate(rig))[0]
