@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
-from rgbd_rs.camera import Pose, ToFStereoRig
+from rgbd_rs.camera import Pose
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import (
     F32,
@@ -35,8 +35,8 @@ from rgbd_rs.fusion._pose_check import pose_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.pose_refine import MIN_DROP, PoseRefinement, _pose_error, _refine_if_off
-from rgbd_rs.fusion.scale_refine import ScaleRefinement, _refine_scale
+from rgbd_rs.fusion.pose_refine import PoseRefinement
+from rgbd_rs.fusion.scale_refine import ScaleRefinement, _rescaled, _scale_and_turn
 from rgbd_rs.fusion.sources import (
     SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_LC_UNMEASURED,  # noqa: F401 (re-exported: FusionResult.source)
@@ -401,22 +401,7 @@ def fuse(
     # even the refined pose: a turn can make the inverted reading fit a flat scene better than
     # the turned pose as given); other disagreement only in general terms.
     refine = refine_pose and swapped is None and not no_tof
-    rescale = _refine_scale(depth_map, r, st_map) if refine else None
-    rescale = rescale if rescale is not None and rescale.clear else None
-    found = _clear_turn(depth_map, r, st_map) if refine else None
-    fit_depth = depth_map
-    if rescale is not None:
-        fit_depth = np.where(depth_map > 0, depth_map / rescale.factor, depth_map)
-        fit_depth = fit_depth.astype(np.float32)
-        # A pitch can pass for a scale on slanted surfaces: the rescaling stays only where,
-        # with its own turn, it fits clearly better than the turn alone.
-        turned = _clear_turn(fit_depth, r, st_map)
-        with_scale = _fit_error(fit_depth, r, st_map, turned)
-        without = _fit_error(depth_map, r, st_map, found)
-        if with_scale <= without - MIN_DROP * max(1.0, w / 960):
-            found = turned
-        else:
-            rescale, fit_depth = None, depth_map
+    rescale, found = _scale_and_turn(depth_map, r, st_map) if refine else (None, None)
     fitted = None if found is None else found.pose
     wrong_way = None if swapped is not None else pose_warning(depth_map, asked, r, st_map, fitted)
     if wrong_way is not None:
@@ -424,7 +409,7 @@ def fuse(
         found = rescale = None  # fits made with a pose read the wrong way round
     if rescale is not None:
         warnings.warn(_rescaled_message(rescale), RuntimeWarning, stacklevel=2)
-        depth_map = fit_depth
+        depth_map = _rescaled(depth_map, rescale.factor)
     if found is not None:
         warnings.warn(_refined_message(found), RuntimeWarning, stacklevel=2)
         r = dataclasses.replace(r, tof_to_reference=found.pose)
@@ -502,18 +487,6 @@ def _refined_message(found: PoseRefinement) -> str:
         "the calibration (the result's tof_pose is the pose fused with, relative to its "
         "reference camera), or pass refine_pose=False to fuse the pose as given"
     )
-
-
-def _clear_turn(depth: F32, rig: ToFStereoRig, stereo: F32) -> PoseRefinement | None:
-    """The orientation refinement of ``fuse()`` when it is clear, else None."""
-    found = _refine_if_off(depth, rig, stereo)
-    return found if found is not None and found.clear else None
-
-
-def _fit_error(depth: F32, rig: ToFStereoRig, stereo: F32, turn: PoseRefinement | None) -> float:
-    """The truncated ToF-stereo disparity difference with ``turn``'s pose (or the rig's)."""
-    pose = rig.tof_to_reference if turn is None else turn.pose
-    return _pose_error(depth, dataclasses.replace(rig, tof_to_reference=pose), stereo)
 
 
 def _rescaled_message(found: ScaleRefinement) -> str:

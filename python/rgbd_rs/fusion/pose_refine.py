@@ -134,6 +134,15 @@ def _points(depth: npt.NDArray[np.float32], rig: ToFStereoRig) -> npt.NDArray[np
     return sample_points(depth, rig, REFINE_SAMPLES)
 
 
+def _points_or_none(depth: npt.NDArray[np.float32], rig: ToFStereoRig) -> npt.NDArray[np.float64]:
+    """:func:`_points` for ``fuse()``'s checks, which must not raise: none where the ToF's lens
+    cannot undistort its pixels (no verdict then)."""
+    try:
+        return _points(depth, rig)
+    except RgbdError:
+        return np.zeros((0, 3))
+
+
 def _search(
     points: npt.NDArray[np.float64],
     rig: ToFStereoRig,
@@ -162,7 +171,7 @@ def _search(
     err, yaw, pitch = best
     # An axis that buys (almost) nothing goes back to 0 (a yaw traded for a pitch on a flat
     # scene would otherwise be reported as an error of the calibration).
-    slack = AXIS_DROP * max(1.0, rig.reference_camera.width / 960)
+    slack = AXIS_DROP * _scale(rig)
     for axis in ("yaw", "pitch"):
         y0, p0 = (0.0, pitch) if axis == "yaw" else (yaw, 0.0)
         if (y0, p0) == (yaw, pitch):
@@ -232,10 +241,7 @@ def _refine_if_off(
     """``fuse()``'s check: the eight rotations :data:`COARSE_STEP` away first (a few ms); only
     where one of them lowers the error by half of :data:`MIN_GAIN` the whole search of
     :func:`refine_tof_pose` (1 degree). None when nothing is worth searching."""
-    try:
-        points = _points(depth, rig)
-    except RgbdError:  # a lens the ToF pixels cannot be undistorted through: no verdict
-        return None
+    points = _points_or_none(depth, rig)
     if len(points) == 0:
         return None
     truncate = _truncate(rig)
@@ -261,10 +267,7 @@ def _pose_error(
 ) -> float:
     """The truncated ToF-stereo disparity difference with the rig's pose (inf: too few pixels
     or a lens the ToF pixels cannot be undistorted through)."""
-    try:
-        points = _points(depth, rig)
-    except RgbdError:
-        return float("inf")
+    points = _points_or_none(depth, rig)
     if len(points) == 0:
         return float("inf")
     return _error(points, rig.tof_to_reference, rig, stereo, _truncate(rig))[0]
