@@ -24,6 +24,7 @@ from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.fusion._inputs import AGREE_PX, F32, with_reference
 from rgbd_rs.fusion._tof_points import paired_disparities, sample_points
+from rgbd_rs.fusion.pose_refine import _turned
 
 #: ToF pixels projected per reading of the pose (evenly spaced over the valid ones).
 POSE_SAMPLES = 4096
@@ -38,6 +39,14 @@ POSE_GAIN = 0.03
 #: ... and agrees on at least this share itself (correct rigs: 0.44 and more; a reading that
 #: fits worse than that is no diagnosis).
 POSE_FLOOR = 0.4
+
+#: A reading is not named where the pose as given, turned about one axis by up to this many
+#: degrees (in steps of ``TURN_STEP``) or with its depths scaled by one of ``SCALES``, fits as
+#: well: a ToF turned by 1.5-3 degrees (beyond ``refine_tof_pose``'s search) or with depths 5 %
+#: off (with ``refine_pose=False``) made the inverted reading fit better than the pose as given.
+TURN_DEGREES = 3.0
+TURN_STEP = 0.25
+SCALES = tuple(float(g) for g in np.round(np.arange(0.90, 1.1001, 0.01), 2) if g != 1.0)
 
 _READINGS = {
     "inverse": "inverted (the reference camera's frame to the ToF's)",
@@ -76,6 +85,23 @@ def _agreement(
     if tof.size == 0:
         return 0, 0.0
     return int(tof.size), float((np.abs(tof - st) <= tol).mean())
+
+
+def _plain_error(points: np.ndarray, pose: Pose, rig: ToFStereoRig, stereo: F32, tol: float) -> float:
+    """The best share within ``tol`` of ``pose`` turned about one axis (yaw or pitch, up to
+    :data:`TURN_DEGREES` in steps of :data:`TURN_STEP`) or with the depths scaled
+    (:data:`SCALES`): what a plain orientation or scale error, not a pose read the wrong way
+    round, would explain."""
+    best = 0.0
+    steps = np.arange(-TURN_DEGREES, TURN_DEGREES + 1e-9, TURN_STEP)
+    for a in steps[steps != 0]:
+        for yaw, pitch in ((a, 0.0), (0.0, a)):
+            with contextlib.suppress(RgbdError):
+                turned = _turned(pose, float(yaw), float(pitch))
+                best = max(best, _agreement(points, turned, rig, stereo, tol)[1])
+    for g in SCALES:
+        best = max(best, _agreement(points * g, pose, rig, stereo, tol)[1])
+    return best
 
 
 def pose_warning(
@@ -120,6 +146,10 @@ def pose_warning(
     # A reading that fits no better than a wrong input is no diagnosis: the generic check's
     # advice (the translation's unit, the amplitude) is the one that fits then.
     if alt - given < POSE_GAIN or alt < POSE_FLOOR or alt < turned:
+        return None
+    # A pose turned by a degree or two, or depths a few percent off, also make another reading
+    # fit better than the pose as given: the reading is named only where neither does as well.
+    if _plain_error(points, readings["given"], rig, stereo_disparity, tol) >= alt:
         return None
     other = "right" if asked.reference == "left" else "left"
     reading = _READINGS[best].format(other=other)

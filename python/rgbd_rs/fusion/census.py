@@ -20,6 +20,7 @@ docs/experiments.md).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields
 from typing import Literal
 
@@ -30,6 +31,13 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._inputs import F32, image8
+from rgbd_rs.fusion.rows import (
+    ALIGN_THRESHOLD,
+    MAX_CORRECTIONS,
+    RowAlignment,
+    _measure,
+    _resample,
+)
 
 _DEFAULTS = _rgbd_rs.sgm_defaults()
 #: Largest ``p2`` (eight paths of cost + P2 must fit a u16 sum) and median window side.
@@ -60,6 +68,10 @@ class CensusParams:
         vertical_tolerance: target rows searched above and below each pixel's row (0 to
             ``MAX_VERTICAL``): its matching cost is the smallest over them. 0 = the rectified
             row only; 1 for a rig whose rectification leaves a vertical error near a pixel.
+        align_rows: measure how far the other view's rows lie from the reference's after a
+            first match, and where it reaches ``rows.ALIGN_THRESHOLD`` px, resample the other
+            view's rows and match again (:mod:`rgbd_rs.fusion.rows`; Python-side, not in
+            ``SgmParams``). Off = one match of the pair as given.
     """
 
     census_width: int = _DEFAULTS["census_width"]
@@ -76,6 +88,7 @@ class CensusParams:
     speckle_size: int = _DEFAULTS["speckle_size"]
     speckle_range: float = _DEFAULTS["speckle_range"]
     vertical_tolerance: int = _DEFAULTS["vertical_tolerance"]
+    align_rows: bool = True
 
     def __post_init__(self) -> None:
         _validate.integer("census_width", self.census_width, minimum=1, maximum=15)
@@ -98,6 +111,7 @@ class CensusParams:
         _validate.integer(
             "vertical_tolerance", self.vertical_tolerance, minimum=0, maximum=MAX_VERTICAL
         )
+        _validate.flag("align_rows", self.align_rows)
         bits = self.census_width * self.census_height - (self.census_reference == "center")
         if self.census_width % 2 == 0 or self.census_height % 2 == 0 or bits > 64:
             raise InvalidArgumentError(
@@ -126,11 +140,14 @@ class CensusMatch:
         best: the winner's aggregated cost (None unless ``stats``).
         second: the smallest aggregated cost more than one disparity away from the winner
             (+inf if none; None unless ``stats``). ``second / best`` is the cost-curve ratio.
+        rows: the row misalignment the other view was resampled by before the final match
+            (:class:`~rgbd_rs.fusion.rows.RowAlignment`), None when it was matched as given.
     """
 
     disparity: F32
     best: F32 | None
     second: F32 | None
+    rows: RowAlignment | None = None
 
 
 def _grey(image: npt.ArrayLike, name: str = "image") -> npt.NDArray[np.uint8]:
@@ -160,6 +177,9 @@ def census_match(
         max_disparity, min_disparity: the search range in pixels, inclusive.
         params: :class:`CensusParams` (default: the shipped defaults).
         stats: also return the aggregated cost curve's best and second-best costs.
+
+    Warns (``RuntimeWarning``) when the pair's rows had to be aligned (``params.align_rows``):
+    the map is then that of the resampled pair, and a re-rectified pair matches better.
     """
     raw = image8("left", left)
     raw_r = image8("right", right)
@@ -216,4 +236,42 @@ def census_match(
         stats,
     )
     disp, best, second = _rgbd_rs.census_sgm(lft, rgt, ref, config)
-    return CensusMatch(disp, best, second)
+    if not params.align_rows:
+        return CensusMatch(disp, best, second)
+    return _aligned(lft, rgt, ref, config, CensusMatch(disp, best, second))
+
+
+def _aligned(
+    left: npt.NDArray[np.uint8],
+    right: npt.NDArray[np.uint8],
+    reference: str,
+    config: _rgbd_rs.SgmConfig,
+    first: CensusMatch,
+) -> CensusMatch:
+    """``first``, or the match of the pair with the other view's rows aligned to the reference's
+    where :func:`~rgbd_rs.fusion.rows._measure` finds them apart (grey images)."""
+    sign = -1 if reference == "left" else 1
+    ref_img, other = (left, right) if reference == "left" else (right, left)
+    ref_f = ref_img.astype(np.float32)
+    out = first
+    total: RowAlignment | None = None
+    target = other
+    for _ in range(MAX_CORRECTIONS):
+        found = _measure(ref_f, target.astype(np.float32), out.disparity, sign)
+        if found is None or found.max_offset < ALIGN_THRESHOLD:
+            break
+        total = found if total is None else total.plus(found)
+        target = _resample(other, total)
+        pair = (left, target) if reference == "left" else (target, right)
+        disp, best, second = _rgbd_rs.census_sgm(pair[0], pair[1], reference, config)
+        out = CensusMatch(disp, best, second, total)
+    if out.rows is not None:
+        view = "right" if reference == "left" else "left"
+        warnings.warn(
+            f"{view}: the pair's rows disagree by {out.rows.describe()}; matched after "
+            f"resampling the {view} image's rows (re-rectify the pair for the best map, or "
+            "set CensusParams(align_rows=False) to match it as given)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return out

@@ -403,7 +403,10 @@ def fuse(
     refine = refine_pose and swapped is None and not no_tof
     rescale, found = _scale_and_turn(depth_map, r, st_map) if refine else (None, None)
     fitted = None if found is None else found.pose
-    wrong_way = None if swapped is not None else pose_warning(depth_map, asked, r, st_map, fitted)
+    # The readings are compared on the depths the fits chose (a depth scale a few percent off
+    # otherwise makes the inverted reading fit better than the pose as given).
+    checked = depth_map if rescale is None else _rescaled(depth_map, rescale.factor)
+    wrong_way = None if swapped is not None else pose_warning(checked, asked, r, st_map, fitted)
     if wrong_way is not None:
         warnings.warn(wrong_way, RuntimeWarning, stacklevel=2)
         found = rescale = None  # fits made with a pose read the wrong way round
