@@ -381,6 +381,43 @@ CASES: list[Case] = [
         "refine",
     ),
     Case(
+        "measure_row_alignment",
+        lambda: F.measure_row_alignment(LEFT, LEFT, np.zeros((134, 240), np.float32)),
+        SHAPE,
+        r"^disparity: got shape \(134, 240\)",
+        "shape",
+    ),
+    Case(
+        "measure_row_alignment",
+        lambda: F.measure_row_alignment(
+            LEFT, LEFT, np.zeros((135, 240), np.float32), reference="up"
+        ),
+        ARG,
+        r"^reference: got 'up'",
+        "reference",
+    ),
+    Case(
+        "align_rows",
+        lambda: F.align_rows(LEFT, "2 px"),  # type: ignore[arg-type]
+        ARG,
+        r"^alignment: got str, expected a RowAlignment",
+        "type",
+    ),
+    Case(
+        "align_rows",
+        lambda: F.align_rows(LEFT[:100], F.RowAlignment(1.0, 0.0, 0.0, 240, 135, 500, 0.1)),
+        SHAPE,
+        r"^image: got 240x100 pixels, expected 240x135",
+        "size",
+    ),
+    Case(
+        "CensusParams",
+        lambda: F.CensusParams(align_rows="yes"),  # type: ignore[arg-type]
+        ARG,
+        r"^align_rows: got 'yes', expected True or False",
+        "align_rows",
+    ),
+    Case(
         "refine_tof_scale",
         lambda: F.refine_tof_scale(TOF, "rig", np.zeros((135, 240), np.float32)),
         ARG,

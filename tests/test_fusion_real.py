@@ -647,6 +647,42 @@ def test_a_turned_tof_on_a_flat_scene_is_refined_not_called_inverted(shared_data
     assert not any("if that pose were" in t for t in texts), texts
 
 
+def test_a_plain_turn_or_scale_error_is_not_called_an_inverted_pose(shared_data: Path) -> None:
+    """A fuzz found the pose check blaming the pose's direction for a ToF turned by 2 degrees
+    (beyond the refinement's search) and for depths 5 % off (their rescaling then dropped):
+    a reading is named only where no one-axis turn or depth scale of the given pose fits as
+    well, on the depths the fits chose. Fused again with the pose and factor it reports, the
+    map's search range is the same (it was the range of the ToF as given)."""
+    import warnings
+
+    from rgbd_rs.fusion.pose_refine import _turned
+
+    s = real_sample("Rocks1", 0)
+    turned = dataclasses.replace(s.rig, tof_to_reference=_turned(s.rig.tof_to_reference, 2, 0))
+    long = np.where(s.tof_depth > 0, s.tof_depth * 1.05, s.tof_depth).astype(np.float32)
+    for rig, depth, refine in ((turned, s.tof_depth, True), (s.rig, long, False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fuse(s.left, s.right, depth, s.tof_amplitude, rig, confidence="heuristic",
+                 refine_pose=refine)  # fmt: skip
+        texts = [str(w.message) for w in caught]
+        assert not any("if that pose were" in t for t in texts), texts
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = fuse(s.left, s.right, long, s.tof_amplitude, s.rig, confidence="heuristic")
+        assert out.tof_scale == pytest.approx(1.05, abs=0.01) and out.tof_pose is not None
+        again = fuse(
+            s.left,
+            s.right,
+            (long / out.tof_scale).astype(np.float32),
+            s.tof_amplitude,
+            dataclasses.replace(s.rig, tof_to_reference=out.tof_pose),
+            confidence="heuristic",
+            refine_pose=False,
+        )
+    assert again.max_disparity == out.max_disparity
+
+
 def test_a_tof_depth_scale_a_few_percent_off_is_refined(shared_data: Path) -> None:
     """ToF depths 3 % too long (or a stereo baseline 3 % short): refine_tof_scale finds the
     factor, fuse() fuses with the depths rescaled (and says so) about as well as with exact

@@ -169,8 +169,10 @@ def register(commands: Commands) -> None:
     fz.add_argument(
         "--keep-pose",
         action="store_true",
-        help="fuse the ToF pose as given: by default a ToF orientation that fits the stereo map "
-        "clearly better turned by 0.1-1 degree is refined (with a warning naming the turn)",
+        help="fuse the ToF pose and depths as given: by default a ToF orientation that fits "
+        "the stereo map clearly better turned by 0.1-1 degree is refined, and depths 1-6 %% "
+        "off the pair's scale are rescaled (each with a warning; the pose and factor used go "
+        "to fused.npz as tof_pose and tof_scale)",
     )
 
     ef = commands.group_command(
@@ -406,6 +408,9 @@ def run_fuse(args: argparse.Namespace) -> int:
     }
     if out.source is not None:
         maps["source"] = out.source
+    if out.tof_pose is not None:  # 4x4, ToF frame -> the output camera's (metres)
+        maps["tof_pose"] = out.tof_pose.as_matrix()
+    maps["tof_scale"] = np.float64(out.tof_scale)
     if out.tof_confidence is not None and out.stereo_confidence is not None:
         maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
     output_folder(args.out, ("fused.npz", "disparity.png", "depth_mm.png", "preview.png"))
@@ -442,6 +447,17 @@ def run_fuse(args: argparse.Namespace) -> int:
             f"{DEPTH_PNG_MAX_M:g} m, the most a 16-bit millimetre PNG holds, and read 65535 "
             "there: check the rig's units (metres); fused.npz holds them exactly",
             file=sys.stderr,
+        )
+    from rgbd_rs.fusion._inputs import with_reference as on_camera
+
+    given = (rig if args.reference is None else on_camera(rig, args.reference)).tof_to_reference
+    if out.tof_pose is not None and (
+        out.tof_scale != 1.0 or not np.allclose(out.tof_pose.as_matrix(), given.as_matrix())
+    ):
+        print(
+            f"fused with the ToF depths divided by {out.tof_scale:.3f} and this pose, ToF frame "
+            f"-> {out.reference} camera (metres; fused.npz 'tof_scale', 'tof_pose'):\n"
+            + np.array2string(out.tof_pose.as_matrix(), precision=6, suppress_small=True)
         )
     how = "--max-disparity" if args.max_disparity is not None else "from the ToF disparities"
     print(f"SGM search range: 0-{out.max_disparity} px ({how})")

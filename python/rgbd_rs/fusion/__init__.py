@@ -22,6 +22,7 @@ from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.fuse import FusionResult, fuse
 from rgbd_rs.fusion.lc import LcParams, lc_fuse, lc_refine
 from rgbd_rs.fusion.pose_refine import PoseRefinement, refine_tof_pose
+from rgbd_rs.fusion.rows import RowAlignment, align_rows, measure_row_alignment
 from rgbd_rs.fusion.scale_refine import ScaleRefinement, refine_tof_scale
 from rgbd_rs.fusion.stereo import cost_curve_stats, search_range, sgm
 from rgbd_rs.fusion.upsample import (
@@ -37,14 +38,17 @@ __all__ = [
     "FusionResult",
     "LcParams",
     "PoseRefinement",
+    "RowAlignment",
     "ScaleRefinement",
     "ToFOnReference",
+    "align_rows",
     "census_match",
     "compute_clues",
     "cost_curve_stats",
     "fuse",
     "lc_fuse",
     "lc_refine",
+    "measure_row_alignment",
     "refine_tof_pose",
     "refine_tof_scale",
     "search_range",

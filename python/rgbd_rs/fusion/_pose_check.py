@@ -87,7 +87,9 @@ def _agreement(
     return int(tof.size), float((np.abs(tof - st) <= tol).mean())
 
 
-def _plain_error(points: np.ndarray, pose: Pose, rig: ToFStereoRig, stereo: F32, tol: float) -> float:
+def _plain_error(
+    points: np.ndarray, pose: Pose, rig: ToFStereoRig, stereo: F32, tol: float
+) -> float:
     """The best share within ``tol`` of ``pose`` turned about one axis (yaw or pitch, up to
     :data:`TURN_DEGREES` in steps of :data:`TURN_STEP`) or with the depths scaled
     (:data:`SCALES`): what a plain orientation or scale error, not a pose read the wrong way

@@ -36,7 +36,7 @@ from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
 from rgbd_rs.fusion.pose_refine import PoseRefinement
-from rgbd_rs.fusion.scale_refine import ScaleRefinement, _rescaled, _scale_and_turn
+from rgbd_rs.fusion.scale_refine import SCALE_GRID, ScaleRefinement, _rescaled, _scale_and_turn
 from rgbd_rs.fusion.sources import (
     SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_LC_UNMEASURED,  # noqa: F401 (re-exported: FusionResult.source)
@@ -77,6 +77,9 @@ DEFAULT_STEREO: StereoMatcher = "census"
 #: 0.867 / 1.068 without (the matcher alone prefers no check, where a hole counts as an error;
 #: in the fusion the ToF fills the holes).
 FUSION_CENSUS = CensusParams(lr_tolerance=1)
+#: The largest yaw / pitch ``fuse()``'s orientation refinement searches (``refine_tof_pose``'s
+#: default), degrees: a turn found there is reported as the edge of the search.
+POSE_SEARCH_DEGREES = 1.0
 #: Confidence kinds by name ("convnet" runs the shipped ConvNet, rgbd_rs/nn/weights).
 CONFIDENCE_KINDS = ("convnet", "uniform", "heuristic")
 #: Unconfirmed ToF pixels: where the colour of a pixel differs by more than this (mean absolute
@@ -420,6 +423,11 @@ def fuse(
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # said once already, for the given pose and depths
             tof = _densify_tof(_reproject_tof(depth_map, tof_amplitude, r), r, ref_img)
+        if max_disparity is None:  # the corrected ToF's range, as a corrected rig would give
+            refit = search_range(tof.disparity, w)
+            if not _same_search(dmax, refit):
+                st_map = match(lft, rgt, reference=r.reference, max_disparity=refit)
+            dmax = refit
         tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
     apart = None if swapped or wrong_way else disagreement_warning(tof_disp, st_map)
     if apart is not None:
@@ -486,9 +494,21 @@ def _refined_message(found: PoseRefinement) -> str:
     return (
         f"rig: the ToF fits the stereo map better turned by {found.yaw:+.2f} degrees of yaw and "
         f"{found.pitch:+.2f} of pitch (disparity difference {found.error_before:.2f} -> "
-        f"{found.error_after:.2f} px, truncated mean): fused with that orientation. Correct "
-        "the calibration (the result's tof_pose is the pose fused with, relative to its "
-        "reference camera), or pass refine_pose=False to fuse the pose as given"
+        f"{found.error_after:.2f} px, truncated mean): fused with that orientation"
+        f"{_edge_note(max(abs(found.yaw), abs(found.pitch)) >= POSE_SEARCH_DEGREES - 1e-6)}. "
+        "Correct the calibration (the result's tof_pose is the pose fused with, relative to "
+        "its reference camera; rgbd fuse writes it to fused.npz), or pass refine_pose=False "
+        "(rgbd fuse --keep-pose) to fuse the pose as given"
+    )
+
+
+def _edge_note(at_edge: bool) -> str:
+    """A clause for a fit that stopped at the edge of its search."""
+    if not at_edge:
+        return ""
+    return (
+        " (the edge of the search: the calibration may be further off than that, and the "
+        "fused map worse than with a corrected one)"
     )
 
 
@@ -497,9 +517,11 @@ def _rescaled_message(found: ScaleRefinement) -> str:
     return (
         f"tof_depth/rig: the ToF's depths fit the stereo map better divided by {found.factor:.3f} "
         f"(disparity difference {found.error_before:.2f} -> {found.error_after:.2f} px, "
-        "truncated mean): fused with them rescaled. A ToF depth scale error, or a stereo "
-        "baseline that far off, reads so; the result's tof_scale is the factor. Pass "
-        "refine_pose=False to fuse the depths as given"
+        f"truncated mean): fused with them rescaled"
+        f"{_edge_note(found.factor in (float(SCALE_GRID[0]), float(SCALE_GRID[-1])))}. A ToF "
+        "depth scale error, or a stereo baseline that far off, reads so; the result's "
+        "tof_scale is the factor (rgbd fuse writes it to fused.npz). Pass refine_pose=False "
+        "(rgbd fuse --keep-pose) to fuse the depths as given"
     )
 
 
