@@ -21,6 +21,7 @@ help: ## list the targets
 env: $(DEPS_STAMP) ## create/update the cached virtualenv ($(VENV))
 
 $(DEPS_STAMP):
+	@echo "rgbd_rs: installing the Python dependencies into $(VENV) (torch included: several minutes the first time)"
 	@test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) tools/deps.py | xargs $(PY) -m pip install -q
@@ -29,6 +30,7 @@ $(DEPS_STAMP):
 build: env ## build the native extension (release) into the virtualenv
 	@# PIP_QUIET: maturin's pip install of the requirements shows warnings and errors only, not
 	@# "Ignoring <an extra's requirement>: markers don't match" for every extra not installed.
+	@echo "rgbd_rs: building the Rust extension (release; about 5 minutes the first time on 2 cores, seconds after)"
 	VIRTUAL_ENV=$(VENV) PATH=$(VENV)/bin:$$PATH PIP_QUIET=1 $(VENV)/bin/maturin develop --release -q
 
 demo: build ## run the demo (`rgbd demo`)

@@ -37,7 +37,9 @@ def register(commands: Commands) -> None:
         "--splat-radius",
         type=integer(0, MAX_SPLAT_RADIUS),
         default=1,
-        help=f"splat radius in pixels (0..{MAX_SPLAT_RADIUS}, default 1)",
+        help="each depth pixel also fills the colour pixels within this radius where it is "
+        f"the nearest (0..{MAX_SPLAT_RADIUS}, default 1; 0 leaves the gaps between the "
+        "sparser depth samples empty)",
     )
     rep.add_argument(
         "--undistort",

@@ -36,6 +36,7 @@ DEPTH_PNG_MAX_M = 65.535
 #: fuse()'s parameters -> the flags that gave them (errors name the flag).
 FUSE_FLAGS = {
     "left/right": "--left/--right",
+    "tof_depth/rig": "--tof-depth/--calib",
     "left": "--left",
     "right": "--right",
     "tof_depth": "--tof-depth",
@@ -478,8 +479,9 @@ def run_fuse(args: argparse.Namespace) -> int:
         carried = (out.source == S.SOURCE_TOF_CARRIED).mean()
         lent = (out.source == S.SOURCE_LC_UNMEASURED).mean()
         print(
-            f"fused pixels LC left empty or cannot check, from one input: ToF {tof_px:.1%}, SGM "
-            f"{st_px:.1%}; ToF carried to the border the other camera cannot see {carried:.1%}; "
+            f"fused pixels taken from one input where LC had no value or nothing to check it "
+            f"against: ToF {tof_px:.1%}, SGM {st_px:.1%}; the ToF carried to the border the "
+            f"other camera cannot see {carried:.1%}; "
             f"LC's answer where neither input measured {lent:.1%}, less sure than its "
             "plausibility says (fused.npz 'source': 2, 3, 4, 5)"
         )

@@ -69,6 +69,13 @@ SEGMENT_FLAGS = {
 }
 
 
+#: How ``rgbd segment`` names the merge's mode.
+_MODE_WORDS = {
+    "similarity": "ordered by the ConvNet's class similarity, checked by the spline fits",
+    "fit": "fit-only: by the spline fits alone, no class similarity",
+}
+
+
 def register(commands: Commands) -> None:
     """Add ``rgbd segment``."""
     p = commands.command(
@@ -135,7 +142,13 @@ def register(commands: Commands) -> None:
         f"(default {DEFAULT_FILL_RADIUS}: scattered holes, sparse ToF depth; 0 keeps every hole)",
     )
     p.add_argument("--frames", type=integer(1), help="write every N-th merge step as a PNG")
-    p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed (0)")
+    p.add_argument(
+        "--seed",
+        type=integer(0, 2**32 - 1),
+        default=0,
+        help="seed of the over-segmentation's pixel sample and k-means (0; the same seed gives "
+        "the same segments)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress output")
 
 
@@ -286,7 +299,7 @@ def run_segment(args: argparse.Namespace) -> int:
         n_over = int(np.unique(result.over[result.over >= 0]).size)
         print(
             f"{n_over} segments -> {result.merge.n_segments} after {len(result.merge.history)} "
-            f"merges ({result.merge.mode} mode); {stages}"
+            f"merges ({_MODE_WORDS.get(result.merge.mode, result.merge.mode)}); {stages}"
         )
         print(f"wrote in {out}/: {written}")
     return 0

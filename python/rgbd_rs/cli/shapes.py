@@ -85,7 +85,9 @@ def _classify(commands: Commands) -> None:
         "--checkpoint", type=Path, metavar="CKPT", help="a `rgbd train shapes` checkpoint"
     )
     weights.add_argument(
-        "--dataset", choices=("modelnet10", "modelnet40"), help="which shipped weights to use"
+        "--dataset",
+        choices=("modelnet10", "modelnet40"),
+        help="which shipped weights to use (default modelnet40: 40 classes)",
     )
     p.add_argument("--top", type=integer(1), default=5, metavar="N", help="classes to print (5)")
     p.add_argument(
@@ -251,7 +253,7 @@ def run_cache(args: argparse.Namespace) -> int:
     rate = f", {1000 * seconds / made:.1f} ms per shape" if made > 0 else ""
     print(
         f"{args.out}: {int((done == 1).sum())}/{len(cache)} shapes done, "
-        f"{int((done == 2).sum())} failed; this run computed {made} in {seconds:.1f} s{rate}"
+        f"{int((done == 2).sum())} failed; this run computed {made} in {seconds:.2f} s{rate}"
     )
     if (done == 2).any() and not (done == 1).any():
         return fail(f"--data: every shape failed (see the warnings); {args.out} holds none")

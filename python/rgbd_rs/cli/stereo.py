@@ -58,6 +58,21 @@ def register(commands: Commands) -> None:
         help="census: target rows searched above and below each row (default 1, for a rig "
         "rectified to within about a pixel; 0 for a pair rectified to a fraction of one)",
     )
+    st.add_argument(
+        "--lr-tolerance",
+        type=integer(0),
+        default=None,
+        help="census: left-right check tolerance in px, NaN where the two views' matches "
+        "disagree by more (default: no check, every pixel gets a value, as rgbd eval stereo "
+        "scores the matcher; rgbd fuse runs it with 1)",
+    )
+    st.add_argument(
+        "--no-align-rows",
+        action="store_true",
+        help="census: match the pair as given (by default the rows' misalignment is measured "
+        "after a first match and, where it reaches 0.5 px, the other image's rows are "
+        "resampled and the pair matched again, with a warning)",
+    )
     st.add_argument("--out", type=folder, required=True, help="output folder")
 
     ev = commands.group_command(
@@ -128,13 +143,24 @@ def run_stereo(args: argparse.Namespace) -> int:
     right = named("--right", lambda: read_png(args.right))
     dmax = _search_range(args, left.shape[1], left.shape[0])
     params = None
-    if args.vertical_tolerance is not None:
-        if args.method == "opencv":
+    census_flags = {
+        "--vertical-tolerance": args.vertical_tolerance is not None,
+        "--lr-tolerance": args.lr_tolerance is not None,
+        "--no-align-rows": args.no_align_rows,
+    }
+    for flag, given in census_flags.items():
+        if given and args.method == "opencv":
             raise InvalidArgumentError(
-                "--vertical-tolerance: got it with --method opencv, expected --method census "
-                "(OpenCV's SGBM searches the rectified row only)"
+                f"{flag}: got it with --method opencv, expected --method census (OpenCV's "
+                "SGBM has its own left-right check and searches the rectified row only)"
             )
-        params = CensusParams(vertical_tolerance=args.vertical_tolerance)
+    if any(census_flags.values()):
+        params = CensusParams().replace(
+            **({} if args.vertical_tolerance is None else
+               {"vertical_tolerance": args.vertical_tolerance}),
+            **({} if args.lr_tolerance is None else {"lr_tolerance": args.lr_tolerance}),
+            align_rows=not args.no_align_rows,
+        )  # fmt: skip
     if args.method == "opencv":
         if _max_search(left.shape[1]) < 1:
             raise InvalidArgumentError(
@@ -159,10 +185,24 @@ def run_stereo(args: argparse.Namespace) -> int:
     write_png(out / "disparity.png", disparity_png16(disp), rgb=False)
     name = "census SGM (rgbd_rs)" if args.method == "census" else "OpenCV SGBM-HH 7x7"
     title = f"{name}: disparity on the {args.reference} view"
-    save_png(out / "preview.png", colorize_with_bar(disp, 0.0, float(dmax), "px", title=title))
+    found = disp[np.isfinite(disp)]  # the colours span the map's values, not the search range
+    lo, hi = (
+        (float(np.percentile(found, 1)), float(np.percentile(found, 99)))
+        if found.size
+        else (0.0, float(dmax))
+    )
+    save_png(out / "preview.png", colorize_with_bar(disp, lo, max(hi, lo + 1.0), "px", title=title))
     _warn_if_swapped(left, right, args.reference, dmax, args.method, disp)
     cover = float(np.isfinite(disp).mean())
-    print(f"{args.method} SGM on the {args.reference} view, 0..{dmax} px: {cover:.1%} matched")
+    checked = args.method == "opencv" or args.lr_tolerance is not None
+    note = (
+        ""
+        if checked
+        else " (no left-right check: --lr-tolerance 1 leaves NaN where the views disagree)"
+    )
+    print(
+        f"{args.method} SGM on the {args.reference} view, 0..{dmax} px: {cover:.1%} matched{note}"
+    )
     print(f"wrote {out}/disparity.npz, disparity.png, preview.png")
     return 0
 

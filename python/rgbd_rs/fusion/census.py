@@ -270,7 +270,8 @@ def _aligned(
         warnings.warn(
             f"{view}: the pair's rows disagree by {out.rows.describe()}; matched after "
             f"resampling the {view} image's rows (re-rectify the pair for the best map, or "
-            "set CensusParams(align_rows=False) to match it as given)",
+            "match it as given with CensusParams(align_rows=False) or rgbd stereo "
+            "--no-align-rows)",
             RuntimeWarning,
             stacklevel=3,
         )

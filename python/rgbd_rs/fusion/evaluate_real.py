@@ -31,6 +31,13 @@ if TYPE_CHECKING:
 ERROR_MAX = 3.0
 
 
+def _shortfall(gap: float) -> str:
+    """The coverage shortfall in words: a negative one means the fused map covers more."""
+    if gap > 0:
+        return f"{100 * gap:.2f} %"
+    return f"none (the fused map covers {100 * -gap:.2f} % more at least)"
+
+
 def markdown(scores: list[CaseScore], title: str) -> str:
     """Per-case rows and the summary against the issue's targets."""
     rows = [
@@ -52,8 +59,8 @@ def markdown(scores: list[CaseScore], title: str) -> str:
         f"\nMean fused RMS {m['mean_fused']:.3f} px; mean fused / better input "
         f"**{m['mean_ratio']:.3f}** (target <= 0.85); worst fused / good input "
         f"**{m['worst_good']:.3f}** (target <= {MAX_DAMAGE:g}); largest coverage shortfall of "
-        f"the fused map against the inputs' union {100 * m['coverage_gap']:.2f} % (target <= "
-        "0.5)."
+        f"the fused map against the inputs' union {_shortfall(m['coverage_gap'])} (target <= "
+        "0.5 %)."
     )
     if np.isfinite(m["unseen_bad2"]):
         tof = m["unseen_bad2_tof"]

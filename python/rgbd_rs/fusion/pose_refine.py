@@ -8,8 +8,11 @@ The stereo map can tell: :func:`refine_tof_pose` projects a few thousand ToF pix
 reference camera under small rotations of the ToF about its own centre (yaw and pitch: the two
 that move its pixels across the image; roll moves them little) and keeps the rotation whose
 disparities agree best with the matcher's (a truncated mean absolute difference). On the val
-scenes it recovers a 0.4 degree yaw error to within 0.05 degrees and finds no rotation on
-exact rigs (docs/experiments.md, "a ToF orientation off by a fraction of a degree").
+scenes it recovers a 0.4 degree yaw error to within 0.05 degrees; on exact rigs the best
+rotation it finds is never :attr:`PoseRefinement.clear`, so ``fuse()`` turns none of them
+(docs/experiments.md, "a ToF orientation off by a fraction of a degree"). A wide search
+(``max_degrees`` of several degrees) can fit a large spurious turn on a flat or far scene:
+act on ``pose`` only when ``clear``.
 """
 
 from __future__ import annotations
@@ -57,12 +60,14 @@ class PoseRefinement:
     """What :func:`refine_tof_pose` found.
 
     Attributes:
-        pose: the refined ``tof_to_reference`` (the given one when nothing fits better).
+        pose: the best-fitting ``tof_to_reference`` found (the given one when nothing fits
+            better or too few pixels compare); use it only when :attr:`clear`.
         yaw, pitch: the rotation applied to the ToF about its centre, degrees (about the
             reference camera's y and x axes).
         error_before, error_after: the truncated mean absolute disparity difference (pixels)
             between the projected ToF and the stereo map, with the given and the refined pose.
-        pixels: ToF pixels compared with the given pose (0: too few to judge).
+        pixels: ToF pixels compared with the given pose (under 100: too few to judge, and
+            the given pose is returned).
     """
 
     pose: Pose
@@ -222,7 +227,7 @@ def refine_tof_pose(
     span = _validate.real("max_degrees", max_degrees, positive=True)
     if span > 10:
         raise InvalidArgumentError(
-            f"max_degrees: got {span:g}, expected at most 10 (a calibration further off is not "
+            f"max_degrees: got {span!r}, expected at most 10 (a calibration further off is not "
             "refined by a local search: recalibrate)"
         )
     given = r.tof_to_reference

@@ -44,7 +44,8 @@ class ScaleRefinement:
 
     Attributes:
         factor: ``g`` in ``d_stereo ~ g * d_ToF``: the ToF's depths divided by it agree best
-            with the stereo map (1 when nothing fits better).
+            with the stereo map over the 0.94-1.06 grid (1 when nothing fits better; a gain
+            of a hair picks another factor, so use it only when :attr:`clear`).
         error_before, error_after: the truncated mean absolute disparity difference (pixels)
             at 1 and at ``factor``.
         pixels: ToF pixels compared.
