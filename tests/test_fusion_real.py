@@ -683,6 +683,27 @@ def test_a_plain_turn_or_scale_error_is_not_called_an_inverted_pose(shared_data:
     assert again.max_disparity == out.max_disparity
 
 
+def test_a_tof_turned_by_several_degrees_is_named(shared_data: Path) -> None:
+    """A fuzz found a ToF turned by 5 degrees fused silently to a map 6 x worse than the stereo
+    map alone: beyond the refinement's degree, a coarse probe of turns names it (and the exact
+    rig stays quiet: the other tests of this file fuse it with warnings as errors)."""
+    import warnings
+
+    from rgbd_rs.fusion._pose_check import turn_warning
+    from rgbd_rs.fusion.pose_refine import _turned
+
+    s = real_sample("Rocks1", 0)
+    off = dataclasses.replace(s.rig, tof_to_reference=_turned(s.rig.tof_to_reference, 3, 0))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, off, confidence="heuristic")
+    named = [str(w.message) for w in caught if "several degrees off" in str(w.message)]
+    assert len(named) == 1 and "about -3 degrees of yaw" in named[0], [
+        str(w.message) for w in caught
+    ]
+    assert turn_warning(s.tof_depth, s.rig, out.stereo_disparity) is None
+
+
 def test_a_tof_depth_scale_a_few_percent_off_is_refined(shared_data: Path) -> None:
     """ToF depths 3 % too long (or a stereo baseline 3 % short): refine_tof_scale finds the
     factor, fuse() fuses with the depths rescaled (and says so) about as well as with exact

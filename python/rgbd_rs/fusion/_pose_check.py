@@ -161,3 +161,52 @@ def pose_warning(
         f"{reading}: check the pose's direction (ToF frame to the {asked.reference} camera's "
         "frame) and the camera it is relative to (the rig's reference)"
     )
+
+
+#: :func:`turn_warning` looks only where the ToF agrees with the stereo map on less than this
+#: share of its pixels (the exact Middlebury rigs: 0.73-1.00; a ToF turned by 3 degrees 0.31-0.60).
+TURN_QUIET = 0.8
+#: Its probe: turns of the ToF about one or both axes on a grid of this step, up to this far.
+TURN_PROBE_STEP = 1.0
+TURN_PROBE_DEGREES = 6.0
+#: It speaks when a turn raises the share by this much, to at least ``TURN_FIT``.
+TURN_GAIN = 0.15
+TURN_FIT = 0.7
+
+
+def turn_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | None:
+    """A warning when the ToF, under ``rig``'s pose (the one fused with), agrees with the stereo
+    map on few pixels but on many once turned by a few degrees: an orientation error beyond
+    what :func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose` searches (1 degree), which the
+    fusion cannot absorb (on the val scenes a 3-degree yaw made the fused map 3-8 x worse than
+    the stereo map alone), or None. Deterministic; costs ~0.1 s only where agreement is low."""
+    points = sample_points(depth, rig, POSE_SAMPLES // 2)
+    if len(points) < 100:
+        return None
+    tol = AGREE_PX * max(1.0, stereo_disparity.shape[1] / 960)
+    pose = rig.tof_to_reference
+    n, given = _agreement(points, pose, rig, stereo_disparity, tol)
+    if n < 500 or given >= TURN_QUIET:
+        return None
+    steps = np.arange(-TURN_PROBE_DEGREES, TURN_PROBE_DEGREES + 1e-9, TURN_PROBE_STEP)
+    best, turn = given, (0.0, 0.0)
+    for yaw in steps:
+        for pitch in steps:
+            if yaw == 0 and pitch == 0:
+                continue
+            with contextlib.suppress(RgbdError):
+                share = _agreement(
+                    points, _turned(pose, float(yaw), float(pitch)), rig, stereo_disparity, tol
+                )[1]
+                if share > best:
+                    best, turn = share, (float(yaw), float(pitch))
+    if best - given < TURN_GAIN or best < TURN_FIT:
+        return None
+    return (
+        f"rig: the ToF agrees with the stereo map within {tol:g} px on {given:.0%} of the pixels "
+        f"it reaches, but on {best:.0%} turned by about {turn[0]:+.0f} degrees of yaw and "
+        f"{turn[1]:+.0f} of pitch: its orientation in the calibration (tof_to_reference) looks "
+        "several degrees off, more than fuse() refines (1 degree), and the fused map is then "
+        "worse than the stereo map alone; fused as given: check the ToF's calibration "
+        "(rgbd_rs.fusion.refine_tof_pose with max_degrees=6 gives a finer estimate)"
+    )

@@ -31,7 +31,7 @@ from rgbd_rs.fusion._inputs import (
     views,
     with_reference,
 )
-from rgbd_rs.fusion._pose_check import pose_warning
+from rgbd_rs.fusion._pose_check import pose_warning, turn_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
@@ -429,7 +429,10 @@ def fuse(
                 st_map = match(lft, rgt, reference=r.reference, max_disparity=refit)
             dmax = refit
         tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
-    apart = None if swapped or wrong_way else disagreement_warning(tof_disp, st_map)
+    turned = None if swapped or wrong_way or no_tof else turn_warning(depth_map, r, st_map)
+    if turned is not None:
+        warnings.warn(turned, RuntimeWarning, stacklevel=2)
+    apart = None if swapped or wrong_way or turned else disagreement_warning(tof_disp, st_map)
     if apart is not None:
         warnings.warn(apart, RuntimeWarning, stacklevel=2)
     if not np.isfinite(st_map).any() and no_tof:
