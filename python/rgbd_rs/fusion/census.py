@@ -252,12 +252,11 @@ def _aligned(
     where :func:`~rgbd_rs.fusion.rows._measure` finds them apart (grey images)."""
     sign = -1 if reference == "left" else 1
     ref_img, other = (left, right) if reference == "left" else (right, left)
-    ref_f = ref_img.astype(np.float32)
     out = first
     total: RowAlignment | None = None
     target = other
     for _ in range(MAX_CORRECTIONS):
-        found = _measure(ref_f, target.astype(np.float32), out.disparity, sign)
+        found = _measure(ref_img, target, out.disparity, sign)
         if found is None or found.max_offset < ALIGN_THRESHOLD:
             break
         total = found if total is None else total.plus(found)

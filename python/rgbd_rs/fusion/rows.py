@@ -42,7 +42,7 @@ PATCH_RADIUS = 3
 #: Rows searched above and below a matched pixel.
 ROW_SEARCH = 4
 #: Pixels compared at most (an even subsample of the textured matched pixels).
-MAX_SAMPLES = 1000
+MAX_SAMPLES = 500
 #: A patch needs this mean ``|I(v + 1) - I(v - 1)|`` (grey levels) to tell rows apart.
 MIN_TEXTURE = 1.0
 #: A row comparison counts when its best correlation reaches this (and lies inside the search).
@@ -120,13 +120,13 @@ class RowAlignment:
         return f"up to {self.max_offset:.2f} px (" + ", ".join(parts) + ")"
 
 
-def _grey(image: U8) -> F32:
+def _grey(image: U8) -> U8:
     if image.ndim == 2:
-        return image.astype(np.float32)
-    return cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2GRAY).astype(np.float32)
+        return image
+    return np.asarray(cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2GRAY), np.uint8)
 
 
-def _samples(ref: F32, disparity: F32, sign: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _samples(ref: U8, disparity: F32, sign: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Textured matched reference pixels (rows, columns) and their columns in the other view:
     a grid of about ``4 MAX_SAMPLES`` pixels, thinned evenly to ``MAX_SAMPLES``."""
     h, w = ref.shape
@@ -140,7 +140,8 @@ def _samples(ref: F32, disparity: F32, sign: int) -> tuple[np.ndarray, np.ndarra
         ok = np.isfinite(u) & (u >= r + 1) & (u < w - r - 2)
     ys, xs, u = ys[ok], xs[ok], u[ok]
     rows = ys[:, None] + np.arange(-r - 1, r + 2)
-    patch = ref[rows[:, :, None], (xs[:, None] + np.arange(-r, r + 1))[:, None, :]]
+    cols = (xs[:, None] + np.arange(-r, r + 1))[:, None, :]
+    patch = ref[rows[:, :, None], cols].astype(np.float32)
     texture = np.abs(patch[:, 2:] - patch[:, :-2]).mean(axis=(1, 2))
     ok = texture >= MIN_TEXTURE
     ys, xs, u = ys[ok], xs[ok], u[ok]
@@ -156,19 +157,21 @@ def _centred(patches: F32) -> tuple[F32, F32]:
 
 
 def _row_offsets(
-    ref: F32, other: F32, ys: np.ndarray, xs: np.ndarray, u: np.ndarray
+    ref: U8, other: U8, ys: np.ndarray, xs: np.ndarray, u: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each sample's sub-pixel row offset in the other view, where its correlation is clear."""
     r, k = PATCH_RADIUS, ROW_SEARCH
     off = np.arange(-r, r + 1)
-    pl, nl = _centred(ref[(ys[:, None] + off)[:, :, None], (xs[:, None] + off)[:, None, :]])
+    pl, nl = _centred(
+        ref[(ys[:, None] + off)[:, :, None], (xs[:, None] + off)[:, None, :]].astype(np.float32)
+    )
     # One gather of the other view's strip (rows -r-k .. r+k, columns u0-r .. u0+r+1), then
     # the sub-pixel column once; each row offset is a slice of it.
     u0 = np.floor(u).astype(np.int64)
     fu = (u - u0).astype(np.float32)[:, None, None]
     rows = ys[:, None] + np.arange(-r - k, r + k + 1)
     cols = u0[:, None] + np.arange(-r, r + 2)
-    strip = other[rows[:, :, None], cols[:, None, :]]
+    strip = other[rows[:, :, None], cols[:, None, :]].astype(np.float32)
     strip = strip[:, :, :-1] * (1 - fu) + strip[:, :, 1:] * fu
     scores = np.empty((len(ys), 2 * k + 1), np.float32)
     for i in range(2 * k + 1):
@@ -239,7 +242,7 @@ def measure_row_alignment(
     return _measure(_grey(ref_img), _grey(other), np.asarray(disp, np.float32), sign)
 
 
-def _measure(ref: F32, other: F32, disparity: F32, sign: int) -> RowAlignment | None:
+def _measure(ref: U8, other: U8, disparity: F32, sign: int) -> RowAlignment | None:
     h, w = ref.shape
     if h < 2 * (PATCH_RADIUS + ROW_SEARCH + 2) or w < 2 * PATCH_RADIUS + 4:
         return None
