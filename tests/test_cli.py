@@ -523,7 +523,7 @@ def test_fuse_prints_the_search_range_and_each_inputs_coverage(
     assert tof > 90 and 50 < sgm < 97 and fused > 90  # SGM: nothing in the border band
     # Nothing an input measured is left blank.
     assert fused >= either - 0.05
-    assert "fused pixels LC left empty or cannot check, from one input: ToF" in out
+    assert "fused pixels taken from one input where LC had no value or nothing to check" in out
     argv = [*_fuse_argv(fuse_inputs, out=tmp_path / "b"), "--reference", "left"]
     # The fixture's ToF sits below the right camera: the left one is the far camera.
     with warnings.catch_warnings():
