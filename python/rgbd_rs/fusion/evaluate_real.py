@@ -127,6 +127,7 @@ def evaluate_real(
     scores: list[CaseScore] = []
     cells: list[U8] = []
     labels: list[str] = []
+    per_case = 0
     with warnings.catch_warnings():
         # Fusing on the camera far from the ToF is what a `view="right"` case measures; other
         # warnings still show once per run.
@@ -144,6 +145,7 @@ def evaluate_real(
             scores.append(score_result(s, res))
             if len(scores) <= figure_cases:
                 c, lab = _case_panels(s, res)
+                per_case = len(c)
                 cells += c
                 labels += lab
     if out is not None:
@@ -151,5 +153,8 @@ def evaluate_real(
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "table.md").write_text(markdown(scores, title))
         if cells:
-            save_png(folder / "figure.png", tile(cells, labels, columns=8, width=320))
+            # Each case on two rows (4 + 4 panels, or 3 + 3 without confidences): half as wide
+            # as one row, so the labels stay legible at a page's width.
+            columns = max(1, per_case // 2)
+            save_png(folder / "figure.png", tile(cells, labels, columns=columns, width=320))
     return scores
