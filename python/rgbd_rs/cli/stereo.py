@@ -60,7 +60,7 @@ def register(commands: Commands) -> None:
     )
     st.add_argument(
         "--lr-tolerance",
-        type=integer(0),
+        type=integer(0, 255),
         default=None,
         help="census: left-right check tolerance in px, NaN where the two views' matches "
         "disagree by more (default: no check, every pixel gets a value, as rgbd eval stereo "
@@ -171,7 +171,12 @@ def run_stereo(args: argparse.Namespace) -> int:
         dmax = min(dmax, _max_search(left.shape[1]))
     out = output_folder(args.out, STEREO_OUTPUTS)
     disp = flagged(
-        {"left": "--left", "right": "--right", "max_disparity": "--max-disparity"},
+        {
+            "left": "--left",
+            "right": "--right",
+            "max_disparity": "--max-disparity",
+            "lr_tolerance": "--lr-tolerance",
+        },
         lambda: sgm(
             left,
             right,
@@ -223,10 +228,10 @@ def _warn_if_swapped(
     from rgbd_rs.fusion.fuse import _match, _swap_warning
 
     match = functools.partial(_match, matcher=method, width=left.shape[1])
-    checked = (
+    checked = (  # matched as given: the row check is the main match's business
         disparity
         if method == "opencv"
-        else match(left, right, reference=reference, max_disparity=dmax)
+        else match(left, right, reference=reference, max_disparity=dmax, align_rows=False)
     )
     none = np.full(checked.shape, np.nan, np.float32)
     message = _swap_warning(left, right, reference, checked, none, dmax, match)

@@ -169,6 +169,8 @@ TURN_QUIET = 0.8
 #: Its probe: turns of the ToF about one or both axes on a grid of this step, up to this far.
 TURN_PROBE_STEP = 1.0
 TURN_PROBE_DEGREES = 6.0
+#: Turns smaller than this (degrees, on the larger axis) are the refinement's business.
+TURN_MIN_DEGREES = 2.0
 #: It speaks when a turn raises the share by this much, to at least ``TURN_FIT``.
 TURN_GAIN = 0.15
 TURN_FIT = 0.7
@@ -192,13 +194,14 @@ def turn_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | 
     best, turn = given, (0.0, 0.0)
     for yaw in steps:
         for pitch in steps:
-            if yaw == 0 and pitch == 0:
+            if max(abs(yaw), abs(pitch)) < TURN_MIN_DEGREES:  # the refinement's range
                 continue
             with contextlib.suppress(RgbdError):
-                share = _agreement(
+                count, share = _agreement(
                     points, _turned(pose, float(yaw), float(pitch)), rig, stereo_disparity, tol
-                )[1]
-                if share > best:
+                )
+                # A turn that moves most ToF pixels off the image compares too few to judge.
+                if count >= max(500, n // 2) and share > best:
                     best, turn = share, (float(yaw), float(pitch))
     if best - given < TURN_GAIN or best < TURN_FIT:
         return None

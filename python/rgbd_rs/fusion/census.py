@@ -267,7 +267,8 @@ def _aligned(
     if out.rows is not None:
         view = "right" if reference == "left" else "left"
         warnings.warn(
-            f"{view}: the pair's rows disagree by {out.rows.describe()}; matched after "
+            f"{view}: the pair's rows disagree by {out.rows.describe()}, + meaning the "
+            f"{view} image's rows lie lower; matched after "
             f"resampling the {view} image's rows (re-rectify the pair for the best map, or "
             "match it as given with CensusParams(align_rows=False) or rgbd stereo "
             "--no-align-rows)",

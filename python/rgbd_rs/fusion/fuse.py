@@ -196,20 +196,30 @@ def _match_score(stereo: F32, tof_disparity: F32, max_disparity: int, sign: int)
 
 
 def _match(
-    left: U8, right: U8, *, reference: str, max_disparity: int, matcher: str, width: int
+    left: U8,
+    right: U8,
+    *,
+    reference: str,
+    max_disparity: int,
+    matcher: str,
+    width: int,
+    align_rows: bool = True,
 ) -> F32:
     """SGM as ``fuse`` runs it: ``matcher`` with its settings; the census matcher searches the
     range rounded up to OpenCV's whole steps (:func:`_whole_steps`, within the image), so that,
-    as with SGBM, a range :func:`_same_search` calls the same gives the same map."""
+    as with SGBM, a range :func:`_same_search` calls the same gives the same map.
+    ``align_rows=False``: the census matcher matches the pair as given (the swap check's
+    exchanged pair, whose poor first match must not be read for rows)."""
     if matcher == "census":
         top = min(_whole_steps(max_disparity), width - 1)
+        params = FUSION_CENSUS if align_rows else FUSION_CENSUS.replace(align_rows=False)
         return sgm(
             left,
             right,
             reference=reference,
             max_disparity=top,
             method="census",
-            params=FUSION_CENSUS,
+            params=params,
         )
     return sgm(left, right, reference=reference, max_disparity=max_disparity)
 
@@ -231,7 +241,7 @@ def _swap_warning(
     given = _match_score(stereo, tof_disparity, dmax, sign)
     if has_tof and given >= SWAP_SUSPECT_SCORE:
         return None
-    exchanged = match(right, left, reference=reference, max_disparity=dmax)
+    exchanged = match(right, left, reference=reference, max_disparity=dmax, align_rows=False)
     swapped = _match_score(exchanged, tof_disparity, dmax, sign)
     gain = SWAP_GAIN if has_tof else SWAP_GAIN_STEREO_ONLY
     if swapped < max(SWAP_SUSPECT_SCORE, gain * given):
@@ -429,7 +439,10 @@ def fuse(
                 st_map = match(lft, rgt, reference=r.reference, max_disparity=refit)
             dmax = refit
         tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
-    turned = None if swapped or wrong_way or no_tof else turn_warning(depth_map, r, st_map)
+    # Several degrees off: only where the refinement did not act (its warning says when it
+    # stopped at the edge of its search).
+    quiet = swapped or wrong_way or no_tof or found is not None or rescale is not None
+    turned = None if quiet else turn_warning(depth_map, r, st_map)
     if turned is not None:
         warnings.warn(turned, RuntimeWarning, stacklevel=2)
     apart = None if swapped or wrong_way or turned else disagreement_warning(tof_disp, st_map)

@@ -227,8 +227,8 @@ def refine_tof_pose(
     span = _validate.real("max_degrees", max_degrees, positive=True)
     if span > 10:
         raise InvalidArgumentError(
-            f"max_degrees: got {max_degrees!r}, expected at most 10 (a calibration further off is not "
-            "refined by a local search: recalibrate)"
+            f"max_degrees: got {max_degrees!r}, expected at most 10 (a calibration further "
+            "off is not refined by a local search: recalibrate)"
         )
     given = r.tof_to_reference
     points = _points(depth, r)

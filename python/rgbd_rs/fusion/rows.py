@@ -49,8 +49,9 @@ MIN_TEXTURE = 1.0
 MIN_CORRELATION = 0.7
 #: Nothing is measured unless this share of the compared pixels count: a first match too poor
 #: to read rows from (a pair given the wrong way round, or no pair at all) counts 0.03-0.34 on
-#: the Middlebury train + val scenes, their pairs as given 0.80-0.94, 2 px apart 0.59-0.90.
-MIN_CLEAR_SHARE = 0.4
+#: the Middlebury train + val scenes (a swapped pair with a left-right check up to 0.47), their
+#: pairs as given 0.79-0.98, 2 px apart 0.56-0.93.
+MIN_CLEAR_SHARE = 0.5
 #: Fewer agreeing pixels than this (or than a fifth of the compared ones): nothing is measured.
 MIN_SAMPLES = 50
 #: Resample and match again where the fitted misalignment reaches this many pixels anywhere.
@@ -85,6 +86,14 @@ class RowAlignment:
     samples: int
     spread: float
 
+    def __post_init__(self) -> None:
+        for name in ("offset", "slope_x", "slope_y"):
+            object.__setattr__(self, name, _validate.real(name, getattr(self, name)))
+        object.__setattr__(self, "spread", _validate.real("spread", self.spread, nonnegative=True))
+        object.__setattr__(self, "width", _validate.integer("width", self.width, minimum=1))
+        object.__setattr__(self, "height", _validate.integer("height", self.height, minimum=1))
+        object.__setattr__(self, "samples", _validate.integer("samples", self.samples))
+
     @property
     def max_offset(self) -> float:
         """The largest ``|dy|`` over the image (at a corner), px."""
@@ -100,6 +109,15 @@ class RowAlignment:
 
     def plus(self, other: RowAlignment) -> RowAlignment:
         """This misalignment followed by ``other`` (measured after this one was undone)."""
+        if not isinstance(other, RowAlignment):
+            raise InvalidArgumentError(
+                f"other: got {type(other).__name__}, expected a RowAlignment"
+            )
+        if (other.width, other.height) != (self.width, self.height):
+            raise ShapeMismatchError(
+                f"other: got one measured on {other.width}x{other.height} pixels, expected "
+                f"{self.width}x{self.height} (this one's size)"
+            )
         return RowAlignment(
             self.offset + other.offset,
             self.slope_x + other.slope_x,
@@ -111,7 +129,7 @@ class RowAlignment:
         )
 
     def describe(self) -> str:
-        """One line for a warning or a log."""
+        """One line for a warning or a log (+: the other view's rows lie lower)."""
         parts = [f"{self.offset:+.2f} px at the centre"]
         if abs(self.slope_x) >= 0.1:
             parts.append(f"{self.slope_x:+.2f} px from left to right")
@@ -224,8 +242,11 @@ def measure_row_alignment(
         reference: the view ``disparity`` lies on, ``"right"`` or ``"left"``.
 
     Returns:
-        The fitted :class:`RowAlignment`, or None when fewer than :data:`MIN_SAMPLES` textured
-        matched pixels (or fewer than a fifth of those compared) agree on one.
+        The fitted :class:`RowAlignment`, or None when nothing can be read: fewer than
+        :data:`MIN_SAMPLES` textured matched pixels, fewer than :data:`MIN_CLEAR_SHARE` of them
+        with a clear best row, or fewer than a fifth of those agreeing with one plane. Offsets
+        beyond about 3 px are not read (the row search reaches 4, and the first match is too
+        poor there).
     """
     lft = image8("left", left)
     rgt = image8("right", right)
@@ -257,7 +278,8 @@ def _measure(ref: U8, other: U8, disparity: F32, sign: int) -> RowAlignment | No
 
 def align_rows(image: npt.ArrayLike, alignment: RowAlignment) -> U8:
     """The other view resampled (bicubic, borders repeated) so that its rows meet the reference
-    view's: pixel ``(u, v)`` takes the value at ``(u, v + dy(u, v))``.
+    view's: pixel ``(u, v)`` takes the value at ``(u, v + dy(u, v))``. (The matcher resamples
+    the grey image; resampling colour first and then converting differs by a grey level or two.)
 
     Args:
         image: the other view (uint8 RGB or grey) of the size ``alignment`` was measured on.
