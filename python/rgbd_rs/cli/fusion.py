@@ -411,7 +411,7 @@ def run_fuse(args: argparse.Namespace) -> int:
         maps["source"] = out.source
     if out.tof_pose is not None:  # 4x4, ToF frame -> the output camera's (metres)
         maps["tof_pose"] = out.tof_pose.as_matrix()
-    maps["tof_scale"] = np.float64(out.tof_scale)
+    maps["tof_scale"] = np.array(out.tof_scale, np.float64)
     if out.tof_confidence is not None and out.stereo_confidence is not None:
         maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
     output_folder(args.out, ("fused.npz", "disparity.png", "depth_mm.png", "preview.png"))
@@ -451,9 +451,9 @@ def run_fuse(args: argparse.Namespace) -> int:
         )
     from rgbd_rs.fusion._inputs import with_reference as on_camera
 
-    given = (rig if args.reference is None else on_camera(rig, args.reference)).tof_to_reference
+    as_given = (rig if args.reference is None else on_camera(rig, args.reference)).tof_to_reference
     if out.tof_pose is not None and (
-        out.tof_scale != 1.0 or not np.allclose(out.tof_pose.as_matrix(), given.as_matrix())
+        out.tof_scale != 1.0 or not np.allclose(out.tof_pose.as_matrix(), as_given.as_matrix())
     ):
         print(
             f"fused with the ToF depths divided by {out.tof_scale:.3f} and this pose, ToF frame "
