@@ -28,6 +28,17 @@ def image8(name: str, value: object) -> U8:
     return arr
 
 
+def pair8(left: object, right: object) -> tuple[U8, U8]:
+    """A stereo pair after :func:`image8`'s checks, the right image of the left one's size."""
+    lft, rgt = image8("left", left), image8("right", right)
+    if rgt.shape[:2] != lft.shape[:2]:
+        raise ShapeMismatchError(
+            f"right: got {rgt.shape[1]}x{rgt.shape[0]} pixels, expected {lft.shape[1]}x"
+            f"{lft.shape[0]} (the left image's size)"
+        )
+    return lft, rgt
+
+
 def rgb8(name: str, value: object, size: tuple[int, int] | None = None) -> U8:
     """An ``H x W x 3`` uint8 image (grey ``H x W`` is replicated); ``size`` = ``(W, H)``."""
     arr = image8(name, value)

@@ -30,7 +30,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.fusion._inputs import F32, image8
+from rgbd_rs.fusion._inputs import F32, image8, pair8
 from rgbd_rs.fusion.rows import (
     ALIGN_THRESHOLD,
     MAX_CORRECTIONS,
@@ -181,13 +181,7 @@ def census_match(
     Warns (``RuntimeWarning``) when the pair's rows had to be aligned (``params.align_rows``):
     the map is then that of the resampled pair, and a re-rectified pair matches better.
     """
-    raw = image8("left", left)
-    raw_r = image8("right", right)
-    if raw_r.shape[:2] != raw.shape[:2]:
-        raise ShapeMismatchError(
-            f"right: got {raw_r.shape[1]}x{raw_r.shape[0]} pixels, expected {raw.shape[1]}x"
-            f"{raw.shape[0]} (the left image's size)"
-        )
+    raw, raw_r = pair8(left, right)
     # Sizes next: a huge (e.g. broadcast) input is refused before it is copied.
     h, w = raw.shape[:2]
     if h * w > _rgbd_rs.MAX_PIXELS:

@@ -35,7 +35,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.fusion._inputs import F32, U8, image8
+from rgbd_rs.fusion._inputs import F32, U8, image8, pair8
 
 #: Patch radius of the row comparison (7 x 7 patches).
 PATCH_RADIUS = 3
@@ -248,13 +248,7 @@ def measure_row_alignment(
         beyond about 3 px are not read (the row search reaches 4, and the first match is too
         poor there).
     """
-    lft = image8("left", left)
-    rgt = image8("right", right)
-    if rgt.shape[:2] != lft.shape[:2]:
-        raise ShapeMismatchError(
-            f"right: got {rgt.shape[1]}x{rgt.shape[0]} pixels, expected {lft.shape[1]}x"
-            f"{lft.shape[0]} (the left image's size)"
-        )
+    lft, rgt = pair8(left, right)
     h, w = lft.shape[:2]
     disp = _validate.array("disparity", disparity, dtype=np.float32, shape=(h, w))
     ref = _validate.choice("reference", reference, ("left", "right"))
