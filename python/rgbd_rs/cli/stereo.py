@@ -155,12 +155,9 @@ def run_stereo(args: argparse.Namespace) -> int:
                 "SGBM has its own left-right check and searches the rectified row only)"
             )
     if any(census_flags.values()):
-        params = CensusParams().replace(
-            **({} if args.vertical_tolerance is None else
-               {"vertical_tolerance": args.vertical_tolerance}),
-            **({} if args.lr_tolerance is None else {"lr_tolerance": args.lr_tolerance}),
-            align_rows=not args.no_align_rows,
-        )  # fmt: skip
+        given = {"vertical_tolerance": args.vertical_tolerance, "lr_tolerance": args.lr_tolerance}
+        changes = {k: v for k, v in given.items() if v is not None}
+        params = CensusParams().replace(**changes, align_rows=not args.no_align_rows)
     if args.method == "opencv":
         if _max_search(left.shape[1]) < 1:
             raise InvalidArgumentError(

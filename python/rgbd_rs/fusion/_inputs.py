@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Literal, cast
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -26,6 +27,16 @@ def image8(name: str, value: object) -> U8:
     if arr.size == 0:
         raise ShapeMismatchError(f"{name}: got an empty image, expected at least 1x2 pixels")
     return arr
+
+
+def grey8(name: str, value: object) -> U8:
+    """A C-contiguous uint8 grey image of an RGB (or already grey) uint8 image (``image8``'s
+    checks first)."""
+    arr = image8(name, value)
+    if arr.ndim == 2:
+        return np.ascontiguousarray(arr)
+    grey = cv2.cvtColor(np.ascontiguousarray(arr), cv2.COLOR_RGB2GRAY)
+    return np.ascontiguousarray(grey, dtype=np.uint8)
 
 
 def pair8(left: object, right: object) -> tuple[U8, U8]:

@@ -24,13 +24,12 @@ import warnings
 from dataclasses import dataclass, fields
 from typing import Literal
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.fusion._inputs import F32, image8, pair8
+from rgbd_rs.fusion._inputs import F32, grey8, pair8
 from rgbd_rs.fusion.rows import (
     ALIGN_THRESHOLD,
     MAX_CORRECTIONS,
@@ -150,15 +149,6 @@ class CensusMatch:
     rows: RowAlignment | None = None
 
 
-def _grey(image: npt.ArrayLike, name: str = "image") -> npt.NDArray[np.uint8]:
-    """A C-contiguous uint8 grey image of an RGB (or already grey) uint8 image."""
-    arr = image8(name, image)
-    if arr.ndim == 2:
-        return np.ascontiguousarray(arr)
-    rgb = np.ascontiguousarray(arr)
-    return np.ascontiguousarray(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), dtype=np.uint8)
-
-
 def census_match(
     left: npt.ArrayLike,
     right: npt.ArrayLike,
@@ -200,8 +190,8 @@ def census_match(
             f"max_disparity: got {hi}, expected a search whose cost volume ({w} x {h} x "
             f"{hi - lo + 1}) holds at most {_rgbd_rs.MAX_ELEMENTS} elements"
         )
-    lft = _grey(raw, "left")
-    rgt = _grey(raw_r, "right")
+    lft = grey8("left", raw)
+    rgt = grey8("right", raw_r)
     if params is None:
         params = CensusParams()
     elif not isinstance(params, CensusParams):

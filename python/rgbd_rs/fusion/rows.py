@@ -35,7 +35,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.fusion._inputs import F32, U8, image8, pair8
+from rgbd_rs.fusion._inputs import F32, U8, grey8, image8, pair8
 
 #: Patch radius of the row comparison (7 x 7 patches).
 PATCH_RADIUS = 3
@@ -136,12 +136,6 @@ class RowAlignment:
         if abs(self.slope_y) >= 0.1:
             parts.append(f"{self.slope_y:+.2f} px from top to bottom")
         return f"up to {self.max_offset:.2f} px (" + ", ".join(parts) + ")"
-
-
-def _grey(image: U8) -> U8:
-    if image.ndim == 2:
-        return image
-    return np.asarray(cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2GRAY), np.uint8)
 
 
 def _samples(ref: U8, disparity: F32, sign: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -253,8 +247,9 @@ def measure_row_alignment(
     disp = _validate.array("disparity", disparity, dtype=np.float32, shape=(h, w))
     ref = _validate.choice("reference", reference, ("left", "right"))
     sign = -1 if ref == "left" else 1
+    lft, rgt = grey8("left", lft), grey8("right", rgt)
     ref_img, other = (lft, rgt) if ref == "left" else (rgt, lft)
-    return _measure(_grey(ref_img), _grey(other), np.asarray(disp, np.float32), sign)
+    return _measure(ref_img, other, np.asarray(disp, np.float32), sign)
 
 
 def _measure(ref: U8, other: U8, disparity: F32, sign: int) -> RowAlignment | None:
