@@ -425,7 +425,7 @@ def fuse(
         found = rescale = None  # fits made with a pose read the wrong way round
     if rescale is not None:
         warnings.warn(_rescaled_message(rescale), RuntimeWarning, stacklevel=2)
-        depth_map = _rescaled(depth_map, rescale.factor)
+        depth_map = checked  # the rescaled depths the pose check read
     if found is not None:
         warnings.warn(_refined_message(found), RuntimeWarning, stacklevel=2)
         r = dataclasses.replace(r, tof_to_reference=found.pose)
