@@ -30,23 +30,58 @@ def paired_disparities(
     """``(tof, stereo)``: the disparities of ``points`` moved by ``pose`` (ToF frame -> the
     reference camera's) and the stereo map's at the pixels they land on (nearest pixel), where
     both are finite."""
-    moved = pose.apply(points)
-    z = moved[:, 2]
+    tof, st, both = paired_many(points, pose.rotation[None], pose.translation, rig, stereo)
+    return tof[0][both[0]], st[0][both[0]]
+
+
+def turn_rotations(rotation: F64, turns: npt.ArrayLike) -> F64:
+    """The rotations of a ToF turned about its own centre by each ``(yaw, pitch)`` of ``turns``
+    (``K x 2``, degrees; yaw about the reference camera's y axis, then pitch about its x axis),
+    after ``rotation``: ``K x 3 x 3``, re-orthonormalised (SVD) so a rotation at the edge of
+    :class:`~rgbd_rs.camera.Pose`'s tolerance stays inside it. A zero turn gives ``rotation``."""
+    t = np.deg2rad(np.asarray(turns, dtype=np.float64).reshape(-1, 2))
+    ca, sa, cb, sb = np.cos(t[:, 0]), np.sin(t[:, 0]), np.cos(t[:, 1]), np.sin(t[:, 1])
+    zero, one = np.zeros_like(ca), np.ones_like(ca)
+    ry = np.stack([ca, zero, sa, zero, one, zero, -sa, zero, ca], axis=1).reshape(-1, 3, 3)
+    rx = np.stack([one, zero, zero, zero, cb, -sb, zero, sb, cb], axis=1).reshape(-1, 3, 3)
+    u, _, vt = np.linalg.svd(ry @ rx @ rotation)
+    out = u @ vt
+    keep = ~(t == 0).all(axis=1) & (np.linalg.det(out) > 0)
+    out[~keep] = rotation
+    return np.asarray(out, dtype=np.float64)
+
+
+def paired_many(
+    points: F64,
+    rotations: F64,
+    translations: F64,
+    rig: ToFStereoRig,
+    stereo: npt.NDArray[np.float32],
+) -> tuple[F64, F64, npt.NDArray[np.bool_]]:
+    """:func:`paired_disparities` for ``K`` poses at once (one projection of all the points):
+    ``points`` ``N x 3`` (or ``K x N x 3``, one set per pose), ``rotations`` ``K x 3 x 3``,
+    ``translations`` ``K x 3`` (or ``3``). Returns ``(tof, stereo, both)``, each ``K x N``:
+    the two disparities of each point under each pose, and where both are finite (elsewhere
+    the values are meaningless)."""
+    t = np.broadcast_to(np.reshape(translations, (-1, 3)), (len(rotations), 3))
+    # One 2-D product per pose: the same arithmetic as Pose.apply (a batched product of small
+    # matrices is slower in numpy and rounds differently).
+    moved = np.stack(
+        [(points if points.ndim == 2 else points[k]) @ r.T + t[k] for k, r in enumerate(rotations)]
+    )
+    z = moved[..., 2]
     with np.errstate(invalid="ignore"):
         front = np.isfinite(z) & (z > 0)
-    if not front.any():
-        return np.zeros(0), np.zeros(0)
-    uv = np.rint(rig.reference_camera.project(moved[front]))
+    if not front.all():  # behind the camera: projected from a harmless point, then dropped
+        moved[~front] = (0.0, 0.0, 1.0)
+    uv = np.rint(rig.reference_camera.project(moved.reshape(-1, 3))).reshape(*z.shape, 2)
     h, w = stereo.shape
-    with np.errstate(invalid="ignore"):
-        inside = (
-            np.isfinite(uv).all(axis=1)
-            & (uv[:, 0] >= 0)
-            & (uv[:, 0] < w)
-            & (uv[:, 1] >= 0)
-            & (uv[:, 1] < h)
-        )
-    st = stereo[uv[inside, 1].astype(np.intp), uv[inside, 0].astype(np.intp)].astype(np.float64)
-    tof = rig.stereo.baseline * rig.stereo.focal / z[front][inside]
-    both = np.isfinite(st) & np.isfinite(tof)
-    return tof[both], st[both]
+    with np.errstate(invalid="ignore"):  # NaN (a pixel the lens cannot map) compares False
+        inside = front & (uv[..., 0] >= 0) & (uv[..., 0] < w) & (uv[..., 1] >= 0) & (uv[..., 1] < h)
+    u = np.where(inside, uv[..., 0], 0).astype(np.intp)
+    v = np.where(inside, uv[..., 1], 0).astype(np.intp)
+    st = stereo[v, u].astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tof = rig.stereo.baseline * rig.stereo.focal / np.where(front, z, np.nan)
+    both = inside & np.isfinite(st) & np.isfinite(tof)
+    return tof, st, both

@@ -26,7 +26,12 @@ from rgbd_rs import _validate
 from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import map2d, rig_arg
-from rgbd_rs.fusion._tof_points import paired_disparities, sample_points
+from rgbd_rs.fusion._tof_points import (
+    paired_disparities,
+    paired_many,
+    sample_points,
+    turn_rotations,
+)
 
 #: ToF pixels projected per candidate rotation (evenly spaced over the valid ones).
 REFINE_SAMPLES = 2048
@@ -98,26 +103,12 @@ def _clear_fit(changed: bool, pixels: int, before: float, after: float, scale: f
     )
 
 
-def _rotation(yaw: float, pitch: float) -> npt.NDArray[np.float64]:
-    """Yaw about y, then pitch about x (degrees)."""
-    a, b = np.deg2rad(yaw), np.deg2rad(pitch)
-    ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
-    rx = np.array([[1, 0, 0], [0, np.cos(b), -np.sin(b)], [0, np.sin(b), np.cos(b)]])
-    return np.asarray(ry @ rx, dtype=np.float64)
-
-
 def _turned(pose: Pose, yaw: float, pitch: float) -> Pose:
-    """``pose`` with the ToF turned about its own centre (the reference camera's axes); the
-    product is re-orthonormalised (SVD), so a rotation at the edge of :class:`Pose`'s
-    tolerance stays inside it."""
+    """``pose`` with the ToF turned about its own centre (the reference camera's axes: yaw about
+    y, then pitch about x, degrees); re-orthonormalised (:func:`turn_rotations`)."""
     if yaw == 0 and pitch == 0:
         return pose
-    m = _rotation(yaw, pitch) @ pose.rotation
-    u, _, vt = np.linalg.svd(m)
-    r = u @ vt
-    if np.linalg.det(r) < 0:  # not reached from a rotation; kept for safety
-        return pose
-    return Pose(r, pose.translation)
+    return Pose(turn_rotations(pose.rotation, [(yaw, pitch)])[0], pose.translation)
 
 
 def _error(
@@ -132,6 +123,27 @@ def _error(
     if tof.size < 100:
         return float("inf"), int(tof.size)
     return float(np.minimum(np.abs(tof - st), truncate).mean()), int(tof.size)
+
+
+def _errors(
+    points: npt.NDArray[np.float64],
+    pose: Pose,
+    turns: list[tuple[float, float]],
+    rig: ToFStereoRig,
+    stereo: npt.NDArray[np.float32],
+    truncate: float,
+) -> list[float]:
+    """:func:`_error` of ``pose`` turned by each ``(yaw, pitch)`` of ``turns`` (one projection
+    of all of them; inf where fewer than 100 pixels compare)."""
+    if not turns:
+        return []
+    rotations = turn_rotations(pose.rotation, turns)
+    tof, st, both = paired_many(points, rotations, pose.translation, rig, stereo)
+    out = []
+    for k in range(len(turns)):
+        d = np.abs(tof[k][both[k]] - st[k][both[k]])
+        out.append(float(np.minimum(d, truncate).mean()) if d.size >= 100 else float("inf"))
+    return out
 
 
 def _points(depth: npt.NDArray[np.float32], rig: ToFStereoRig) -> npt.NDArray[np.float64]:
@@ -164,14 +176,18 @@ def _search(
     for step, reach in ((COARSE_STEP, span), (FINE_STEP, COARSE_STEP)):
         k = int(np.floor(reach / step + 1e-9))
         offsets = np.arange(-k, k + 1) * step
-        for dy in offsets:
-            for dx in offsets:
-                yaw, pitch = centre[0] + dy, centre[1] + dx
-                if max(abs(yaw), abs(pitch)) > span + 1e-9 or (yaw, pitch) == (0.0, 0.0):
-                    continue
-                e, _ = _error(points, _turned(given, yaw, pitch), rig, stereo, truncate)
-                if e < best[0] - 1e-12:
-                    best = (e, float(yaw), float(pitch))
+        turns = [
+            (float(centre[0] + dy), float(centre[1] + dx))
+            for dy in offsets
+            for dx in offsets
+            if max(abs(centre[0] + dy), abs(centre[1] + dx)) <= span + 1e-9
+            and (centre[0] + dy, centre[1] + dx) != (0.0, 0.0)
+        ]
+        for (yaw, pitch), e in zip(
+            turns, _errors(points, given, turns, rig, stereo, truncate), strict=True
+        ):
+            if e < best[0] - 1e-12:
+                best = (e, yaw, pitch)
         centre = (best[1], best[2])
     err, yaw, pitch = best
     # An axis that buys (almost) nothing goes back to 0 (a yaw traded for a pitch on a flat
@@ -184,7 +200,7 @@ def _search(
         e0 = (
             before
             if (y0, p0) == (0.0, 0.0)
-            else _error(points, _turned(given, y0, p0), rig, stereo, truncate)[0]
+            else _errors(points, given, [(y0, p0)], rig, stereo, truncate)[0]
         )
         if e0 - err < slack:
             err, yaw, pitch = e0, y0, p0
@@ -254,13 +270,14 @@ def _refine_if_off(
     before, n = _error(points, given, rig, stereo, truncate)
     if n < MIN_PIXELS:
         return None
-    probe = min(
-        _error(points, _turned(given, a * ring, b * ring), rig, stereo, truncate)[0]
+    rings = [
+        (a * ring, b * ring)
         for ring in PROBE_RINGS
         for a in (-1, 0, 1)
         for b in (-1, 0, 1)
         if (a, b) != (0, 0)
-    )
+    ]
+    probe = min(_errors(points, given, rings, rig, stereo, truncate))
     if probe > (1 - MIN_GAIN / 2) * before:
         return None
     err, yaw, pitch = _search(points, rig, stereo, truncate, 1.0, before)
