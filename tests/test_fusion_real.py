@@ -25,7 +25,7 @@ from rgbd_rs.fusion.real_scenes import (
     real_sample,
     real_samples,
 )
-from rgbd_rs.fusion.score import score_maps, summarize
+from rgbd_rs.fusion.score import score_maps, score_result, summarize
 from rgbd_rs.fusion.stereo import _whole_steps
 from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet
 
@@ -683,25 +683,54 @@ def test_a_plain_turn_or_scale_error_is_not_called_an_inverted_pose(shared_data:
     assert again.max_disparity == out.max_disparity
 
 
-def test_a_tof_turned_by_several_degrees_is_named(shared_data: Path) -> None:
+def test_a_tof_turned_by_several_degrees_is_refined_and_named_by_the_probe(
+    shared_data: Path,
+) -> None:
     """A fuzz found a ToF turned by 5 degrees fused silently to a map 6 x worse than the stereo
-    map alone: beyond the refinement's degree, a coarse probe of turns names it (and the exact
-    rig stays quiet: the other tests of this file fuse it with warnings as errors)."""
+    map alone. fuse()'s wide probe now finds such a turn and refines it (3 degrees of yaw on
+    Rocks1: fused about as well as with the exact rig); the share probe that warns where no
+    turn fits clearly still names it (and stays quiet on the exact rig)."""
     import warnings
 
     from rgbd_rs.fusion._pose_check import turn_warning
     from rgbd_rs.fusion.pose_refine import _turned
 
     s = real_sample("Rocks1", 0)
+    exact = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, s.rig, confidence="heuristic")
     off = dataclasses.replace(s.rig, tof_to_reference=_turned(s.rig.tof_to_reference, 3, 0))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, off, confidence="heuristic")
-    named = [str(w.message) for w in caught if "several degrees off" in str(w.message)]
-    assert len(named) == 1 and "about -3 degrees of yaw" in named[0], [
-        str(w.message) for w in caught
-    ]
+    said = [str(w.message) for w in caught]
+    assert not any("several degrees off" in m for m in said), said
+    refined = [m for m in said if "better turned by" in m]
+    assert len(refined) == 1 and "edge of the search" not in refined[0], said
+    yaw = float(refined[0].split("turned by ")[1].split(" degrees")[0])
+    assert abs(yaw + 3) <= 0.1, refined
+    rms_exact = score_result(s, exact).rms["fused"]
+    assert score_result(s, out).rms["fused"] <= 1.2 * rms_exact
+    named = turn_warning(s.tof_depth, off, out.stereo_disparity)
+    assert named is not None and "about -3 degrees of yaw" in named
     assert turn_warning(s.tof_depth, s.rig, out.stereo_disparity) is None
+
+
+def test_a_turn_past_the_near_search_is_followed_to_its_end(shared_data: Path) -> None:
+    """Wood1 with 1.5 degrees of yaw: the near search stopped at its 1-degree edge and fused a
+    map twice as bad as stereo alone; the wide probe carries the fit to the turn."""
+    import warnings
+
+    from rgbd_rs.fusion.pose_refine import _refine_if_off, _turned
+
+    s = real_sample("Wood1", 0)
+    off = dataclasses.replace(s.rig, tof_to_reference=_turned(s.rig.tof_to_reference, -1.5, 0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, off, confidence="heuristic")
+    found = _refine_if_off(s.tof_depth, off, out.stereo_disparity)
+    assert found is not None and found.clear
+    assert abs(found.yaw - 1.5) <= 0.1 and abs(found.pitch) <= 0.1, found
+    sc = score_result(s, out)
+    assert sc.rms["fused"] < sc.rms["stereo"]
 
 
 def test_a_tof_depth_scale_a_few_percent_off_is_refined(shared_data: Path) -> None:

@@ -221,8 +221,8 @@ TURN_FIT = 0.7
 def turn_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | None:
     """A warning when the ToF, under ``rig``'s pose (the one fused with), agrees with the stereo
     map on few pixels but on many once turned by a few degrees: an orientation error beyond
-    what :func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose` searches (1 degree), which the
-    fusion cannot absorb (on the val scenes a 3-degree yaw made the fused map 3-8 x worse than
+    what ``fuse()``'s refinement could fit clearly (it then fuses with the pose as given), which
+    the fusion cannot absorb (on the val scenes a 3-degree yaw made the fused map 3-8 x worse than
     the stereo map alone), or None. Deterministic; its probe (160 turns, one batched projection)
     costs ~20 ms at 960x540, only where agreement is low."""
     points = sample_points(depth, rig, POSE_SAMPLES // 2)
@@ -252,7 +252,8 @@ def turn_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | 
         f"rig: the ToF agrees with the stereo map within {tol:g} px on {given:.0%} of the pixels "
         f"it reaches, but on {best:.0%} turned by about {turn[0]:+.0f} degrees of yaw and "
         f"{turn[1]:+.0f} of pitch: its orientation in the calibration (tof_to_reference) looks "
-        "several degrees off, more than fuse() refines (1 degree), and the fused map is then "
-        "worse than the stereo map alone; fused as given: check the ToF's calibration "
-        "(rgbd_rs.fusion.refine_tof_pose with max_degrees=6 gives a finer estimate)"
+        "several degrees off, and no turn fitted clearly enough for fuse() to correct it, so "
+        "the fused map may be worse than the stereo map alone; fused as given: check the "
+        "ToF's calibration (rgbd_rs.fusion.refine_tof_pose with max_degrees=6 gives a finer "
+        "estimate)"
     )

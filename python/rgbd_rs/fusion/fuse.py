@@ -35,7 +35,7 @@ from rgbd_rs.fusion._pose_check import pose_warning, turn_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.pose_refine import PoseRefinement
+from rgbd_rs.fusion.pose_refine import WIDE_DEGREES, PoseRefinement
 from rgbd_rs.fusion.scale_refine import SCALE_GRID, ScaleRefinement, _rescaled, _scale_and_turn
 from rgbd_rs.fusion.sources import (
     SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
@@ -77,9 +77,10 @@ DEFAULT_STEREO: StereoMatcher = "census"
 #: 0.867 / 1.068 without (the matcher alone prefers no check, where a hole counts as an error;
 #: in the fusion the ToF fills the holes).
 FUSION_CENSUS = CensusParams(lr_tolerance=1)
-#: The largest yaw / pitch ``fuse()``'s orientation refinement searches (``refine_tof_pose``'s
-#: default), degrees: a turn found there is reported as the edge of the search.
-POSE_SEARCH_DEGREES = 1.0
+#: The largest yaw / pitch ``fuse()``'s orientation refinement reaches, degrees (its wide probe's
+#: :data:`~rgbd_rs.fusion.pose_refine.WIDE_DEGREES`, then a degree around the probe's best): a
+#: turn found there is reported as the edge of the search.
+POSE_SEARCH_DEGREES = WIDE_DEGREES + 1.0
 #: Confidence kinds by name ("convnet" runs the shipped ConvNet, rgbd_rs/nn/weights).
 CONFIDENCE_KINDS = ("convnet", "uniform", "heuristic")
 #: Unconfirmed ToF pixels: where the colour of a pixel differs by more than this (mean absolute
@@ -289,10 +290,12 @@ def fuse(
         stereo: the stereo matcher, ``"census"`` (ours) or ``"opencv"`` (SGBM); default the
             one the ConvNet was trained on (its clues come from the matcher), else
             :data:`DEFAULT_STEREO`.
-        refine_pose: when the ToF fits the stereo map clearly better turned by a fraction of a
-            degree (:func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose`, up to 1 degree of yaw
-            and pitch), fuse with that orientation and warn; likewise when its depths fit it
-            clearly better scaled by 1-6 % (:func:`~rgbd_rs.fusion.scale_refine.refine_tof_scale`).
+        refine_pose: when the ToF fits the stereo map clearly better turned (yaw and pitch,
+            0.1 to :data:`POSE_SEARCH_DEGREES` degrees: the search of
+            :func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose` within a degree, a coarse
+            probe of larger turns where nothing near fits), fuse with that orientation and
+            warn; likewise when its depths fit it clearly better scaled by 1-6 %
+            (:func:`~rgbd_rs.fusion.scale_refine.refine_tof_scale`).
             ``False`` fuses the pose and the depths as given.
 
     A ToF frame without any valid pixel gives the stereo-only LC result with a warning.

@@ -12,7 +12,10 @@ scenes it recovers a 0.4 degree yaw error to within 0.05 degrees; on exact rigs 
 rotation it finds is never :attr:`PoseRefinement.clear`, so ``fuse()`` turns none of them
 (docs/experiments.md, "a ToF orientation off by a fraction of a degree"). A wide search
 (``max_degrees`` of several degrees) can fit a large spurious turn on a flat or far scene:
-act on ``pose`` only when ``clear``.
+act on ``pose`` only when ``clear``. ``fuse()`` searches a degree, and where nothing near fits
+better (a turn of a few degrees makes the near ones no better than the given pose) or the fit
+stops at that edge, a coarse probe of turns out to :data:`WIDE_DEGREES` starts a search around
+its best (docs/experiments.md, "a ToF turned by one to six degrees").
 """
 
 from __future__ import annotations
@@ -56,6 +59,13 @@ MIN_PIXELS = 500
 #: After the search, an axis whose turn lowers the error by less than this many pixels (scaled
 #: as :data:`MIN_DROP`) is set back to 0: on a flat scene a yaw can trade for a pitch.
 AXIS_DROP = 0.02
+#: ``fuse()``'s wide probe: turns on a grid of :data:`WIDE_STEP` degrees out to
+#: :data:`WIDE_DEGREES` (beyond the 1-degree search), of :data:`WIDE_SAMPLES` of the ToF pixels;
+#: the best of them, where it lowers the error by half of :data:`MIN_GAIN`, starts a search of
+#: one degree around it.
+WIDE_DEGREES = 6.0
+WIDE_STEP = 1.0
+WIDE_SAMPLES = 512
 #: The probe's rings (degrees): the eight turns at each distance are tried before a search.
 PROBE_RINGS = (0.1, 0.25)
 
@@ -167,13 +177,16 @@ def _search(
     truncate: float,
     span: float,
     before: float,
+    start: tuple[float, float, float] | None = None,
 ) -> tuple[float, float, float]:
     """(error, yaw, pitch) of the best rotation: a grid of :data:`COARSE_STEP` over +-span,
-    then one of :data:`FINE_STEP` around its best."""
+    then one of :data:`FINE_STEP` around its best. With ``start`` (error, yaw, pitch of a turn
+    found by a coarser probe) the first grid reaches one degree around that turn instead."""
     given = rig.tof_to_reference
-    best = (before, 0.0, 0.0)
-    centre = (0.0, 0.0)
-    for step, reach in ((COARSE_STEP, span), (FINE_STEP, COARSE_STEP)):
+    best = (before, 0.0, 0.0) if start is None else start
+    centre = (best[1], best[2])
+    first = span if start is None else 1.0
+    for step, reach in ((COARSE_STEP, first), (FINE_STEP, COARSE_STEP)):
         k = int(np.floor(reach / step + 1e-9))
         offsets = np.arange(-k, k + 1) * step
         turns = [
@@ -256,12 +269,39 @@ def refine_tof_pose(
     return PoseRefinement(_turned(given, yaw, pitch), yaw, pitch, before, err, n, _scale(r))
 
 
+def _wide(
+    points: npt.NDArray[np.float64],
+    rig: ToFStereoRig,
+    stereo: npt.NDArray[np.float32],
+    truncate: float,
+    before: float,
+) -> tuple[float, float, float]:
+    """(error, yaw, pitch): the wide probe's best turn (one degree or more, up to
+    :data:`WIDE_DEGREES`) refined by a search of one degree around it; ``(before, 0, 0)`` where
+    no turn of the probe lowers the error by half of :data:`MIN_GAIN`."""
+    given = rig.tof_to_reference
+    few = points[:: max(1, len(points) // WIDE_SAMPLES)]
+    steps = np.arange(-WIDE_DEGREES, WIDE_DEGREES + 1e-9, WIDE_STEP)
+    turns = [(0.0, 0.0)] + [
+        (float(y), float(p)) for y in steps for p in steps if max(abs(y), abs(p)) >= 1.0 - 1e-9
+    ]
+    errs = _errors(few, given, turns, rig, stereo, truncate)
+    k = 1 + int(np.argmin(errs[1:]))
+    if not errs[k] <= (1 - MIN_GAIN / 2) * errs[0]:
+        return before, 0.0, 0.0
+    start = _errors(points, given, [turns[k]], rig, stereo, truncate)[0]
+    if not start < before:
+        return before, 0.0, 0.0
+    return _search(points, rig, stereo, truncate, WIDE_DEGREES + 1, before, (start, *turns[k]))
+
+
 def _refine_if_off(
     depth: npt.NDArray[np.float32], rig: ToFStereoRig, stereo: npt.NDArray[np.float32]
 ) -> PoseRefinement | None:
     """``fuse()``'s check: the eight rotations :data:`COARSE_STEP` away first (a few ms); only
     where one of them lowers the error by half of :data:`MIN_GAIN` the whole search of
-    :func:`refine_tof_pose` (1 degree). None when nothing is worth searching."""
+    :func:`refine_tof_pose` (1 degree); where none does, or that search stops at its edge, the
+    wide probe (:func:`_wide`). None when nothing is worth searching."""
     points = _points_or_none(depth, rig)
     if len(points) == 0:
         return None
@@ -279,8 +319,16 @@ def _refine_if_off(
     ]
     probe = min(_errors(points, given, rings, rig, stereo, truncate))
     if probe > (1 - MIN_GAIN / 2) * before:
-        return None
-    err, yaw, pitch = _search(points, rig, stereo, truncate, 1.0, before)
+        # Nothing near: a turn of more than a degree leaves the near ones no better.
+        err, yaw, pitch = _wide(points, rig, stereo, truncate, before)
+        if (yaw, pitch) == (0.0, 0.0):
+            return None
+    else:
+        err, yaw, pitch = _search(points, rig, stereo, truncate, 1.0, before)
+        if max(abs(yaw), abs(pitch)) >= 1.0 - 1e-9:  # the edge: the turn may be larger
+            on = _search(points, rig, stereo, truncate, WIDE_DEGREES + 1, before, (err, yaw, pitch))
+            wide = _wide(points, rig, stereo, truncate, before)
+            err, yaw, pitch = min(on, wide)
     return PoseRefinement(_turned(given, yaw, pitch), yaw, pitch, before, err, n, _scale(rig))
 
 
