@@ -720,3 +720,39 @@ def test_fuse_preview_shows_the_source_and_a_saturated_depth_png_is_named(
     # 32,400 flips between two LC hypotheses).
     assert np.array_equal(np.isnan(a), np.isnan(b))
     assert (np.abs(a - b)[~np.isnan(a)] <= 0.01).mean() >= 0.999
+
+
+def test_an_output_folder_holding_an_input_under_an_output_name_is_refused(
+    fuse_inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A fuzz found `rgbd stereo`, `fuse` and `segment` overwriting an input that sat in --out
+    under the name of one of their outputs (a left image called disparity.png): refused before
+    any work, the input left as it was."""
+    import shutil
+
+    out = tmp_path / "out"
+    out.mkdir()
+    left = out / "disparity.png"
+    shutil.copy(fuse_inputs["--left"], left)
+    before = left.read_bytes()
+    right = str(fuse_inputs["--right"])
+    stereo = ["stereo", "--left", str(left), "--right", right, "--max-disparity", "30"]
+    assert main([*stereo, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rgbd: error: --out: ") and "is the input --left" in err, err
+    assert left.read_bytes() == before and sorted(p.name for p in out.iterdir()) == [left.name]
+    # The same file through a different spelling of the folder.
+    assert main([*stereo, "--out", str(out / ".." / "out")]) == 2
+    capsys.readouterr()
+    assert main(_fuse_argv(fuse_inputs, left=left, out=out)) == 2
+    assert "is the input --left" in capsys.readouterr().err
+    assert left.read_bytes() == before
+    overlay = out / "overlay.png"
+    shutil.copy(fuse_inputs["--left"], overlay)
+    seg = ["segment", "--rgb", str(overlay), "--depth", str(fuse_inputs["--tof-depth"])]
+    seg += ["--calib", str(fuse_inputs["--calib"]), "--out", str(out), "--segments", "8"]
+    assert main(seg) == 2
+    assert "is the input --rgb" in capsys.readouterr().err
+    # The same inputs with another output folder run.
+    assert main([*stereo, "--out", str(tmp_path / "elsewhere")]) == 0
+    assert left.read_bytes() == before

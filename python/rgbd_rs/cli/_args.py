@@ -185,11 +185,28 @@ def folder(text: str) -> Path:
     return path
 
 
-def output_folder(out: Path, outputs: Sequence[str], flag: str = "--out") -> Path:
+def input_paths(args: argparse.Namespace) -> dict[str, Path]:
+    """The command's file arguments (every :class:`~pathlib.Path` but ``--out``), by flag."""
+    return {
+        "--" + k.replace("_", "-"): v
+        for k, v in vars(args).items()
+        if isinstance(v, Path) and k != "out"
+    }
+
+
+def output_folder(
+    out: Path,
+    outputs: Sequence[str],
+    flag: str = "--out",
+    inputs: Mapping[str, Path] | None = None,
+) -> Path:
     """Create the output folder ``out`` and delete the files a previous run of the command
     left there: ``outputs`` are glob patterns (relative to ``out``) of everything the command
     may write, so a run that writes fewer files (no ``--undistort``, fit-only instead of the
-    ConvNet) does not leave the other run's files beside its own. Other files are kept."""
+    ConvNet) does not leave the other run's files beside its own. Other files are kept.
+    ``inputs`` (flag -> path, e.g. :func:`input_paths`) are refused where the command would
+    delete or overwrite one of them, before anything is touched."""
+    refuse_overwriting(out, outputs, flag, inputs or {})
     try:  # a file at ``out`` (the ``folder`` type refused one while parsing) fails in mkdir
         out.mkdir(parents=True, exist_ok=True)
         for pattern in outputs:
@@ -199,6 +216,23 @@ def output_folder(out: Path, outputs: Sequence[str], flag: str = "--out") -> Pat
     except OSError as exc:
         raise RgbdError(f"{flag}: {os_message(exc)}") from None
     return out
+
+
+def refuse_overwriting(
+    out: Path, outputs: Sequence[str], flag: str, inputs: Mapping[str, Path]
+) -> None:
+    """An :class:`RgbdError` where an output of the command in ``out`` is one of ``inputs``."""
+    if not out.is_dir():
+        return
+    written = {p.resolve() for pattern in outputs for p in out.glob(pattern)}
+    for name, path in inputs.items():
+        if path.exists() and path.resolve() in written:
+            raise RgbdError(
+                f"{flag}: the folder {out} would get a new {path.name}, but that file is the "
+                f"input {name} ({path}): expected an output folder that does not hold the "
+                "inputs under the names the command writes (choose another --out, or rename "
+                "the input)"
+            )
 
 
 def os_message(exc: OSError) -> str:

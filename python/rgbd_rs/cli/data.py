@@ -5,7 +5,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, fail, flagged, folder, integer, output_folder, real
+from rgbd_rs.cli._args import (
+    Commands,
+    fail,
+    flagged,
+    folder,
+    input_paths,
+    integer,
+    output_folder,
+    real,
+)
 from rgbd_rs.cli._maps import depth_mm_png16
 from rgbd_rs.geometry import MAX_SPLAT_RADIUS
 
@@ -148,7 +157,7 @@ def run_reproject(args: argparse.Namespace) -> int:
             "depth_mm is in millimetres and --calib's colour-camera translation (PV0 Rt) in "
             "metres"
         )
-    output_folder(args.out, REPROJECT_OUTPUTS)
+    output_folder(args.out, REPROJECT_OUTPUTS, inputs=input_paths(args))
     assert rep.channels is not None  # amplitude was passed as a channel
     depth, amplitude, color = rep.depth, rep.channels, frame.color
     written = "depth.npz, depth_mm.png, preview.png"

@@ -13,7 +13,17 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs
-from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
+from rgbd_rs.cli._args import (
+    Commands,
+    flagged,
+    folder,
+    input_paths,
+    integer,
+    named,
+    output_folder,
+    real,
+    refuse_overwriting,
+)
 from rgbd_rs.cli._maps import depth_mm_png16, disparity_png16
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
@@ -83,6 +93,10 @@ units: pixels and metres; camera frames x right, y down, z forward (OpenCV)
               the output camera (the pose is carried across the baseline)
   distortion  OpenCV order, 4, 5 or 8 values; optional (none)
 """
+
+
+#: What ``rgbd fuse`` writes in ``--out``.
+FUSE_OUTPUTS = ("fused.npz", "disparity.png", "depth_mm.png", "preview.png")
 
 
 def register(commands: Commands) -> None:
@@ -338,6 +352,7 @@ def run_fuse(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(
             "--tof-confidence/--stereo-confidence: got one, expected both or neither"
         )
+    refuse_overwriting(args.out, FUSE_OUTPUTS, "--out", input_paths(args))  # before the work
     rig = named("--calib", lambda: load_rig(args.calib))
     left = named("--left", lambda: read_png(args.left))
     right = named("--right", lambda: read_png(args.right))
@@ -414,7 +429,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     maps["tof_scale"] = np.array(out.tof_scale, np.float64)
     if out.tof_confidence is not None and out.stereo_confidence is not None:
         maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
-    output_folder(args.out, ("fused.npz", "disparity.png", "depth_mm.png", "preview.png"))
+    output_folder(args.out, FUSE_OUTPUTS, inputs=input_paths(args))
     write_npz(args.out / "fused.npz", maps)
     write_png(args.out / "disparity.png", disparity_png16(out.disparity))
     write_png(args.out / "depth_mm.png", depth_mm_png16(out.depth))

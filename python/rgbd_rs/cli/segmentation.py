@@ -16,10 +16,12 @@ from rgbd_rs.cli._args import (
     fail,
     flagged,
     folder,
+    input_paths,
     integer,
     named,
     output_folder,
     real,
+    refuse_overwriting,
 )
 from rgbd_rs.cli.fusion import DEPTH_SCALE_HELP, DEPTH_SCALE_RANGE
 from rgbd_rs.holes import DEFAULT_FILL_RADIUS
@@ -179,6 +181,7 @@ def run_segment(args: argparse.Namespace) -> int:
         save_png,
     )
 
+    refuse_overwriting(args.out, SEGMENT_OUTPUTS, "--out", input_paths(args))  # before the work
     rgb = named("--rgb", lambda: read_png(args.rgb))
     grey = rgb.ndim == 2 or rgb.shape[2] < 3 or _png_colour_type(args.rgb) in (0, 4)
     if grey:  # OpenCV reads a grey + alpha PNG as colour: its header says what it is
@@ -235,7 +238,7 @@ def run_segment(args: argparse.Namespace) -> int:
         ),
         amend=_naming_the_depth_scale(args.depth, depth, scale),
     )
-    out = output_folder(args.out, SEGMENT_OUTPUTS)
+    out = output_folder(args.out, SEGMENT_OUTPUTS, inputs=input_paths(args))
     np.save(out / "labels.npy", result.labels)
     np.save(out / "over.npy", result.over)
     ids = np.unique(result.labels[result.labels >= 0], return_inverse=True)[1]

@@ -9,7 +9,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rgbd_rs.cli._args import Commands, flagged, folder, integer, named, output_folder, real
+from rgbd_rs.cli._args import (
+    Commands,
+    flagged,
+    folder,
+    input_paths,
+    integer,
+    named,
+    output_folder,
+    real,
+)
 from rgbd_rs.cli._maps import disparity_png16
 from rgbd_rs.errors import InvalidArgumentError
 
@@ -166,7 +175,7 @@ def run_stereo(args: argparse.Namespace) -> int:
                 f"{DISPARITY_STEP}-px search steps); --method census takes narrower images"
             )
         dmax = min(dmax, _max_search(left.shape[1]))
-    out = output_folder(args.out, STEREO_OUTPUTS)
+    out = output_folder(args.out, STEREO_OUTPUTS, inputs=input_paths(args))
     disp = flagged(
         {
             "left": "--left",
