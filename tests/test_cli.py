@@ -756,3 +756,25 @@ def test_an_output_folder_holding_an_input_under_an_output_name_is_refused(
     # The same inputs with another output folder run.
     assert main([*stereo, "--out", str(tmp_path / "elsewhere")]) == 0
     assert left.read_bytes() == before
+
+
+def test_disparities_past_the_png_range_are_said(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A fuzz found `rgbd stereo` writing 323 px as 255.996 in disparity.png without a word."""
+    from rgbd_rs.cli._maps import disparity_png_note
+    from rgbd_rs.io import read_png, write_png
+
+    assert disparity_png_note(np.array([[255.99, np.nan, 0.0]]), "x.npz") is None
+    note = disparity_png_note(np.array([[300.0, 10.0, np.nan, 256.5]]), "x.npz")
+    assert note is not None and "2 pixels (50.0%)" in note and "up to 300.0 px" in note
+    tex = np.random.default_rng(1).integers(0, 255, (60, 700, 3)).astype(np.uint8)
+    write_png(tmp_path / "l.png", tex[:, :400])
+    write_png(tmp_path / "r.png", tex[:, 260:660])  # 260 px of disparity
+    argv = ["stereo", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png")]
+    assert main([*argv, "--max-disparity", "300", "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert "rgbd: warning: disparity.png: " in err and "disparity.npz holds them" in err, err
+    with np.load(tmp_path / "o" / "disparity.npz") as z:
+        assert np.nanmedian(z["disparity"][:, 280:]) == pytest.approx(260, abs=0.5)
+    assert read_png(tmp_path / "o" / "disparity.png").max() == 65535

@@ -21,6 +21,22 @@ def disparity_png16(disparity: npt.NDArray[np.floating]) -> npt.NDArray[np.uint1
     return np.where(have, np.clip(scaled, 1, 65535), 0).astype(np.uint16)
 
 
+def disparity_png_note(disparity: npt.NDArray[np.floating], npz: str) -> str | None:
+    """A warning where some of ``disparity`` lies beyond what :func:`disparity_png16` holds
+    (255.996 px: those pixels read 65535), naming ``npz``, the file that holds them exactly;
+    None where none does."""
+    d = np.asarray(disparity, np.float64)
+    with np.errstate(invalid="ignore"):
+        over = np.isfinite(d) & (d * DISPARITY_PNG_SCALE > 65535.5)
+    if not over.any():
+        return None
+    return (
+        f"rgbd: warning: disparity.png: {int(over.sum())} pixels ({over.mean():.1%}) lie beyond "
+        f"{65535 / DISPARITY_PNG_SCALE:.3f} px, the most a 16-bit PNG in 1/256 px holds, and read "
+        f"65535 there (up to {float(d[over].max()):.1f} px); {npz} holds them exactly"
+    )
+
+
 def depth_mm_png16(depth: npt.NDArray[np.floating]) -> npt.NDArray[np.uint16]:
     """``depth`` (metres, NaN = none) as 16-bit millimetres, rounded: 0 only where there is none.
     A measured depth below 1 mm is written as 1 and one beyond 65.535 m (an infinite one, from

@@ -24,7 +24,7 @@ from rgbd_rs.cli._args import (
     real,
     refuse_overwriting,
 )
-from rgbd_rs.cli._maps import depth_mm_png16, disparity_png16
+from rgbd_rs.cli._maps import depth_mm_png16, disparity_png16, disparity_png_note
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 #: Width of each panel of `rgbd fuse`'s preview.png (pixels).
@@ -432,6 +432,9 @@ def run_fuse(args: argparse.Namespace) -> int:
     output_folder(args.out, FUSE_OUTPUTS, inputs=input_paths(args))
     write_npz(args.out / "fused.npz", maps)
     write_png(args.out / "disparity.png", disparity_png16(out.disparity))
+    clipped = disparity_png_note(out.disparity, "fused.npz")
+    if clipped is not None:
+        print(clipped, file=sys.stderr)
     write_png(args.out / "depth_mm.png", depth_mm_png16(out.depth))
     ref = right if out.reference == "right" else left
     d = out.disparity[np.isfinite(out.disparity)]

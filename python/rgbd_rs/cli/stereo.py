@@ -19,7 +19,7 @@ from rgbd_rs.cli._args import (
     output_folder,
     real,
 )
-from rgbd_rs.cli._maps import disparity_png16
+from rgbd_rs.cli._maps import disparity_png16, disparity_png_note
 from rgbd_rs.errors import InvalidArgumentError
 
 #: ``--min-depth`` when ``--calib`` gives the range: the nearest depth searched (metres).
@@ -194,6 +194,9 @@ def run_stereo(args: argparse.Namespace) -> int:
     )
     write_npz(out / "disparity.npz", {"disparity": disp})
     write_png(out / "disparity.png", disparity_png16(disp), rgb=False)
+    clipped = disparity_png_note(disp, "disparity.npz")
+    if clipped is not None:
+        print(clipped, file=sys.stderr)
     name = "census SGM (rgbd_rs)" if args.method == "census" else "OpenCV SGBM-HH 7x7"
     title = f"{name}: disparity on the {args.reference} view"
     found = disp[np.isfinite(disp)]  # the colours span the map's values, not the search range
