@@ -778,3 +778,59 @@ def test_disparities_past_the_png_range_are_said(
     with np.load(tmp_path / "o" / "disparity.npz") as z:
         assert np.nanmedian(z["disparity"][:, 280:]) == pytest.approx(260, abs=0.5)
     assert read_png(tmp_path / "o" / "disparity.png").max() == 65535
+
+
+def test_an_unwritable_out_is_refused_before_the_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A fuzz found `rgbd train shapes --out /proc/x` failing only after a whole epoch, and
+    `train calibrate-confidence` naming a temporary file: every command checks --out first."""
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    for out, said in (
+        ("/proc/x", "nothing can be written in /proc"),
+        (str(a_file / "x.pt"), "a_file is a file: expected a path in a folder"),
+    ):
+        # The inputs do not exist either: --out is the first thing checked.
+        argv = ["train", "shapes", "--cache", str(tmp_path / "none"), "--out", out]
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"rgbd: error: --out: got {out}, but ") and said in err, err
+    assert main(["train", "shapes", "--cache", str(tmp_path / "none"), "--out", str(tmp_path)]) == 2
+    assert "--out" not in capsys.readouterr().err  # a writable --out: the next error is another
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]  # the probe left nothing
+
+
+def test_values_the_fuzz_found_taken_silently_are_refused(
+    fuse_inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A --stride past --radius was capped without a word, an empty --labeler read as auto,
+    and --segments accepted counts the over-segmentation refuses (or takes minutes on)."""
+    from rgbd_rs.cli.segmentation import MAX_SEGMENTS
+
+    argv = _fuse_argv(fuse_inputs, out=tmp_path / "f")
+    assert main([*argv, "--radius", "3", "--stride", "4"]) == 2
+    assert (
+        capsys.readouterr().err == "rgbd: error: --stride: got 4, expected at most --radius (3)\n"
+    )
+    seg = ["segment", "--rgb", str(fuse_inputs["--left"]), "--depth", str(tmp_path / "none.npy")]
+    seg += ["--calib", str(fuse_inputs["--calib"]), "--out", str(tmp_path / "s")]
+    assert main([*seg, "--labeler", ""]) == 2
+    assert "--labeler: got an empty value" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([*seg, "--segments", str(MAX_SEGMENTS + 1)])
+    assert "--segments" in capsys.readouterr().err
+
+
+def test_a_dead_tof_frame_says_where_the_search_range_came_from(
+    fuse_inputs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A fuzz found `SGM search range: 0-160 px (from the ToF disparities)` printed for a ToF
+    frame without a valid pixel."""
+    dead = tmp_path / "dead.npy"
+    np.save(dead, np.full((424, 512), np.nan, np.float32))
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # the dead frame's warning, printed by the CLI
+        assert main(_fuse_argv(fuse_inputs, tof_depth=dead, out=tmp_path / "o")) == 0
+    out = capsys.readouterr().out
+    assert "(no ToF disparity: the largest range the width allows)" in out, out

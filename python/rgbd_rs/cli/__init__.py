@@ -17,6 +17,7 @@ import argparse
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TextIO
 
 from rgbd_rs import __version__
@@ -32,7 +33,7 @@ from rgbd_rs.cli import (
     shapes,
     stereo,
 )
-from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message
+from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message, writable_out
 from rgbd_rs.errors import RgbdError
 
 __all__ = ["PIPELINES", "build_parser", "main"]
@@ -87,6 +88,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        out = getattr(args, "out", None)
+        if isinstance(out, Path):
+            writable_out(out)  # before the work, which may take minutes
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
             status: int = run(args)

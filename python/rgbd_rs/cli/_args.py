@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+import tempfile
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -233,6 +234,28 @@ def refuse_overwriting(
                 "inputs under the names the command writes (choose another --out, or rename "
                 "the input)"
             )
+
+
+def writable_out(out: Path, flag: str = "--out") -> None:
+    """Refuse, before any work, an output path nothing can be written to: the nearest folder
+    that exists at or above ``out`` must take a new file (probed with a temporary file, removed
+    at once), and no file may stand where ``out`` needs a folder."""
+    path = out.absolute()
+    have = path
+    while not have.exists() and have.parent != have:
+        have = have.parent
+    if have != path and not have.is_dir():
+        raise RgbdError(f"{flag}: got {out}, but {have} is a file: expected a path in a folder")
+    target = have if have.is_dir() else have.parent
+    try:
+        with tempfile.TemporaryFile(dir=target):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise RgbdError(
+            f"{flag}: got {out}, but nothing can be written in {target} ({reason}): expected a "
+            "writable location"
+        ) from None
 
 
 def os_message(exc: OSError) -> str:

@@ -15,6 +15,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs
 from rgbd_rs.cli._args import (
     Commands,
+    fail,
     flagged,
     folder,
     input_paths,
@@ -176,7 +177,8 @@ def register(commands: Commands) -> None:
         "--stride",
         type=integer(1),
         default=2,
-        help="LC window sampling step, at most the radius (default 2)",
+        help="LC window sampling step, at most --radius (default 2; with the default radius, "
+        "capped at it)",
     )
     fz.add_argument(
         "--cross-check", action="store_true", help="keep only pixels both views agree on (eq. 2.18)"
@@ -353,6 +355,8 @@ def run_fuse(args: argparse.Namespace) -> int:
             "--tof-confidence/--stereo-confidence: got one, expected both or neither"
         )
     refuse_overwriting(args.out, FUSE_OUTPUTS, "--out", input_paths(args))  # before the work
+    if args.radius is not None and args.stride > args.radius:
+        return fail(f"--stride: got {args.stride}, expected at most --radius ({args.radius})")
     rig = named("--calib", lambda: load_rig(args.calib))
     left = named("--left", lambda: read_png(args.left))
     right = named("--right", lambda: read_png(args.right))
@@ -478,7 +482,12 @@ def run_fuse(args: argparse.Namespace) -> int:
             f"-> {out.reference} camera (metres; fused.npz 'tof_scale', 'tof_pose'):\n"
             + np.array2string(out.tof_pose.as_matrix(), precision=6, suppress_small=True)
         )
-    how = "--max-disparity" if args.max_disparity is not None else "from the ToF disparities"
+    if args.max_disparity is not None:
+        how = "--max-disparity"
+    elif np.isfinite(out.tof.disparity).any():
+        how = "from the ToF disparities"
+    else:
+        how = "no ToF disparity: the largest range the width allows"
     print(f"SGM search range: 0-{out.max_disparity} px ({how})")
 
     def valid(m: npt.NDArray[np.float32]) -> str:

@@ -59,6 +59,11 @@ SEGMENT_OUTPUTS = (
     "merge/[0-9][0-9][0-9][0-9].png",
 )
 
+#: The most clusters ``--segments`` asks for: a tenth of the pixels the over-segmentation fits
+#: its centres on (it needs at least one per cluster; beyond a few thousand the clustering
+#: takes minutes and the segments are a few pixels each).
+MAX_SEGMENTS = _rgbd_rs.OVERSEG_DEFAULT_FIT_POINTS // 10
+
 #: segment()'s parameters -> the flags that gave them (errors name the flag).
 SEGMENT_FLAGS = {
     "rgb": "--rgb",
@@ -118,10 +123,10 @@ def register(commands: Commands) -> None:
     )
     p.add_argument(
         "--segments",
-        type=integer(2, 100000),
+        type=integer(2, MAX_SEGMENTS),
         default=None,
         help="normalized-cuts clusters of the over-segmentation (default "
-        f"{_rgbd_rs.OVERSEG_DEFAULT_SEGMENTS}; "
+        f"{_rgbd_rs.OVERSEG_DEFAULT_SEGMENTS}, at most {MAX_SEGMENTS}; "
         "fewer, e.g. 30, give fewer and larger final segments)",
     )
     p.add_argument(
@@ -182,6 +187,8 @@ def run_segment(args: argparse.Namespace) -> int:
     )
 
     refuse_overwriting(args.out, SEGMENT_OUTPUTS, "--out", input_paths(args))  # before the work
+    if args.labeler == "":
+        return fail("--labeler: got an empty value, expected auto, none or a checkpoint file")
     rgb = named("--rgb", lambda: read_png(args.rgb))
     grey = rgb.ndim == 2 or rgb.shape[2] < 3 or _png_colour_type(args.rgb) in (0, 4)
     if grey:  # OpenCV reads a grey + alpha PNG as colour: its header says what it is
