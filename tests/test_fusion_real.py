@@ -779,3 +779,40 @@ def test_a_misregistered_or_wrong_tof_input_warns(shared_data: Path) -> None:
         RuntimeWarning, match=r"no valid ToF pixel .*\(check the ToF's pose in the rig"
     ):
         fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, mm)
+
+
+def test_tof_depths_in_another_scale_are_named_not_called_a_swapped_pair(
+    shared_data: Path,
+) -> None:
+    """A fuzz found a ToF PNG read with --depth-scale 0.01 instead of 0.001 (depths 10 x too
+    far) fused silently, with a warning that the pair looked swapped. The factor the stereo map
+    reads is named, the pair is not called swapped; depths 10 x too far also make the search
+    range derived from them too short, so the check matches the widest range once more."""
+    import warnings
+
+    s = real_sample("Rocks1", 0)
+    for g, said in ((10.0, "look 10"), (0.5, "look 0.5")):
+        depth = np.where(s.tof_depth > 0, s.tof_depth * g, s.tof_depth).astype(np.float32)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fuse(s.left, s.right, depth, s.tof_amplitude, s.rig, confidence="heuristic")
+        messages = [str(w.message) for w in caught]
+        assert any(said in m and "depths" in m for m in messages), messages
+        assert not any("swapped" in m or "turned by" in m for m in messages), messages
+
+
+def test_the_scale_check_reads_one_factor_or_nothing() -> None:
+    from rgbd_rs.fusion._inputs import scale_warning
+
+    rng = np.random.default_rng(0)
+    tof = rng.uniform(5, 40, (60, 80)).astype(np.float32)
+    noisy = (tof + rng.normal(0, 0.3, tof.shape)).astype(np.float32)
+    assert scale_warning(tof, noisy) is None  # the same scale
+    assert scale_warning(tof, 1.1 * noisy) is None  # the depth-scale refinement's business
+    said = scale_warning(tof / 4, noisy)
+    assert said is not None and "look 4" in said and "times 4" in said
+    # Unrelated maps: no factor explains them; too few pixels: no verdict.
+    assert scale_warning(tof, rng.uniform(5, 40, tof.shape).astype(np.float32) * 3) is None
+    few = np.full_like(tof, np.nan)
+    few[0, :50] = tof[0, :50]
+    assert scale_warning(few / 4, noisy) is None

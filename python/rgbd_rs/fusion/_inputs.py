@@ -237,6 +237,43 @@ AGREE_PX = 2.0
 AGREE_SHARE = 0.25
 
 
+#: :func:`scale_warning` speaks where the stereo map's disparities are a factor outside this
+#: range of the ToF's (the depth-scale refinement fits 0.94-1.06) ...
+SCALE_OFF = (0.8, 1.25)
+#: ... and the ToF's disparities times that factor agree with the stereo map on at least this
+#: share of the pixels both measure, and by this much more than as given.
+SCALE_FIT = 0.5
+SCALE_GAIN = 0.25
+SCALE_REL = 0.1
+
+
+def scale_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:
+    """A warning when the ToF's disparities agree with the stereo map only once multiplied by
+    one factor far from 1 (depths in another unit than metres, a wrong PNG depth scale, or a
+    rig baseline that far off), or None. The factor is the median ratio of the two maps."""
+    both = np.isfinite(tof_disparity) & np.isfinite(stereo_disparity) & (tof_disparity > 0)
+    if both.sum() < 100:
+        return None
+    tof, st = tof_disparity[both].astype(np.float64), stereo_disparity[both].astype(np.float64)
+    k = float(np.median(st / tof))
+    if SCALE_OFF[0] <= k <= SCALE_OFF[1] or not np.isfinite(k) or k <= 0:
+        return None
+    tol = AGREE_PX * max(1.0, tof_disparity.shape[1] / 960)
+    given = float((np.abs(tof - st) <= tol).mean())
+    # Within the tolerance, or 10 % of the scaled disparity (depths ten times too near also
+    # move the ToF's pixels in the image: the scaled map agrees less closely).
+    scaled = float((np.abs(k * tof - st) <= np.maximum(tol, SCALE_REL * st)).mean())
+    if scaled < SCALE_FIT or scaled - given < SCALE_GAIN:
+        return None
+    return (
+        f"tof_depth/rig: the ToF's depths look {k:.3g} x the stereo pair's: its disparities "
+        f"times {k:.3g} agree with the stereo map within {tol:g} px on {scaled:.0%} of the pixels "
+        f"both measure, as given on {given:.0%}; check tof_depth's unit (metres; a 16-bit PNG's "
+        "depth scale) and the rig's baseline. Fused as given, the ToF's wrong depths win where "
+        "the network trusts them"
+    )
+
+
 def disagreement_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:
     """A warning when the ToF and the stereo matcher, both on the reference camera, agree on
     almost none of the pixels they both measure (a misregistered or wrong ToF input), or None."""

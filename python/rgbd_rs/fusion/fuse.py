@@ -26,6 +26,7 @@ from rgbd_rs.fusion._inputs import (
     negative_depth_error,
     rgb8,
     rig_arg,
+    scale_warning,
     tof_depth_warning,
     unit_map,
     views,
@@ -225,6 +226,27 @@ def _match(
     return sgm(left, right, reference=reference, max_disparity=max_disparity)
 
 
+def _scale_check(
+    left: U8,
+    right: U8,
+    reference: str,
+    stereo: F32,
+    tof_disparity: F32,
+    widest: int | None,
+    match: Callable[..., F32],
+) -> str | None:
+    """:func:`~rgbd_rs.fusion._inputs.scale_warning` of the ToF against the stereo map; where
+    they disagree on most pixels and no factor explains it, once more against a map searched
+    over ``widest`` (None: the caller's range stands): depths too far make the range derived
+    from them too short for the pair's disparities."""
+    said = scale_warning(tof_disparity, stereo)
+    if said is not None or widest is None or disagreement_warning(tof_disparity, stereo) is None:
+        return said
+    return scale_warning(
+        tof_disparity, match(left, right, reference=reference, max_disparity=widest)
+    )
+
+
 def _swap_warning(
     left: U8,
     right: U8,
@@ -407,7 +429,18 @@ def fuse(
             warnings.warn(c.message, c.category, stacklevel=2)
         if implausible is not None:
             warnings.warn(implausible[0], RuntimeWarning, stacklevel=2)
-    swapped = _swap_warning(lft, rgt, r.reference, st_map, tof.disparity, dmax, match)
+    # Depths in another unit or scale first: the checks below read the ToF's disparities as true.
+    off_scale = None
+    if not no_tof:
+        wide = None if max_disparity is not None else search_range(np.full((1, 1), np.nan), w)
+        off_scale = _scale_check(lft, rgt, r.reference, st_map, tof.disparity, wide, match)
+    if off_scale is not None:
+        warnings.warn(off_scale, RuntimeWarning, stacklevel=2)
+    swapped = (
+        None
+        if off_scale is not None
+        else _swap_warning(lft, rgt, r.reference, st_map, tof.disparity, dmax, match)
+    )
     if swapped is not None:
         warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
@@ -416,13 +449,17 @@ def fuse(
     # is refined; a pose read the wrong way round is named (only when another reading beats
     # even the refined pose: a turn can make the inverted reading fit a flat scene better than
     # the turned pose as given); other disagreement only in general terms.
-    refine = refine_pose and swapped is None and not no_tof
+    refine = refine_pose and swapped is None and off_scale is None and not no_tof
     rescale, found = _scale_and_turn(depth_map, r, st_map) if refine else (None, None)
     fitted = None if found is None else found.pose
     # The readings are compared on the depths the fits chose (a depth scale a few percent off
     # otherwise makes the inverted reading fit better than the pose as given).
     checked = depth_map if rescale is None else _rescaled(depth_map, rescale.factor)
-    wrong_way = None if swapped is not None else pose_warning(checked, asked, r, st_map, fitted)
+    wrong_way = (
+        None
+        if swapped is not None or off_scale is not None
+        else pose_warning(checked, asked, r, st_map, fitted)
+    )
     if wrong_way is not None:
         warnings.warn(wrong_way, RuntimeWarning, stacklevel=2)
         found = rescale = None  # fits made with a pose read the wrong way round
@@ -444,11 +481,15 @@ def fuse(
         tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
     # Several degrees off: only where the refinement did not act (its warning says when it
     # stopped at the edge of its search).
-    quiet = swapped or wrong_way or no_tof or found is not None or rescale is not None
+    quiet = swapped or off_scale or wrong_way or no_tof or found is not None or rescale is not None
     turned = None if quiet else turn_warning(depth_map, r, st_map)
     if turned is not None:
         warnings.warn(turned, RuntimeWarning, stacklevel=2)
-    apart = None if swapped or wrong_way or turned else disagreement_warning(tof_disp, st_map)
+    apart = (
+        None
+        if swapped or off_scale or wrong_way or turned
+        else disagreement_warning(tof_disp, st_map)
+    )
     if apart is not None:
         warnings.warn(apart, RuntimeWarning, stacklevel=2)
     if not np.isfinite(st_map).any() and no_tof:
