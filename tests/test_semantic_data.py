@@ -138,6 +138,14 @@ def test_resume_and_shards_give_the_same_cache(
     calls.extend([1, 1, 1])  # never interrupt again
     build_semantic_cache(fs, tmp_path / "resumed", size=(16, 12), cues=interrupted, quiet=True)
     assert len(calls) == 3 + 3  # only the three frames left were computed
+    # A complete cache of another size than the shipped network's: named, with the size to
+    # build (a fuzz found a mismatch blamed on a --checkpoint the user never gave).
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    from rgbd_rs.segmentation.labeling import SemanticLabeler
+
+    w, h = SemanticLabeler.load().input_size
+    assert err.startswith(f"rgbd: error: --cache: got a cache of 16x12 inputs, expected {w}x{h}")
     assert _bytes(tmp_path / "resumed") == _bytes(tmp_path / "whole")
     for i in (1, 0):  # shards in any order
         build_semantic_cache(

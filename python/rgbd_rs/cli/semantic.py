@@ -82,7 +82,8 @@ def _cache(sub: argparse._SubParsersAction[Parser]) -> None:
         type=size_arg,
         default=(320, 240),
         metavar="WxH",
-        help="network input size (320x240, thesis)",
+        help="network input size (default 320x240, the thesis'; the shipped network, which "
+        "`rgbd semantic score` uses without --checkpoint, takes 160x120)",
     )
     p.add_argument("--calib", type=Path, metavar="FILE", help="camera JSON of a frame folder")
     p.add_argument(
@@ -158,6 +159,16 @@ def run_score(args: argparse.Namespace) -> int:
     cache = named("--cache", lambda: SemanticCache(args.cache))
     named("--cache", cache.require_complete)
     ckpt = args.checkpoint if args.checkpoint is not None else _weights_path()
+    if args.checkpoint is None:
+        from rgbd_rs.segmentation.labeling import SemanticLabeler
+
+        size = SemanticLabeler.load().input_size
+        if tuple(size) != tuple(cache.size):
+            return fail(
+                f"--cache: got a cache of {cache.size[0]}x{cache.size[1]} inputs, expected "
+                f"{size[0]}x{size[1]}, the shipped network's (build one with `rgbd semantic "
+                f"cache --size {size[0]}x{size[1]}`, or pass --checkpoint)"
+            )
     res = named("--checkpoint", lambda: score(ckpt, cache, device=args.device))
     print(f"{ckpt} on {args.cache} ({len(cache.indices())} frames): {res.summary()}")
     for name, acc in zip(res.classes, res.per_class, strict=True):
