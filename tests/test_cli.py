@@ -289,6 +289,14 @@ def test_bad_fuse_runs_end_in_one_line(
             },
             ("--confidence uniform", "--tof-confidence/--stereo-confidence"),
         ),
+        "maps with convnet asked": (  # a fuzz found an explicit convnet ignored silently
+            {
+                "confidence": Path("convnet"),
+                "tof_confidence": tmp_path / "t.npy",
+                "stereo_confidence": tmp_path / "s.npy",
+            },
+            ("--confidence convnet", "--tof-confidence/--stereo-confidence"),
+        ),
         "tiny --depth-scale": ({"depth_scale": Path("1e-300")}, ("--depth-scale", "1e-300")),
         "pickled .npz": (
             {"tof_depth": _pickled_npz(tmp_path / "p.npz")},

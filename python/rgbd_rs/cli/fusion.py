@@ -135,7 +135,7 @@ def register(commands: Commands) -> None:
     fz.add_argument(
         "--confidence",
         choices=("convnet", "uniform", "heuristic"),
-        default="convnet",
+        default=None,
         help="confidence weights (default convnet: the shipped confidence ConvNet); see also "
         "--weights and --tof-confidence",
     )
@@ -366,16 +366,17 @@ def run_fuse(args: argparse.Namespace) -> int:
         "--tof-depth", args.tof_depth, png_scale=scale, depth=True, names=("tof_depth",)
     )
     amp = load_map("--tof-amplitude", args.tof_amplitude, names=("tof_amplitude", "amplitude"))
-    conf: object = args.confidence
-    if args.tof_confidence is not None and args.confidence != "convnet":
+    chosen = args.confidence or "convnet"
+    conf: object = chosen
+    if args.tof_confidence is not None and args.confidence is not None:
         raise InvalidArgumentError(
             f"--confidence {args.confidence}: given with --tof-confidence/--stereo-confidence, "
             "expected one source of confidences (your maps replace the ConvNet)"
         )
     net_flags = [f for f, on in (("--weights", args.weights is not None),
                                  ("--precision", args.precision is not None)) if on]  # fmt: skip
-    if net_flags and (args.confidence != "convnet" or args.tof_confidence):
-        given = "--tof-confidence" if args.tof_confidence else f"--confidence {args.confidence}"
+    if net_flags and (chosen != "convnet" or args.tof_confidence):
+        given = "--tof-confidence" if args.tof_confidence else f"--confidence {chosen}"
         raise InvalidArgumentError(
             f"{net_flags[0]}: given with {given}, expected it only with --confidence convnet "
             "(the ConvNet it sets)"
