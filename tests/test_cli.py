@@ -842,3 +842,13 @@ def test_a_dead_tof_frame_says_where_the_search_range_came_from(
         assert main(_fuse_argv(fuse_inputs, tof_depth=dead, out=tmp_path / "o")) == 0
     out = capsys.readouterr().out
     assert "(no ToF disparity: the largest range the width allows)" in out, out
+
+
+def test_train_confidence_names_a_data_folder_without_a_dataset(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A fuzz found `nonexist/manifest.json: file not found` without the flag that named it."""
+    argv = ["train", "confidence", "--data", str(tmp_path / "none"), "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rgbd: error: --data: got {tmp_path / 'none'}, expected a dataset"), err

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, folder, integer, real, shard
+from rgbd_rs.cli._args import Commands, fail, folder, integer, real, shard
 
 
 def register(commands: Commands) -> None:
@@ -122,6 +122,11 @@ def run_train(args: argparse.Namespace) -> int:
     )
     from rgbd_rs.nn.train import is_main_process
 
+    if not (args.data / "manifest.json").is_file():
+        return fail(
+            f"--data: got {args.data}, expected a dataset folder of `rgbd synth` (it has no "
+            "manifest.json)"
+        )
     if args.shard is not None:
         train, val = prepare_caches(
             args.data, args.out / "cache", shard=args.shard, quiet=args.quiet

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rgbd_rs.cli._args import Commands, folder, integer, shard
+from rgbd_rs.cli._args import Commands, flagged, folder, integer, shard
 
 #: Frames the preview shows.
 PREVIEW_FRAMES = 4
@@ -51,15 +51,20 @@ def run_synth_indoor(args: argparse.Namespace) -> int:
         path = write_indoor_preview(args.out / "preview.png", frames)
         print(f"wrote {path}")
         return 0
-    mine = generate_indoor(
-        args.out,
-        args.count,
-        seed=args.seed,
-        shard=args.shard,
-        width=args.width,
-        height=args.height,
-        quiet=args.quiet,
-    )
+    mine = flagged(
+        {"out": "--out", "shard": "--shard", "count": "--count", "width": "--width",
+         "height": "--height", "seed": "--seed"},
+        lambda: generate_indoor(
+            args.out,
+            args.count,
+            seed=args.seed,
+            shard=args.shard,
+            width=args.width,
+            height=args.height,
+            quiet=args.quiet,
+        ),
+        warnings_too=False,
+    )  # fmt: skip
     print(f"{len(mine)} frames of shard {args.shard[0]}/{args.shard[1]} in {args.out}")
     if args.stats:
         _print_stats(args.out)

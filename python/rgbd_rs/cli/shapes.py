@@ -43,7 +43,7 @@ def _representations(text: str) -> tuple[str, ...]:
 
 
 #: The recipe parameter ``--exclude-names`` sets (its errors name the flag).
-EXCLUDE = {"exclude": "--exclude-names"}
+EXCLUDE = {"exclude": "--exclude-names", "init": "--init"}
 
 
 def _names_file(path: Path) -> tuple[str, ...]:
@@ -419,10 +419,16 @@ def run_train(args: argparse.Namespace) -> int:
             for row, best in rows.items():
                 print(f"{row}: best checkpoint {best}")
         return 0
+
+    def init_named(message: str) -> str:  # the --init checkpoint's errors start with its path
+        if args.init is not None and message.startswith(str(args.init)):
+            return f"--init: {message}"
+        return message
+
     best = flagged(EXCLUDE, lambda: train_shapes(
         cache, args.out, recipe=recipe, config=config, init=args.init,
         resume=not args.no_resume, quiet=args.quiet,
-    ), warnings_too=False)  # fmt: skip
+    ), init_named, warnings_too=False)  # fmt: skip
     if not is_main_process():  # under torchrun, rank 0 reports and ships
         return 0
     print(f"best checkpoint: {best} ({time.perf_counter() - t0:.0f} s)")

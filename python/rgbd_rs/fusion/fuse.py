@@ -601,7 +601,7 @@ def _warn_without_amplitude(tof_disparity: F32, amplitude: F32, *, network: bool
         warnings.warn(
             "tof_amplitude: no ToF pixel has a finite amplitude > 0 (all zero, NaN or "
             f"infinite): {effect}; pass the camera's amplitude (any unit), or "
-            "confidence='uniform'",
+            "confidence='uniform' (rgbd fuse --confidence uniform)",
             RuntimeWarning,
             stacklevel=3,
         )

@@ -106,7 +106,8 @@ def _camera(camera: object, depth: np.ndarray) -> tuple[float, float, float, flo
     if not camera.distortion.is_identity:
         raise InvalidArgumentError(
             "camera: got a camera with lens distortion, expected an ideal pinhole "
-            "(undistort the depth first, e.g. with camera.undistort_image)"
+            "(undistort the depth first, e.g. with camera.undistort_image; rgbd reproject "
+            "--undistort)"
         )
     return (float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy))
 
