@@ -441,6 +441,8 @@ def _edit_json(src: Path, dst: Path, fx: object) -> Path:
         ),
         (["fuse", "--left", "a"], ("required",)),
         (["synth-indoor", "--out", "o", "--count", "0"], ("--count", "got 0")),
+        (["synth-indoor", "--out", "o", "--shard", "-1/2"], ("--shard", "got '-1/2'")),
+        (["semantic", "cache", "--frames", "x", "--out", "o", "--size", "-8x4"], ("got '-8x4'",)),
         (["nonsense"], ("invalid choice",)),
     ],
     ids=lambda v: " ".join(v) if isinstance(v, list) else None,

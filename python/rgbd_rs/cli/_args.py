@@ -20,9 +20,11 @@ Run = Callable[[argparse.Namespace], int]
 
 
 #: What reads as a negative number, so ``--min-depth -inf`` or ``--offset -1e-3`` give the flag its
-#: value (argparse's own pattern knows only ``-1`` and ``-1.5`` and takes ``-inf`` for a flag).
+#: value (argparse's own pattern knows only ``-1`` and ``-1.5`` and takes ``-inf`` for a flag);
+#: also any word of a dash and a digit (``--shard -1/2``, ``--size -80x60``), so that the flag's
+#: own check says what it got instead of "expected one argument".
 NEGATIVE_NUMBER = re.compile(
-    r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^-(?:inf|infinity|nan)$", re.IGNORECASE
+    r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^-(?:inf|infinity|nan)$|^-\d\S*$", re.IGNORECASE
 )
 
 
