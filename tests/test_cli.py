@@ -854,3 +854,14 @@ def test_train_confidence_names_a_data_folder_without_a_dataset(
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"rgbd: error: --data: got {tmp_path / 'none'}, expected a dataset"), err
+
+
+def test_calibrate_confidence_refuses_a_folder_as_its_checkpoint_first(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A fuzz found a folder --out refused only after every scene, naming an internal `path`."""
+    argv = ["train", "calibrate-confidence", "--data", str(tmp_path / "none")]
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    want = f"--out: got {tmp_path}, a folder; expected the calibrated checkpoint's file"
+    assert err == f"rgbd: error: {want}\n"

@@ -163,6 +163,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     from rgbd_rs.fusion.evaluate import synth_samples
     from rgbd_rs.nn.confidence import WEIGHTS, ConfidenceEstimator
 
+    if args.out.is_dir():  # before the scenes are fused
+        return fail(f"--out: got {args.out}, a folder; expected the calibrated checkpoint's file")
     source = WEIGHTS if args.checkpoint is None else args.checkpoint
     estimator = ConfidenceEstimator.load(source)
     result = calibrate_stereo_power(
