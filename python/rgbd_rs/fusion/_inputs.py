@@ -245,16 +245,24 @@ SCALE_OFF = (0.8, 1.25)
 SCALE_FIT = 0.5
 SCALE_GAIN = 0.25
 SCALE_REL = 0.1
+#: Pixels it compares, at most (evenly spaced over those both maps measure).
+SCALE_SAMPLES = 65536
 
 
 def scale_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:
     """A warning when the ToF's disparities agree with the stereo map only once multiplied by
     one factor far from 1 (depths in another unit than metres, a wrong PNG depth scale, or a
     rig baseline that far off), or None. The factor is the median ratio of the two maps."""
-    both = np.isfinite(tof_disparity) & np.isfinite(stereo_disparity) & (tof_disparity > 0)
-    if both.sum() < 100:
+    with np.errstate(invalid="ignore"):
+        both = np.flatnonzero(
+            np.isfinite(tof_disparity) & np.isfinite(stereo_disparity) & (tof_disparity > 0)
+        )
+    if both.size < 100:
         return None
-    tof, st = tof_disparity[both].astype(np.float64), stereo_disparity[both].astype(np.float64)
+    # Evenly spaced pixels are plenty for one factor (a 960 x 540 map: ~4 ms, not ~10).
+    pick = both[:: max(1, both.size // SCALE_SAMPLES)]
+    tof = tof_disparity.ravel()[pick].astype(np.float64)
+    st = stereo_disparity.ravel()[pick].astype(np.float64)
     k = float(np.median(st / tof))
     if SCALE_OFF[0] <= k <= SCALE_OFF[1] or not np.isfinite(k) or k <= 0:
         return None
