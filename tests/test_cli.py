@@ -751,9 +751,17 @@ def test_an_output_folder_holding_an_input_under_an_output_name_is_refused(
     err = capsys.readouterr().err
     assert err.startswith("rgbd: error: --out: ") and "is the input --left" in err, err
     assert left.read_bytes() == before and sorted(p.name for p in out.iterdir()) == [left.name]
-    # The same file through a different spelling of the folder.
+    # The same file through a different spelling of the folder, or through a link named as
+    # the output (the message names the output it would write).
     assert main([*stereo, "--out", str(out / ".." / "out")]) == 2
     capsys.readouterr()
+    linked = tmp_path / "linked"
+    linked.mkdir()
+    (linked / "preview.png").symlink_to(left)
+    assert main([*stereo, "--out", str(linked)]) == 2
+    assert (
+        "would get a new preview.png, but that file is the input --left" in capsys.readouterr().err
+    )
     assert main(_fuse_argv(fuse_inputs, left=left, out=out)) == 2
     assert "is the input --left" in capsys.readouterr().err
     assert left.read_bytes() == before
@@ -809,6 +817,12 @@ def test_an_unwritable_out_is_refused_before_the_work(
     assert main(["train", "shapes", "--cache", str(tmp_path / "none"), "--out", str(tmp_path)]) == 2
     assert "--out" not in capsys.readouterr().err  # a writable --out: the next error is another
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]  # the probe left nothing
+    # A link to nowhere (a review found the work done, then "File exists").
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere" / "zz")
+    for out in (tmp_path / "dangling", tmp_path / "dangling" / "sub"):
+        assert main(["train", "shapes", "--cache", str(tmp_path / "none"), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "dangling is a link to" in err and "which does not exist" in err, err
 
 
 def test_values_the_fuzz_found_taken_silently_are_refused(

@@ -5,6 +5,7 @@ pipeline adds its commands to, and the wrapper that names the flag when its file
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import tempfile
@@ -227,11 +228,12 @@ def refuse_overwriting(
     """An :class:`RgbdError` where an output of the command in ``out`` is one of ``inputs``."""
     if not out.is_dir():
         return
-    written = {p.resolve() for pattern in outputs for p in out.glob(pattern)}
+    written = {p.resolve(): p.name for pattern in outputs for p in out.glob(pattern)}
     for name, path in inputs.items():
         if path.exists() and path.resolve() in written:
             raise RgbdError(
-                f"{flag}: the folder {out} would get a new {path.name}, but that file is the "
+                f"{flag}: the folder {out} would get a new {written[path.resolve()]}, but that "
+                "file is the "
                 f"input {name} ({path}): expected an output folder that does not hold the "
                 "inputs under the names the command writes (choose another --out, or rename "
                 "the input)"
@@ -245,6 +247,11 @@ def writable_out(out: Path, flag: str = "--out") -> None:
     path = out.absolute()
     have = path
     while not have.exists() and have.parent != have:
+        if have.is_symlink():  # a link to nowhere: nothing can be created through it
+            raise RgbdError(
+                f"{flag}: got {out}, but {have} is a link to {os.readlink(have)}, which does not "
+                "exist: expected a path in a folder"
+            )
         have = have.parent
     if have != path and not have.is_dir():
         raise RgbdError(f"{flag}: got {out}, but {have} is a file: expected a path in a folder")

@@ -187,9 +187,9 @@ def register(commands: Commands) -> None:
         "--keep-pose",
         action="store_true",
         help="fuse the ToF pose and depths as given: by default a ToF orientation that fits "
-        "the stereo map clearly better turned by 0.1-7 degrees is refined, and depths 1-6 %% "
-        "off the pair's scale are rescaled (each with a warning; the pose and factor used go "
-        "to fused.npz as tof_pose and tof_scale)",
+        "the stereo map clearly better turned by 0.1 to about 6 degrees is refined, and depths "
+        "1-6 %% off the pair's scale are rescaled (each with a warning; the pose and factor "
+        "used go to fused.npz as tof_pose and tof_scale)",
     )
 
     ef = commands.group_command(

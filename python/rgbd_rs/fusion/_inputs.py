@@ -253,6 +253,13 @@ def scale_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:
     """A warning when the ToF's disparities agree with the stereo map only once multiplied by
     one factor far from 1 (depths in another unit than metres, a wrong PNG depth scale, or a
     rig baseline that far off), or None. The factor is the median ratio of the two maps."""
+    found = scale_factor(tof_disparity, stereo_disparity)
+    return None if found is None else found[0]
+
+
+def scale_factor(tof_disparity: F32, stereo_disparity: F32) -> tuple[str, float] | None:
+    """:func:`scale_warning`'s message and the factor ``k`` (the stereo map's disparities over
+    the ToF's: the ToF's depths divided by ``k`` fit it), or None."""
     with np.errstate(invalid="ignore"):
         both = np.flatnonzero(
             np.isfinite(tof_disparity) & np.isfinite(stereo_disparity) & (tof_disparity > 0)
@@ -279,7 +286,7 @@ def scale_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:
         f"both measure, as given on {given:.0%}; check tof_depth's unit (metres; a 16-bit PNG's "
         "depth scale) and the rig's baseline. Fused as given, the ToF's wrong depths win where "
         "the network trusts them"
-    )
+    ), k
 
 
 def disagreement_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:

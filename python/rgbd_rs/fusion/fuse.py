@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
-from rgbd_rs.camera import Pose
+from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import (
     F32,
@@ -26,7 +26,7 @@ from rgbd_rs.fusion._inputs import (
     negative_depth_error,
     rgb8,
     rig_arg,
-    scale_warning,
+    scale_factor,
     tof_depth_warning,
     unit_map,
     views,
@@ -36,8 +36,14 @@ from rgbd_rs.fusion._pose_check import pose_warning, turn_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.pose_refine import WIDE_DEGREES, PoseRefinement
-from rgbd_rs.fusion.scale_refine import SCALE_GRID, ScaleRefinement, _rescaled, _scale_and_turn
+from rgbd_rs.fusion.pose_refine import WIDE_DEGREES, PoseRefinement, _pose_error
+from rgbd_rs.fusion.scale_refine import (
+    SCALE_GRID,
+    ScaleRefinement,
+    _clear_turn,
+    _rescaled,
+    _scale_and_turn,
+)
 from rgbd_rs.fusion.sources import (
     SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_LC_UNMEASURED,  # noqa: F401 (re-exported: FusionResult.source)
@@ -234,16 +240,32 @@ def _scale_check(
     tof_disparity: F32,
     widest: int | None,
     match: Callable[..., F32],
-) -> str | None:
-    """:func:`~rgbd_rs.fusion._inputs.scale_warning` of the ToF against the stereo map; where
-    they disagree on most pixels and no factor explains it, once more against a map searched
-    over ``widest`` (None: the caller's range stands): depths too far make the range derived
-    from them too short for the pair's disparities."""
-    said = scale_warning(tof_disparity, stereo)
-    if said is not None or widest is None or disagreement_warning(tof_disparity, stereo) is None:
-        return said
-    return scale_warning(
-        tof_disparity, match(left, right, reference=reference, max_disparity=widest)
+) -> tuple[str, float, F32] | None:
+    """:func:`~rgbd_rs.fusion._inputs.scale_factor` of the ToF against the stereo map (with the
+    map it was read on); where they disagree on most pixels and no factor explains it, once
+    more against a map searched over ``widest`` (None: the caller's range stands): depths too
+    far make the range derived from them too short for the pair's disparities."""
+    said = scale_factor(tof_disparity, stereo)
+    if said is not None:
+        return (*said, stereo)
+    if widest is None or disagreement_warning(tof_disparity, stereo) is None:
+        return None
+    wide = match(left, right, reference=reference, max_disparity=widest)
+    said = scale_factor(tof_disparity, wide)
+    return None if said is None else (*said, wide)
+
+
+def _a_turn_explains(
+    depth: F32, rig: ToFStereoRig, stereo: F32, factor: float, refine: bool
+) -> bool:
+    """Whether a clear turn of the ToF fits ``stereo`` better than its depths divided by
+    ``factor`` do: on a slanted flat scene a pitch reads like a scale (Bull, 3 degrees of
+    pitch: a factor of 0.74), and the refinement corrects it."""
+    if not refine:
+        return False
+    turn = _clear_turn(depth, rig, stereo)
+    return turn is not None and turn.error_after < _pose_error(
+        _rescaled(depth, factor), rig, stereo
     )
 
 
@@ -433,7 +455,11 @@ def fuse(
     off_scale = None
     if not no_tof:
         wide = None if max_disparity is not None else search_range(np.full((1, 1), np.nan), w)
-        off_scale = _scale_check(lft, rgt, r.reference, st_map, tof.disparity, wide, match)
+        scaled_by = _scale_check(lft, rgt, r.reference, st_map, tof.disparity, wide, match)
+        if scaled_by is not None and not _a_turn_explains(
+            depth_map, r, scaled_by[2], scaled_by[1], refine_pose
+        ):
+            off_scale = scaled_by[0]
     if off_scale is not None:
         warnings.warn(off_scale, RuntimeWarning, stacklevel=2)
     swapped = (
