@@ -802,7 +802,11 @@ def test_tof_depths_in_another_scale_are_named_not_called_a_swapped_pair(
 
 
 def test_the_scale_check_reads_one_factor_or_nothing() -> None:
-    from rgbd_rs.fusion._inputs import scale_warning
+    from rgbd_rs.fusion._inputs import scale_factor
+
+    def scale_warning(tof: np.ndarray, stereo: np.ndarray) -> str | None:
+        found = scale_factor(tof, stereo)
+        return None if found is None else found[0]
 
     rng = np.random.default_rng(0)
     tof = rng.uniform(5, 40, (60, 80)).astype(np.float32)

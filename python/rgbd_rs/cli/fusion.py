@@ -434,7 +434,7 @@ def run_fuse(args: argparse.Namespace) -> int:
     maps["tof_scale"] = np.array(out.tof_scale, np.float64)
     if out.tof_confidence is not None and out.stereo_confidence is not None:
         maps |= {"tof_confidence": out.tof_confidence, "stereo_confidence": out.stereo_confidence}
-    output_folder(args.out, FUSE_OUTPUTS, inputs=input_paths(args))
+    output_folder(args.out, FUSE_OUTPUTS)  # inputs checked before the work
     write_npz(args.out / "fused.npz", maps)
     write_png(args.out / "disparity.png", disparity_png16(out.disparity))
     clipped = disparity_png_note(out.disparity, "fused.npz")

@@ -246,7 +246,7 @@ def run_segment(args: argparse.Namespace) -> int:
         ),
         amend=_naming_the_depth_scale(args.depth, depth, scale),
     )
-    out = output_folder(args.out, SEGMENT_OUTPUTS, inputs=input_paths(args))
+    out = output_folder(args.out, SEGMENT_OUTPUTS)  # inputs checked before the work
     np.save(out / "labels.npy", result.labels)
     np.save(out / "over.npy", result.over)
     ids = np.unique(result.labels[result.labels >= 0], return_inverse=True)[1]

@@ -237,7 +237,12 @@ AGREE_PX = 2.0
 AGREE_SHARE = 0.25
 
 
-#: :func:`scale_warning` speaks where the stereo map's disparities are a factor outside this
+def agree_tol(width: int) -> float:
+    """:data:`AGREE_PX` for a map ``width`` pixels wide (scaled up past 960 px)."""
+    return AGREE_PX * max(1.0, width / 960)
+
+
+#: :func:`scale_factor` speaks where the stereo map's disparities are a factor outside this
 #: range of the ToF's (the depth-scale refinement fits 0.94-1.06) ...
 SCALE_OFF = (0.8, 1.25)
 #: ... and the ToF's disparities times that factor agree with the stereo map on at least this
@@ -249,17 +254,11 @@ SCALE_REL = 0.1
 SCALE_SAMPLES = 65536
 
 
-def scale_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:
-    """A warning when the ToF's disparities agree with the stereo map only once multiplied by
-    one factor far from 1 (depths in another unit than metres, a wrong PNG depth scale, or a
-    rig baseline that far off), or None. The factor is the median ratio of the two maps."""
-    found = scale_factor(tof_disparity, stereo_disparity)
-    return None if found is None else found[0]
-
-
 def scale_factor(tof_disparity: F32, stereo_disparity: F32) -> tuple[str, float] | None:
-    """:func:`scale_warning`'s message and the factor ``k`` (the stereo map's disparities over
-    the ToF's: the ToF's depths divided by ``k`` fit it), or None."""
+    """A warning and the factor ``k`` when the ToF's disparities agree with the stereo map only
+    once multiplied by one ``k`` far from 1 (depths in another unit than metres, a wrong PNG
+    depth scale, or a rig baseline that far off; the ToF's depths divided by ``k`` fit it), or
+    None. ``k`` is the median ratio of the two maps."""
     with np.errstate(invalid="ignore"):
         both = np.flatnonzero(
             np.isfinite(tof_disparity) & np.isfinite(stereo_disparity) & (tof_disparity > 0)
@@ -273,7 +272,7 @@ def scale_factor(tof_disparity: F32, stereo_disparity: F32) -> tuple[str, float]
     k = float(np.median(st / tof))
     if SCALE_OFF[0] <= k <= SCALE_OFF[1] or not np.isfinite(k) or k <= 0:
         return None
-    tol = AGREE_PX * max(1.0, tof_disparity.shape[1] / 960)
+    tol = agree_tol(tof_disparity.shape[1])
     given = float((np.abs(tof - st) <= tol).mean())
     # Within the tolerance, or 10 % of the scaled disparity (depths ten times too near also
     # move the ToF's pixels in the image: the scaled map agrees less closely).
@@ -295,7 +294,7 @@ def disagreement_warning(tof_disparity: F32, stereo_disparity: F32) -> str | Non
     both = np.isfinite(tof_disparity) & np.isfinite(stereo_disparity)
     if both.sum() < 100:
         return None  # too few to judge
-    tol = AGREE_PX * max(1.0, tof_disparity.shape[1] / 960)
+    tol = agree_tol(tof_disparity.shape[1])
     share = float((np.abs(tof_disparity[both] - stereo_disparity[both]) <= tol).mean())
     if share >= AGREE_SHARE:
         return None

@@ -22,8 +22,8 @@ import numpy as np
 
 from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import RgbdError
-from rgbd_rs.fusion._inputs import AGREE_PX, F32, with_reference
-from rgbd_rs.fusion._tof_points import paired_many, sample_points, turn_rotations
+from rgbd_rs.fusion._inputs import F32, agree_tol, with_reference
+from rgbd_rs.fusion._tof_points import sample_points, shares, turned_shares
 
 #: ToF pixels projected per reading of the pose (evenly spaced over the valid ones).
 POSE_SAMPLES = 4096
@@ -76,22 +76,6 @@ def _readings(asked: ToFStereoRig, fused_on: str) -> dict[str, Pose]:
     return out
 
 
-def _shares(
-    points: np.ndarray,
-    rotations: np.ndarray,
-    translations: np.ndarray,
-    rig: ToFStereoRig,
-    stereo: F32,
-    tol: float,
-) -> list[tuple[int, float]]:
-    """(pixels compared, share within ``tol``) of ToF ``points`` (``N x 3``, or ``K x N x 3``:
-    one set per pose) moved by each of ``K`` poses (one projection of all of them)."""
-    tof, st, both = paired_many(points, rotations, translations, rig, stereo)
-    counts = both.sum(axis=1)
-    within = (both & (np.abs(tof - st) <= tol)).sum(axis=1)
-    return [(int(n), float(k / n) if n else 0.0) for n, k in zip(counts, within, strict=True)]
-
-
 def _agreements(
     points: np.ndarray, poses: list[Pose], rig: ToFStereoRig, stereo: F32, tol: float
 ) -> list[tuple[int, float]]:
@@ -100,7 +84,7 @@ def _agreements(
         return []
     rotations = np.stack([p.rotation for p in poses])
     translations = np.stack([p.translation for p in poses])
-    return _shares(points, rotations, translations, rig, stereo, tol)
+    return shares(points, rotations, translations, rig, stereo, tol)
 
 
 def _agreement(
@@ -108,22 +92,6 @@ def _agreement(
 ) -> tuple[int, float]:
     """(pixels compared, share within ``tol``) of ToF ``points`` moved by ``pose``."""
     return _agreements(points, [pose], rig, stereo, tol)[0]
-
-
-def _turned_shares(
-    points: np.ndarray,
-    pose: Pose,
-    turns: list[tuple[float, float]],
-    rig: ToFStereoRig,
-    stereo: F32,
-    tol: float,
-) -> list[tuple[int, float]]:
-    """:func:`_shares` of ``pose`` turned by each ``(yaw, pitch)`` of ``turns`` (degrees; see
-    :func:`~rgbd_rs.fusion._tof_points.turn_rotations`)."""
-    if not turns:
-        return []
-    rotations = turn_rotations(pose.rotation, turns)
-    return _shares(points, rotations, pose.translation, rig, stereo, tol)
 
 
 def _plain_error(
@@ -135,8 +103,8 @@ def _plain_error(
     round, would explain."""
     steps = np.arange(-TURN_DEGREES, TURN_DEGREES + 1e-9, TURN_STEP)
     turns = [t for a in steps[steps != 0] for t in ((float(a), 0.0), (0.0, float(a)))]
-    turned = _turned_shares(points, pose, turns, rig, stereo, tol)
-    scaled = _turned_shares(
+    turned = turned_shares(points, pose, turns, rig, stereo, tol)
+    scaled = turned_shares(
         np.stack([points * g for g in SCALES]), pose, [(0.0, 0.0)] * len(SCALES), rig, stereo, tol
     )
     return max((share for _, share in turned + scaled), default=0.0)
@@ -163,7 +131,7 @@ def pose_warning(
     points = sample_points(depth, rig, POSE_SAMPLES)
     if len(points) < 100:
         return None
-    tol = AGREE_PX * max(1.0, stereo_disparity.shape[1] / 960)
+    tol = agree_tol(stereo_disparity.shape[1])
     readings = _readings(asked, rig.reference)
     if "given" not in readings:
         return None
@@ -228,7 +196,7 @@ def turn_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | 
     points = sample_points(depth, rig, POSE_SAMPLES // 2)
     if len(points) < 100:
         return None
-    tol = AGREE_PX * max(1.0, stereo_disparity.shape[1] / 960)
+    tol = agree_tol(stereo_disparity.shape[1])
     pose = rig.tof_to_reference
     n, given = _agreement(points, pose, rig, stereo_disparity, tol)
     if n < 500 or given >= TURN_QUIET:
@@ -241,7 +209,7 @@ def turn_warning(depth: F32, rig: ToFStereoRig, stereo_disparity: F32) -> str | 
         if max(abs(yaw), abs(pitch)) >= TURN_MIN_DEGREES  # below: the refinement's range
     ]
     best, turn = given, (0.0, 0.0)
-    probed = _turned_shares(points, pose, turns, rig, stereo_disparity, tol)
+    probed = turned_shares(points, pose, turns, rig, stereo_disparity, tol)
     for t, (count, share) in zip(turns, probed, strict=True):
         # A turn that moves most ToF pixels off the image compares too few to judge.
         if count >= max(500, n // 2) and share > best:

@@ -85,3 +85,35 @@ def paired_many(
         tof = rig.stereo.baseline * rig.stereo.focal / np.where(front, z, np.nan)
     both = inside & np.isfinite(st) & np.isfinite(tof)
     return tof, st, both
+
+
+def shares(
+    points: F64,
+    rotations: F64,
+    translations: F64,
+    rig: ToFStereoRig,
+    stereo: npt.NDArray[np.float32],
+    tol: float,
+) -> list[tuple[int, float]]:
+    """(pixels compared, share within ``tol``) of ToF ``points`` (``N x 3``, or ``K x N x 3``:
+    one set per pose) moved by each of ``K`` poses (one projection of all of them)."""
+    tof, st, both = paired_many(points, rotations, translations, rig, stereo)
+    counts = both.sum(axis=1)
+    within = (both & (np.abs(tof - st) <= tol)).sum(axis=1)
+    return [(int(n), float(k / n) if n else 0.0) for n, k in zip(counts, within, strict=True)]
+
+
+def turned_shares(
+    points: F64,
+    pose: Pose,
+    turns: list[tuple[float, float]],
+    rig: ToFStereoRig,
+    stereo: npt.NDArray[np.float32],
+    tol: float,
+) -> list[tuple[int, float]]:
+    """:func:`shares` of ``pose`` turned by each ``(yaw, pitch)`` of ``turns`` (degrees; see
+    :func:`turn_rotations`)."""
+    if not turns:
+        return []
+    rotations = turn_rotations(pose.rotation, turns)
+    return shares(points, rotations, pose.translation, rig, stereo, tol)

@@ -60,6 +60,7 @@ from rgbd_rs.fusion.stereo import (
     _predict_search_range,
     _same_search,
     _whole_steps,
+    _widest_range,
     search_range,
     sgm,
 )
@@ -454,7 +455,7 @@ def fuse(
     # Depths in another unit or scale first: the checks below read the ToF's disparities as true.
     off_scale = None
     if not no_tof:
-        wide = None if max_disparity is not None else search_range(np.full((1, 1), np.nan), w)
+        wide = None if max_disparity is not None else _widest_range(w)
         scaled_by = _scale_check(lft, rgt, r.reference, st_map, tof.disparity, wide, match)
         if scaled_by is not None and not _a_turn_explains(
             depth_map, r, scaled_by[2], scaled_by[1], refine_pose

@@ -12,10 +12,10 @@ scenes it recovers a 0.4 degree yaw error to within 0.05 degrees; on exact rigs 
 rotation it finds is never :attr:`PoseRefinement.clear`, so ``fuse()`` turns none of them
 (docs/experiments.md, "a ToF orientation off by a fraction of a degree"). A wide search
 (``max_degrees`` of several degrees) can fit a large spurious turn on a flat or far scene:
-act on ``pose`` only when ``clear``. ``fuse()`` searches a degree, and where nothing near fits
-better (a turn of a few degrees makes the near ones no better than the given pose) or the fit
-stops at that edge, a coarse probe of turns out to :data:`WIDE_DEGREES` starts a search around
-its best (docs/experiments.md, "a ToF turned by one to six degrees").
+act on ``pose`` only when ``clear``. ``fuse()`` searches a degree (continued from its edge
+where it stops there), and beside it a coarse probe of turns out to :data:`WIDE_DEGREES` starts
+a search around its best, kept where it fits better and the ToF then agrees with the stereo map
+(docs/experiments.md, "a ToF turned by one to six degrees").
 """
 
 from __future__ import annotations
@@ -28,12 +28,13 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.fusion._inputs import AGREE_PX, map2d, rig_arg
+from rgbd_rs.fusion._inputs import agree_tol, map2d, rig_arg
 from rgbd_rs.fusion._tof_points import (
     paired_disparities,
     paired_many,
     sample_points,
     turn_rotations,
+    turned_shares,
 )
 
 #: ToF pixels projected per candidate rotation (evenly spaced over the valid ones).
@@ -304,12 +305,10 @@ def _agreement(
     rig: ToFStereoRig,
     stereo: npt.NDArray[np.float32],
 ) -> float:
-    """The share of ``points`` within :data:`~rgbd_rs.fusion._inputs.AGREE_PX` (scaled with the
-    width) of the stereo map under ``pose`` turned by ``turn``'s (yaw, pitch)."""
-    rotation = turn_rotations(pose.rotation, [turn[1:]])
-    tof, st, both = paired_many(points, rotation, pose.translation, rig, stereo)
-    d = np.abs(tof[0][both[0]] - st[0][both[0]])
-    return float((d <= AGREE_PX * _scale(rig)).mean()) if d.size else 0.0
+    """The share of ``points`` within :func:`~rgbd_rs.fusion._inputs.agree_tol` of the stereo
+    map under ``pose`` turned by ``turn``'s (yaw, pitch)."""
+    tol = agree_tol(rig.reference_camera.width)
+    return turned_shares(points, pose, [turn[1:]], rig, stereo, tol)[0][1]
 
 
 def _refine_if_off(

@@ -67,6 +67,12 @@ def _max_search(width: int, min_disparity: int = 0, block_size: int = BLOCK_SIZE
     return min_disparity + DISPARITY_STEP * (room // DISPARITY_STEP)
 
 
+def _widest_range(width: int) -> int:
+    """The largest range :func:`search_range` gives on images ``width`` pixels wide (the
+    range of a ToF map without a valid pixel)."""
+    return max(1, min(width - 1, _max_search(width), int(MAX_RANGE_FRACTION * width)))
+
+
 def search_range(tof_disparity: npt.ArrayLike, width: int | None = None) -> int:
     """SGM's ``max_disparity`` for a scene whose ToF disparity (on the reference camera, NaN =
     none) is ``tof_disparity``.
@@ -79,7 +85,7 @@ def search_range(tof_disparity: npt.ArrayLike, width: int | None = None) -> int:
     """
     d = np.asarray(_validate.array("tof_disparity", tof_disparity, shape=(None, None)), np.float32)
     w = d.shape[1] if width is None else _validate.integer("width", width, minimum=2)
-    top = max(1, min(w - 1, _max_search(w), int(MAX_RANGE_FRACTION * w)))
+    top = _widest_range(w)
     with np.errstate(invalid="ignore"):
         filled = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
     smooth = cv2.medianBlur(filled, RANGE_MEDIAN_WINDOW)
