@@ -74,19 +74,23 @@ fn select_row_body(
     second: &mut [f32],
 ) {
     let (w, dmin) = (disp.len(), params.min_disparity);
-    // The other view's winners at its pixel xr = x - dmin - k (smallest k on ties).
+    // The other view's winners at its pixel xr = x - dmin - k (smallest k on ties), kept
+    // mirrored (index w - 1 - xr) so that the run of pixel x updates consecutive entries:
+    // one vectorisable element-wise minimum per pixel.
     let check = params.lr_tolerance;
     let slots = if check.is_some() { w } else { 0 };
     let mut r_cost = vec![u16::MAX; slots];
-    let mut r_k = vec![0usize; slots];
+    let mut r_k = vec![0u32; slots];
     if check.is_some() {
         for x in dmin..w {
-            for (k, &s) in srow[layout.run(x)].iter().enumerate() {
-                let xr = x - dmin - k;
-                if s < r_cost[xr] {
-                    r_cost[xr] = s;
-                    r_k[xr] = k;
-                }
+            let s = &srow[layout.run(x)];
+            let j0 = w - 1 - x + dmin;
+            let cost = &mut r_cost[j0..j0 + s.len()];
+            let at = &mut r_k[j0..j0 + s.len()];
+            for (k, ((&v, c), a)) in s.iter().zip(cost.iter_mut()).zip(at.iter_mut()).enumerate() {
+                let less = v < *c;
+                *c = if less { v } else { *c };
+                *a = if less { k as u32 } else { *a };
             }
         }
     }
@@ -106,8 +110,9 @@ fn select_row_body(
             }
         }
         if let Some(tol) = check {
-            let xr = x - dmin - k;
-            if r_k[xr].abs_diff(k) > usize::from(tol) {
+            // The other view's pixel x - dmin - k, mirrored.
+            let other = r_k[w - 1 - (x - dmin - k)] as usize;
+            if other.abs_diff(k) > usize::from(tol) {
                 continue;
             }
         }
