@@ -216,21 +216,24 @@ struct Sweep {
 pub(crate) fn aggregate(p: &Problem<'_>, params: &SgmParams, kernel: Kernel) -> Result<Vec<u16>> {
     let (w, h, nd) = (p.w, p.h, p.nd);
     let row_len = p.layout.row_len();
-    let mut sum = crate::volume::zeroed(h * row_len);
+    let mut raw = crate::volume::untouched(h * row_len);
     let uses = |i: usize| params.paths.uses(i);
     let (from_left, from_right) = (uses(0), uses(1));
-    // The horizontal paths: every row on its own, in parallel (this also spreads the volume's
-    // first touch over the workers).
-    sum.par_chunks_mut(row_len).enumerate().try_for_each_init(
+    // The horizontal paths: every row on its own, in parallel, each row zeroed first (this
+    // also spreads the volume's first touch over the workers).
+    raw.par_chunks_mut(row_len).enumerate().try_for_each_init(
         || vec![0u8; w * nd],
         |cost, (y, row)| {
             check_interrupt()?;
+            let row = crate::volume::zero_row(row);
             if from_left || from_right {
                 horizontal(kernel, p, y, from_left, from_right, cost, row);
             }
             Ok(())
         },
     )?;
+    // SAFETY: the pass above wrote every row (it returns Ok only once every row ran).
+    let mut sum = unsafe { crate::volume::assume_init(raw) };
     // The paths from above, then from below: rows in order, pixels of a row in parallel.
     for (dy, dirs) in [(1isize, 2..5), (-1, 5..8)] {
         let dirs: Vec<_> = dirs.filter(|&i| uses(i)).map(|i| DIRECTIONS[i]).collect();

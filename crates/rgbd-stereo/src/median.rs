@@ -236,7 +236,7 @@ fn padded_medians(
         }
     }
     sort_network(net, lanes);
-    let any_odd = odd.iter().any(|&o| o == 1);
+    let any_odd = odd.contains(&1);
     if any_odd {
         sort_network(net, spare);
     }
@@ -357,7 +357,7 @@ mod tests {
                         .wrapping_mul(6364136223846793005)
                         .wrapping_add(1442695040888963407);
                     let r = (seed >> 33) as u32;
-                    if (seed >> 20) % holes_in == 0 {
+                    if (seed >> 20).is_multiple_of(holes_in) {
                         f32::NAN
                     } else {
                         (r % 4000) as f32 / 16.0
