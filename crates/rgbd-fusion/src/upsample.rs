@@ -17,6 +17,8 @@ use rayon::prelude::*;
 use rgbd_error::{check_interrupt, image_len};
 use rgbd_geom::error::{check_len, Result};
 
+mod lanes;
+
 use crate::check::window_and_positive;
 use crate::color::{gauss_table, sum_abs};
 
@@ -150,6 +152,7 @@ pub fn upsample_depth(
             (-(dx * dx + dy * dy) / (2.0 * params.sigma_s * params.sigma_s)).exp()
         })
         .collect();
+    let spatial_lanes = lanes::padded_spatial(&spatial, side);
     let gc = gauss_table(params.sigma_c);
     let inv_2r2 = 1.0 / (2.0 * params.sigma_r * params.sigma_r);
     let mut out = vec![f32::NAN; n];
@@ -172,6 +175,7 @@ pub fn upsample_depth(
         r,
         side,
         spatial: &spatial,
+        spatial_lanes: &spatial_lanes,
         gc: &gc,
         inv_2r2,
     };
@@ -182,10 +186,11 @@ pub fn upsample_depth(
         .try_for_each(|(y, ((out_row, gap_row), a_row))| {
             check_interrupt()?;
             // Monomorphised: without a channel the inner loop does no channel work at all.
-            if channel.is_some() {
-                ctx.row::<true>(y, out_row, gap_row, a_row);
-            } else {
-                ctx.row::<false>(y, out_row, gap_row, a_row);
+            match (channel.is_some(), labels.is_some()) {
+                (true, true) => ctx.row::<true>(y, out_row, gap_row, a_row),
+                (false, true) => ctx.row::<false>(y, out_row, gap_row, a_row),
+                (true, false) => ctx.row_lanes::<true>(y, out_row, gap_row, a_row),
+                (false, false) => ctx.row_lanes::<false>(y, out_row, gap_row, a_row),
             }
             Ok(())
         })?;
@@ -208,6 +213,8 @@ struct Ctx<'a> {
     r: i64,
     side: usize,
     spatial: &'a [f32],
+    /// `spatial` padded for [`lanes`].
+    spatial_lanes: &'a [f32],
     gc: &'a [f32],
     inv_2r2: f32,
 }

@@ -119,3 +119,42 @@ proptest! {
         prop_assert_eq!(bits(&plain.depth), bits(&fast.depth));
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Without labels the filter runs 16 pixels at a time (`upsample/lanes.rs`); with every label
+    /// equal it runs the one-pixel loop. Both define the same filter and must give the same
+    /// bits: depth, carried channel and colour gap, rows of several blocks and a partial one.
+    #[test]
+    fn lanes_equal_the_one_pixel_filter(
+        w in 1usize..70, h in 1usize..6, radius in 1usize..9,
+        sigmas in (0.3f32..6.0, 2.0f32..40.0), density in 1u32..5, seed in any::<u64>(),
+    ) {
+        let n = w * h;
+        let mut s = seed | 1;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        let sparse: Vec<f32> = (0..n)
+            .map(|_| if next() % u64::from(density) == 0 { 0.3 + (next() % 5000) as f32 / 1000.0 } else { f32::NAN })
+            .collect();
+        let chan: Vec<f32> = (0..n)
+            .map(|_| if next() % 5 == 0 { f32::NAN } else { (next() % 1000) as f32 - 300.0 })
+            .collect();
+        let img: Vec<u8> = (0..3 * n).map(|_| (next() % 256) as u8).collect();
+        let zeros = vec![0i32; n];
+        let p = UpsampleParams { radius, sigma_s: sigmas.0, sigma_c: sigmas.1, sigma_r: 0.02 };
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for carried in [Some(&chan[..]), None] {
+            let lanes = upsample_depth(&sparse, carried, &img, None, w, h, &p).unwrap();
+            let one = upsample_depth(&sparse, carried, &img, Some(&zeros), w, h, &p).unwrap();
+            prop_assert_eq!(bits(&lanes.depth), bits(&one.depth));
+            prop_assert_eq!(bits(&lanes.channel), bits(&one.channel));
+            prop_assert_eq!(bits(&lanes.color_gap), bits(&one.color_gap));
+        }
+    }
+}
