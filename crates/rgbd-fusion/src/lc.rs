@@ -428,10 +428,18 @@ impl Plan {
         kernel: Kernel,
     ) -> Self {
         let t4 = quarter_rows(target, width, height);
-        let hyps = sources
-            .iter()
-            .map(|s| prepare(s, &t4, width, height, dmin, params))
-            .collect();
+        let ctx = HypCtx::new(&t4, width, dmin, params);
+        // The vector kernels build their lenders straight from the sources (below).
+        let hyps = match kernel {
+            Kernel::Scalar => sources
+                .iter()
+                .map(|s| ctx.prepare(s, width * height))
+                .collect(),
+            #[cfg(target_arch = "x86_64")]
+            _ => Vec::new(),
+        };
+        #[cfg(target_arch = "x86_64")]
+        let lend = (kernel != Kernel::Scalar).then(|| avx2::lenders(&ctx, sources, width * height));
         let side = 2 * params.radius + 1;
         let r = params.radius as f32;
         let spatial = (0..side * side)
@@ -463,12 +471,18 @@ impl Plan {
             Kernel::Scalar => plan,
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2 => Self {
-                simd: Some(avx2::Tables::new(&plan)),
+                simd: Some(avx2::Tables::new(
+                    &plan,
+                    lend.expect("built for this kernel"),
+                )),
                 ..plan
             },
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx512 => Self {
-                simd512: Some(avx512::Tables::new(&plan)),
+                simd512: Some(avx512::Tables::new(
+                    &plan,
+                    lend.expect("built for this kernel"),
+                )),
                 ..plan
             },
         }
@@ -624,42 +638,61 @@ fn rgb_pixels(img: &[u8]) -> Vec<[u8; 3]> {
     img.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
 }
 
-/// One source's hypotheses, one per pixel (`w == 0` marks none).
-fn prepare(
-    s: &Source<'_>,
-    t4: &[[u8; 3]],
+/// What [`Plan::hyp`] reads besides the source: the quarter-pixel target rows and the
+/// constants of the call.
+pub(super) struct HypCtx<'a> {
+    t4: &'a [[u8; 3]],
     width: usize,
-    height: usize,
+    len: usize,
     dmin: f32,
-    params: &LcParams,
-) -> Vec<Hyp> {
-    let len = PHASES as usize * (width - 1) + 1;
-    let sign = f32::from(params.target_sign) * PHASES as f32;
-    let mut out = vec![Hyp::default(); width * height];
-    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-        for (x, h) in row.iter_mut().enumerate() {
-            let i = y * width + x;
-            let d = s.disparity[i];
-            let c = s.confidence.map_or(1.0, |c| c[i]);
-            if !d.is_finite() || !(c > 0.0) {
-                continue;
-            }
-            let shift = (sign * d).round() as i32;
-            let pos = PHASES * x as i64 + i64::from(shift);
-            if pos < 0 || pos >= len as i64 {
-                continue;
-            }
-            *h = Hyp {
-                shift,
-                // Bins are offset by one so the WTA can read both neighbours.
-                bin: ((d - dmin) / params.bin_width) as u32 + 1,
-                d,
-                w: c,
-                col: t4[y * len + pos as usize],
-            };
+    sign: f32,
+    bin_width: f32,
+}
+
+impl<'a> HypCtx<'a> {
+    fn new(t4: &'a [[u8; 3]], width: usize, dmin: f32, params: &LcParams) -> Self {
+        HypCtx {
+            t4,
+            width,
+            len: PHASES as usize * (width - 1) + 1,
+            dmin,
+            sign: f32::from(params.target_sign) * PHASES as f32,
+            bin_width: params.bin_width,
         }
-    });
-    out
+    }
+
+    /// The hypothesis pixel `i` of source `s` lends, if any (a finite disparity with a
+    /// positive confidence whose target position lies in the image).
+    #[inline]
+    fn hyp(&self, s: &Source<'_>, i: usize) -> Option<Hyp> {
+        let d = s.disparity[i];
+        let c = s.confidence.map_or(1.0, |c| c[i]);
+        if !d.is_finite() || !(c > 0.0) {
+            return None;
+        }
+        let (y, x) = (i / self.width, i % self.width);
+        let shift = (self.sign * d).round() as i32;
+        let pos = PHASES * x as i64 + i64::from(shift);
+        if pos < 0 || pos >= self.len as i64 {
+            return None;
+        }
+        Some(Hyp {
+            shift,
+            // Bins are offset by one so the WTA can read both neighbours.
+            bin: ((d - self.dmin) / self.bin_width) as u32 + 1,
+            d,
+            w: c,
+            col: self.t4[y * self.len + pos as usize],
+        })
+    }
+
+    /// One source's hypotheses, one per pixel (`w == 0` marks none).
+    fn prepare(&self, s: &Source<'_>, n: usize) -> Vec<Hyp> {
+        (0..n)
+            .into_par_iter()
+            .map(|i| self.hyp(s, i).unwrap_or_default())
+            .collect()
+    }
 }
 
 /// Per-worker Ω(p, ·) accumulator over disparity bins, with the list of bins touched.

@@ -18,7 +18,7 @@ use std::arch::x86_64::*;
 
 use rayon::prelude::*;
 
-use super::{lane_winner_and_clear, span, Plan, PHASES};
+use super::{lane_winner_and_clear, span, HypCtx, Plan, Source, PHASES};
 
 /// Receiving pixels per step.
 const LANES: usize = 8;
@@ -65,31 +65,33 @@ pub(super) fn pack(c: [u8; 3]) -> u32 {
     u32::from_le_bytes([c[0], c[1], c[2], 0])
 }
 
-/// The sources' hypotheses as [`Lend`]s, and the smallest quarter-pixel shift they index from.
-pub(super) fn lenders(plan: &Plan) -> (Vec<Vec<Lend>>, i32) {
-    let smin = plan
-        .hyps
+/// The sources' hypotheses ([`HypCtx::hyp`] of each of the `n` pixels) as [`Lend`]s, and the
+/// smallest quarter-pixel shift they index from.
+pub(super) fn lenders(ctx: &HypCtx<'_>, sources: &[Source<'_>], n: usize) -> (Vec<Vec<Lend>>, i32) {
+    let smin = sources
         .iter()
-        .flat_map(|hs| hs.iter().filter(|h| h.w > 0.0).map(|h| h.shift))
+        .filter_map(|s| {
+            (0..n)
+                .into_par_iter()
+                .filter_map(|i| ctx.hyp(s, i).map(|h| h.shift))
+                .min()
+        })
         .min()
         .unwrap_or(0);
-    let lend = plan
-        .hyps
+    let lend = sources
         .iter()
-        .map(|hs| {
-            hs.par_iter()
-                .map(|h| {
-                    if h.w > 0.0 {
-                        Lend {
-                            sidx: h.shift.abs_diff(smin),
-                            bin: h.bin as i32,
-                            d: h.d,
-                            w: h.w,
-                            col: pack(h.col),
-                        }
-                    } else {
-                        Lend::default()
-                    }
+        .map(|s| {
+            (0..n)
+                .into_par_iter()
+                .map(|i| match ctx.hyp(s, i) {
+                    Some(h) => Lend {
+                        sidx: h.shift.abs_diff(smin),
+                        bin: h.bin as i32,
+                        d: h.d,
+                        w: h.w,
+                        col: pack(h.col),
+                    },
+                    None => Lend::default(),
                 })
                 .collect()
         })
@@ -98,9 +100,8 @@ pub(super) fn lenders(plan: &Plan) -> (Vec<Vec<Lend>>, i32) {
 }
 
 impl Tables {
-    pub(super) fn new(plan: &Plan) -> Self {
+    pub(super) fn new(plan: &Plan, (lend, smin): (Vec<Vec<Lend>>, i32)) -> Self {
         let st = plan.st;
-        let (lend, smin) = lenders(plan);
         let kk = plan.radius / st;
         let ucols = 2 * kk + LANES;
         let (r, side) = (plan.radius as isize, plan.side);

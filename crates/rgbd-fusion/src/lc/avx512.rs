@@ -10,7 +10,7 @@
 
 use std::arch::x86_64::*;
 
-use super::avx2::{lenders, pack, Lend};
+use super::avx2::{pack, Lend};
 use super::{lane_winner_and_clear, Plan, LUT_MASK, PHASES};
 
 /// Receiver rows and columns of a block.
@@ -49,9 +49,8 @@ pub(super) struct Tables {
 }
 
 impl Tables {
-    pub(super) fn new(plan: &Plan) -> Self {
+    pub(super) fn new(plan: &Plan, (lend, smin): (Vec<Vec<Lend>>, i32)) -> Self {
         let st = plan.st;
-        let (lend, smin) = lenders(plan);
         let kk = plan.radius / st;
         let (urows, ucols) = (2 * kk + R, 2 * kk + C);
         let (rad, side) = (plan.radius as isize, plan.side);
