@@ -52,6 +52,7 @@ __all__ = [
     "fit_surface",
     "hha_encode",
     "label_regions",
+    "land_points",
     "lc_fuse",
     "local_contrast_normalize",
     "majority_classes",
@@ -101,6 +102,9 @@ def num_threads() -> int: ...
 def project_points(
     points: npt.NDArray[np.float64], cam: _CameraArgs, pose_args: _PoseArgs
 ) -> npt.NDArray[np.float64]: ...
+def land_points(
+    points: npt.NDArray[np.float64], cam: _CameraArgs, map: npt.NDArray[np.float32], bf: float
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.bool_]]: ...
 def undistort_pixels(
     pixels: npt.NDArray[np.float64], cam: _CameraArgs, normalized: bool, max_iter: int, tol: float
 ) -> npt.NDArray[np.float64]: ...

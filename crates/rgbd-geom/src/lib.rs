@@ -10,6 +10,7 @@
 pub mod camera;
 pub mod distortion;
 pub mod error;
+pub mod landing;
 pub mod normals;
 pub mod projection;
 pub mod remap;
@@ -20,6 +21,7 @@ pub mod stereo;
 pub use camera::{Intrinsics, Pose};
 pub use distortion::{Distortion, UNDISTORT_MAX_ITER, UNDISTORT_TOL};
 pub use error::{Result, RgbdError};
+pub use landing::{land_points, Landed};
 pub use normals::normals_from_points;
 pub use projection::Camera;
 pub use remap::{remap, undistort_image, undistort_map, ImageRef, Interpolation};

@@ -4,7 +4,7 @@ use nalgebra::Matrix3;
 use numpy::ndarray::{Array, Dimension, ShapeBuilder};
 use numpy::prelude::*;
 use numpy::{
-    Element, PyArray, PyArray2, PyArray3, PyArrayDyn, PyReadonlyArray2, PyReadonlyArray3,
+    Element, PyArray, PyArray1, PyArray2, PyArray3, PyArrayDyn, PyReadonlyArray2, PyReadonlyArray3,
     PyReadonlyArrayDyn,
 };
 use pyo3::prelude::*;
@@ -61,6 +61,35 @@ pub fn project_points<'py>(
     let out = run(py, || cam.project_points(pts, &pose))?;
     to_numpy(py, (n, 2), out)
 }
+
+/// Lands `N x 3` camera-frame points on an `H x W` map (see `rgbd_geom::land_points`):
+/// `(disparity, map value, both finite and inside)`, each `N`.
+#[pyfunction]
+pub fn land_points<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    cam: CameraArgs,
+    map: PyReadonlyArray2<'py, f32>,
+    bf: f64,
+) -> PyResult<Landed<'py>> {
+    let n = points.shape()[0];
+    let (h, w) = (map.shape()[0], map.shape()[1]);
+    let cam = camera(cam)?;
+    let pts = borrow("points", &points)?;
+    let values = borrow("map", &map)?;
+    let out = run(py, || rgbd_geom::land_points(&cam, pts, values, w, h, bf))?;
+    Ok((
+        to_numpy(py, n, out.disparity)?,
+        to_numpy(py, n, out.map)?,
+        to_numpy(py, n, out.both)?,
+    ))
+}
+
+type Landed<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<bool>>,
+);
 
 /// Undistorts `N x 2` pixels (to ideal pixels, or normalised coordinates).
 #[pyfunction]

@@ -62,6 +62,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_function(wrap_pyfunction!(num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(geom::project_points, m)?)?;
+    m.add_function(wrap_pyfunction!(geom::land_points, m)?)?;
     m.add_function(wrap_pyfunction!(geom::undistort_pixels, m)?)?;
     m.add_function(wrap_pyfunction!(geom::distort_pixels, m)?)?;
     m.add_function(wrap_pyfunction!(geom::depth_to_points, m)?)?;

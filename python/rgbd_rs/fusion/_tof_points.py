@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs import _rgbd_rs
 from rgbd_rs.camera import Pose, ToFStereoRig
 
 F64 = npt.NDArray[np.float64]
@@ -69,21 +70,16 @@ def paired_many(
     moved = np.stack(
         [(points if points.ndim == 2 else points[k]) @ r.T + t[k] for k, r in enumerate(rotations)]
     )
-    z = moved[..., 2]
-    with np.errstate(invalid="ignore"):
-        front = np.isfinite(z) & (z > 0)
-    if not front.all():  # behind the camera: projected from a harmless point, then dropped
-        moved[~front] = (0.0, 0.0, 1.0)
-    uv = np.rint(rig.reference_camera.project(moved.reshape(-1, 3))).reshape(*z.shape, 2)
-    h, w = stereo.shape
-    with np.errstate(invalid="ignore"):  # NaN (a pixel the lens cannot map) compares False
-        inside = front & (uv[..., 0] >= 0) & (uv[..., 0] < w) & (uv[..., 1] >= 0) & (uv[..., 1] < h)
-    u = np.where(inside, uv[..., 0], 0).astype(np.intp)
-    v = np.where(inside, uv[..., 1], 0).astype(np.intp)
-    st = stereo[v, u].astype(np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tof = rig.stereo.baseline * rig.stereo.focal / np.where(front, z, np.nan)
-    both = inside & np.isfinite(st) & np.isfinite(tof)
+    # Projected, rounded to the nearest pixel and looked up natively: the same arithmetic as
+    # the camera's projection, numpy's rint and a lookup (points behind the camera dropped).
+    tof, st, both = _rgbd_rs.land_points(
+        moved.reshape(-1, 3),
+        rig.reference_camera._native(),
+        np.ascontiguousarray(stereo, dtype=np.float32),
+        rig.stereo.baseline * rig.stereo.focal,
+    )
+    shape = moved.shape[:-1]
+    tof, st, both = tof.reshape(shape), st.reshape(shape), both.reshape(shape)
     return tof, st, both
 
 
