@@ -43,6 +43,8 @@ __all__ = [
     "UpsampleConfig",
     "census_sgm",
     "check_metric_depth",
+    "clue_maps",
+    "clue_warp_maps",
     "cost_curve_stats",
     "density_profiles",
     "depth_disparity",
@@ -60,6 +62,7 @@ __all__ = [
     "merge_regions",
     "mesh_depth_views",
     "mesh_depth_views_raycast",
+    "normalise_clues",
     "normals_from_points",
     "num_threads",
     "oversegment",
@@ -126,6 +129,23 @@ def undistort_image(
     dst: _CameraArgs,
     interpolation: str,
     rotation: list[float] | None = None,
+) -> npt.NDArray[np.float32]: ...
+def clue_warp_maps(
+    stereo_disparity: npt.NDArray[np.float32], sign: float
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]: ...
+def clue_maps(
+    grey_reference: npt.NDArray[np.float32],
+    warped: npt.NDArray[np.float32],
+    tof_disparity: npt.NDArray[np.float32],
+    tof_amplitude: npt.NDArray[np.float32],
+    stereo_disparity: npt.NDArray[np.float32],
+    sign: float,
+    mu_reference: float,
+    mu_target: float,
+    amplitude: float,
+) -> npt.NDArray[np.float32]: ...
+def normalise_clues(
+    maps: npt.NDArray[np.float32], sigmas: npt.NDArray[np.float32]
 ) -> npt.NDArray[np.float32]: ...
 def depth_disparity(
     values: npt.NDArray[np.float32], baseline: float, focal: float

@@ -17,6 +17,7 @@
 //! Errors are the workspace's one enum, `rgbd_error::RgbdError`.
 
 mod check;
+pub mod clues;
 pub mod color;
 pub mod costcurve;
 pub mod lc;
@@ -24,6 +25,7 @@ pub mod meanshift;
 pub mod upsample;
 
 pub use check::MAX_RADIUS;
+pub use clues::{clue_maps, normalise_clues, warp_maps, ClueScales};
 pub use costcurve::{cost_curve_stats, CostCurveStats};
 pub use lc::{lc_fuse, LcOutput, LcParams, Source};
 pub use meanshift::{mean_shift_filter, MeanShiftParams};

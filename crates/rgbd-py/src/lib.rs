@@ -3,6 +3,7 @@
 
 use pyo3::prelude::*;
 
+mod clues;
 mod errors;
 mod fusion;
 mod geom;
@@ -81,6 +82,9 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fusion::label_regions, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::mean_shift_filter, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::cost_curve_stats, m)?)?;
+    m.add_function(wrap_pyfunction!(clues::clue_warp_maps, m)?)?;
+    m.add_function(wrap_pyfunction!(clues::clue_maps, m)?)?;
+    m.add_function(wrap_pyfunction!(clues::normalise_clues, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::lc_fuse, m)?)?;
     m.add_class::<fusion::PyLcConfig>()?;

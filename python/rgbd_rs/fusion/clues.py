@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs import _validate
+from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32, map2d, rgb8
 
@@ -76,27 +76,20 @@ def compute_clues(
     d_s = map2d("stereo_disparity", stereo_disparity, (h, w))
     side = _validate.choice("reference", reference, ("left", "right"))
     g_r, g_t = _grey(ref), _grey(tgt)
-    # Reference pixel x sees the target at x + d (reference right) or x - d (reference left).
+    # Reference pixel x sees the target at x + d (reference right) or x - d (reference left);
+    # the elementwise work is native (rgbd_fusion::clues), the same f32 arithmetic as numpy's.
     sign = 1.0 if side == "right" else -1.0
-    xs = np.arange(w, dtype=np.float32)[None, :] + sign * d_s
-    ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w))
-    ok = np.isfinite(xs) & (xs >= 0) & (xs <= w - 1)
-    warped = cv2.remap(
-        g_t,
-        np.where(ok, xs, -1).astype(np.float32),
-        np.ascontiguousarray(ys),
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=0,
+    xs, ys = _rgbd_rs.clue_warp_maps(d_s, sign)
+    warped: F32 = np.asarray(
+        cv2.remap(g_t, xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0),
+        dtype=np.float32,
     )
     mu_r = float(g_r.mean()) or 1.0
     mu_t = float(g_t.mean()) or 1.0
-    delta = np.where(ok, np.abs(warped / mu_t - g_r / mu_r), np.nan)
     with np.errstate(invalid="ignore"):
         amp_ok = np.isfinite(a_t) & (a_t > 0)
     scale = float(np.median(a_t[amp_ok])) if amp_ok.any() else 1.0
-    amp = np.where(amp_ok & np.isfinite(d_t), a_t / scale, np.nan)
-    maps = np.stack([delta, d_t, d_s, amp]).astype(np.float32)
+    maps = _rgbd_rs.clue_maps(g_r, warped, d_t, a_t, d_s, sign, mu_r, mu_t, scale)
     return Clues(maps)
 
 
@@ -130,8 +123,8 @@ def _normalise(clues: Clues, sigmas: npt.ArrayLike) -> F32:
     sig = _validate.array("sigmas", sigmas, shape=(len(NAMES),), finite=True)
     if np.any(sig <= 0):
         raise InvalidArgumentError(f"sigmas: got {sig.tolist()}, expected positive values")
-    x = clues.maps / sig[:, None, None]
-    return np.where(np.isfinite(x), x, 0).astype(np.float32)
+    maps = np.ascontiguousarray(clues.maps, dtype=np.float32)
+    return _rgbd_rs.normalise_clues(maps, np.ascontiguousarray(sig, dtype=np.float32))
 
 
 def _target_confidence(disparity: npt.ArrayLike, gt: npt.ArrayLike, threshold: float) -> F32:
