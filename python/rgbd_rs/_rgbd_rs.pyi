@@ -41,6 +41,7 @@ __all__ = [
     "SgmConfig",
     "ShapeMismatchError",
     "UpsampleConfig",
+    "agreement",
     "census_sgm",
     "check_metric_depth",
     "clue_maps",
@@ -130,6 +131,9 @@ def undistort_image(
     interpolation: str,
     rotation: list[float] | None = None,
 ) -> npt.NDArray[np.float32]: ...
+def agreement(
+    a: npt.NDArray[np.float32], b: npt.NDArray[np.float32], tol: float
+) -> tuple[int, int]: ...
 def clue_warp_maps(
     stereo_disparity: npt.NDArray[np.float32], sign: float
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]: ...

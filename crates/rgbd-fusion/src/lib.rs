@@ -16,6 +16,7 @@
 //! Images are `H x W x 3` row-major `u8`; maps are `H x W` `f32` with NaN for "no value".
 //! Errors are the workspace's one enum, `rgbd_error::RgbdError`.
 
+pub mod agree;
 mod check;
 pub mod clues;
 pub mod color;
@@ -24,6 +25,7 @@ pub mod lc;
 pub mod meanshift;
 pub mod upsample;
 
+pub use agree::agreement;
 pub use check::MAX_RADIUS;
 pub use clues::{clue_maps, normalise_clues, warp_maps, ClueScales};
 pub use costcurve::{cost_curve_stats, CostCurveStats};

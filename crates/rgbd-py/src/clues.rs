@@ -1,4 +1,4 @@
-//! Thin adapters for `rgbd_fusion::clues`; `python/rgbd_rs/fusion/clues.py` validates and
+//! Thin adapters for `rgbd_fusion::clues` and `rgbd_fusion::agree`; `python/rgbd_rs/fusion/clues.py` validates and
 //! documents.
 
 use numpy::prelude::*;
@@ -87,4 +87,19 @@ pub fn normalise_clues<'py>(
     let s = borrow("sigmas", &sigmas)?;
     let out = run(py, || rgbd_fusion::normalise_clues(m, s))?;
     to_numpy(py, shape, out)
+}
+
+/// `(both, within)` of two maps (see `rgbd_fusion::agreement`).
+#[pyfunction]
+pub fn agreement<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f32>,
+    b: PyReadonlyArray2<'py, f32>,
+    tol: f32,
+) -> PyResult<(u64, u64)> {
+    let (x, y) = (
+        borrow("tof_disparity", &a)?,
+        borrow("stereo_disparity", &b)?,
+    );
+    run(py, || rgbd_fusion::agreement(x, y, tol))
 }

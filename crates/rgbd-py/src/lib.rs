@@ -83,6 +83,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fusion::mean_shift_filter, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::cost_curve_stats, m)?)?;
     m.add_function(wrap_pyfunction!(clues::clue_warp_maps, m)?)?;
+    m.add_function(wrap_pyfunction!(clues::agreement, m)?)?;
     m.add_function(wrap_pyfunction!(clues::clue_maps, m)?)?;
     m.add_function(wrap_pyfunction!(clues::normalise_clues, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs import _validate
+from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.camera import ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
@@ -291,11 +291,15 @@ def scale_factor(tof_disparity: F32, stereo_disparity: F32) -> tuple[str, float]
 def disagreement_warning(tof_disparity: F32, stereo_disparity: F32) -> str | None:
     """A warning when the ToF and the stereo matcher, both on the reference camera, agree on
     almost none of the pixels they both measure (a misregistered or wrong ToF input), or None."""
-    both = np.isfinite(tof_disparity) & np.isfinite(stereo_disparity)
-    if both.sum() < 100:
-        return None  # too few to judge
     tol = agree_tol(tof_disparity.shape[1])
-    share = float((np.abs(tof_disparity[both] - stereo_disparity[both]) <= tol).mean())
+    both, within = _rgbd_rs.agreement(
+        np.ascontiguousarray(tof_disparity, dtype=np.float32),
+        np.ascontiguousarray(stereo_disparity, dtype=np.float32),
+        tol,
+    )
+    if both < 100:
+        return None  # too few to judge
+    share = within / both
     if share >= AGREE_SHARE:
         return None
     return (
