@@ -42,6 +42,7 @@ __all__ = [
     "ShapeMismatchError",
     "UpsampleConfig",
     "agreement",
+    "carry_tof_to_border",
     "census_sgm",
     "check_metric_depth",
     "clue_maps",
@@ -52,6 +53,8 @@ __all__ = [
     "depth_to_points",
     "depth_view_curvatures",
     "distort_pixels",
+    "extend_tof_into_band",
+    "fill_single_source",
     "fit_surface",
     "hha_encode",
     "label_regions",
@@ -82,6 +85,7 @@ __all__ = [
     "undistort_image",
     "undistort_map",
     "undistort_pixels",
+    "unseen_from_tof",
     "upsample_depth",
     "view_curvatures",
     "voxelize_mesh",
@@ -134,6 +138,47 @@ def undistort_image(
 def agreement(
     a: npt.NDArray[np.float32], b: npt.NDArray[np.float32], tol: float
 ) -> tuple[int, int]: ...
+
+_F32Map = npt.NDArray[np.float32]
+
+def fill_single_source(
+    disparity: _F32Map,
+    plausibility: _F32Map,
+    source: npt.NDArray[np.uint8],
+    tof: _F32Map,
+    stereo: _F32Map,
+    tof_confidence: _F32Map | None,
+    stereo_confidence: _F32Map | None,
+    keep_out_zero: bool,
+    cross_check: bool,
+) -> None: ...
+def unseen_from_tof(
+    disparity: _F32Map,
+    plausibility: _F32Map,
+    source: npt.NDArray[np.uint8],
+    tof: _F32Map,
+    stereo: _F32Map,
+    tof_confidence: _F32Map | None,
+    sign: float,
+) -> None: ...
+def extend_tof_into_band(
+    disparity: _F32Map,
+    plausibility: _F32Map,
+    source: npt.NDArray[np.uint8],
+    tof: _F32Map,
+    tof_confidence: _F32Map | None,
+    sign: float,
+    chain_step: float,
+    confirm_gap: float,
+) -> None: ...
+def carry_tof_to_border(
+    disparity: _F32Map,
+    plausibility: _F32Map,
+    source: npt.NDArray[np.uint8],
+    tof: _F32Map,
+    tof_confidence: _F32Map | None,
+    sign: float,
+) -> None: ...
 def clue_warp_maps(
     stereo_disparity: npt.NDArray[np.float32], sign: float
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]: ...

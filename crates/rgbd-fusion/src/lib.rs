@@ -23,6 +23,7 @@ pub mod color;
 pub mod costcurve;
 pub mod lc;
 pub mod meanshift;
+pub mod sources;
 pub mod upsample;
 
 pub use agree::agreement;

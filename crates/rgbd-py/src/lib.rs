@@ -11,6 +11,7 @@ mod hha;
 mod oversegment;
 mod render;
 mod segment;
+mod sources;
 mod spline;
 mod stereo;
 mod views;
@@ -84,6 +85,10 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fusion::cost_curve_stats, m)?)?;
     m.add_function(wrap_pyfunction!(clues::clue_warp_maps, m)?)?;
     m.add_function(wrap_pyfunction!(clues::agreement, m)?)?;
+    m.add_function(wrap_pyfunction!(sources::fill_single_source, m)?)?;
+    m.add_function(wrap_pyfunction!(sources::unseen_from_tof, m)?)?;
+    m.add_function(wrap_pyfunction!(sources::extend_tof_into_band, m)?)?;
+    m.add_function(wrap_pyfunction!(sources::carry_tof_to_border, m)?)?;
     m.add_function(wrap_pyfunction!(clues::clue_maps, m)?)?;
     m.add_function(wrap_pyfunction!(clues::normalise_clues, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;

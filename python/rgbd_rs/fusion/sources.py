@@ -1,12 +1,15 @@
 """Where each pixel of :func:`~rgbd_rs.fusion.fuse` comes from, and the pixels LC cannot decide:
 those it leaves empty, and those the other camera of the pair cannot see (its photometric terms
-need the target pixel, so only the ToF can measure them)."""
+need the target pixel, so only the ToF can measure them). The steps run natively
+(``rgbd_fusion::sources``, rows in parallel, numpy's f32 comparisons); the in-place ones need
+C-contiguous float32 / uint8 maps, as :func:`_fill_single_source` returns them."""
 
 from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs import _rgbd_rs
 from rgbd_rs.fusion._inputs import F32
 
 #: :attr:`~rgbd_rs.fusion.fuse.FusionResult.source` values: where each fused pixel comes from.
@@ -20,20 +23,13 @@ SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO, SOURCE_TOF_CARRIED = 0, 1, 2,
 SOURCE_LC_UNMEASURED = 5
 
 
-def _take(
-    disp: F32,
-    plaus: F32,
-    source: npt.NDArray[np.uint8],
-    take: npt.NDArray[np.bool_],
-    value: F32,
-    confidence: F32 | None,
-    code: int,
-) -> None:
-    """In place: the ``take`` pixels get ``value``, its ``confidence`` as plausibility (1 for
-    uniform weights) and the source ``code``."""
-    disp[take] = value[take]
-    plaus[take] = 1.0 if confidence is None else confidence[take]
-    source[take] = code
+def _c(m: F32) -> F32:
+    """``m`` as the C-contiguous float32 map the native steps read."""
+    return np.ascontiguousarray(m, dtype=np.float32)
+
+
+def _opt(m: F32 | None) -> F32 | None:
+    return None if m is None else _c(m)
 
 
 def _fill_single_source(
@@ -57,22 +53,20 @@ def _fill_single_source(
     that neither input measured (has a finite value at) are marked :data:`SOURCE_LC_UNMEASURED`
     either way; a value whose confidence is 0 still counts as measured, since the caller sees
     it in ``tof_fused`` / ``stereo_disparity``."""
-    disp = lc_disparity.copy()
-    plaus = lc_plausibility.copy()
-    source = np.where(np.isfinite(disp), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
-    source[np.isfinite(disp) & ~np.isfinite(tof) & ~np.isfinite(stereo)] = SOURCE_LC_UNMEASURED
-    if cross_check:
-        return disp, plaus, source
-    empty = ~np.isfinite(disp)
-    for value, conf, code in (
-        (tof, tof_confidence, SOURCE_TOF),
-        (stereo, stereo_confidence, SOURCE_STEREO),
-    ):
-        take = empty & np.isfinite(value)
-        if conf is not None and keep_out_zero:
-            take &= conf > 0  # an input the caller's weights rule out stays out
-        _take(disp, plaus, source, take, value, conf, code)
-        empty &= ~take
+    disp = np.array(lc_disparity, dtype=np.float32, order="C")
+    plaus = np.array(lc_plausibility, dtype=np.float32, order="C")
+    source = np.empty(disp.shape, np.uint8)
+    _rgbd_rs.fill_single_source(
+        disp,
+        plaus,
+        source,
+        _c(tof),
+        _c(stereo),
+        _opt(tof_confidence),
+        _opt(stereo_confidence),
+        keep_out_zero,
+        cross_check,
+    )
     return disp, plaus, source
 
 
@@ -96,13 +90,9 @@ def _unseen_from_tof(
     every such pixel from the ToF made 1.21 x its good stereo map), so LC's answer stays. A ToF
     pixel of confidence 0 (the caller's weights, or an unconfirmed one:
     :data:`UNCONFIRMED_COLOR_GAP`) is not taken either."""
-    w = tof.shape[1]
-    with np.errstate(invalid="ignore"):
-        target = np.arange(w, dtype=np.float32)[None, :] + np.float32(sign) * tof
-        unseen = np.isfinite(tof) & ((target < 0) | (target > w - 1)) & ~np.isfinite(stereo)
-        if tof_confidence is not None:
-            unseen &= tof_confidence > 0
-    _take(disp, plaus, source, unseen, tof, tof_confidence, SOURCE_TOF)
+    _rgbd_rs.unseen_from_tof(
+        disp, plaus, source, _c(tof), _c(stereo), _opt(tof_confidence), float(sign)
+    )
 
 
 def _carry_tof_to_border(
@@ -133,33 +123,7 @@ def _carry_tof_to_border(
     not seen in those cases: a ToF dropout along the border in front of a near surface carries
     that surface over a seen background (a limit on the strip's length in pixels, 4-32, lost
     most of the gain: the ToF often starts 16-32 px in)."""
-    h, w = tof.shape
-    flip = sign > 0  # scan from the border the other camera cannot see
-    t = tof[:, ::-1] if flip else tof
-    finite = np.isfinite(t)
-    # The strip ends at the row's first ToF pixel; the value carried is the first one the
-    # fusion may trust (confidence > 0), which may lie further in.
-    first = np.where(finite.any(axis=1), finite.argmax(axis=1), 0)
-    if tof_confidence is not None:
-        with np.errstate(invalid="ignore"):
-            finite &= (tof_confidence[:, ::-1] if flip else tof_confidence) > 0
-    has = finite.any(axis=1)
-    x0 = np.where(has, finite.argmax(axis=1), 0)
-    rows = np.arange(h)
-    d0 = t[rows, x0]
-    if tof_confidence is None:
-        c0 = np.ones(h, np.float32)
-    else:
-        c0 = (tof_confidence[:, ::-1] if flip else tof_confidence)[rows, x0]
-    cols = np.arange(w)[None, :]
-    with np.errstate(invalid="ignore"):  # target x - d0 < 0 (mirrored for a right reference)
-        strip = (has & (c0 > 0))[:, None] & (cols < first[:, None]) & (cols < d0[:, None])
-    if flip:
-        strip = strip[:, ::-1]
-    r, c = np.nonzero(strip)
-    disp[r, c] = d0[r]
-    plaus[r, c] = c0[r]
-    source[r, c] = SOURCE_TOF_CARRIED
+    _rgbd_rs.carry_tof_to_border(disp, plaus, source, _c(tof), _opt(tof_confidence), float(sign))
 
 
 #: Largest step (px) between neighbouring ToF disparities of the chain
@@ -186,40 +150,13 @@ def _extend_tof_into_band(
     the stereo map's value is a forced match (the true one lies beyond its search) and LC can
     weigh no other hypothesis (its photometric terms need the target pixel), so it kept the
     forced one with full plausibility."""
-    h, w = tof.shape
-    flip = sign > 0  # make the border the other camera cannot see column 0 (target x - d)
-    t = tof[:, ::-1] if flip else tof
-    c = None if tof_confidence is None else (tof_confidence[:, ::-1] if flip else tof_confidence)
-    cols = np.arange(w, dtype=np.float32)[None, :]
-    with np.errstate(invalid="ignore"):
-        seen = np.isfinite(t) & (t <= cols)
-    has = seen.any(axis=1)
-    x_e = np.where(has, seen.argmax(axis=1), 0)
-    rows = np.arange(h)
-    # Confirmation: the fused map's first value inside the edge, within the edge pixel's
-    # disparity (the band's own width, so the rule does not depend on the image size), took the
-    # ToF's value there: LC, which could still weigh both inputs' photometric terms, chose it.
-    fused = disp[:, ::-1] if flip else disp
-    d_e = np.where(has, t[rows, x_e], 0.0)
-    reach = np.ceil(np.nan_to_num(d_e)).astype(np.int64) + 1
-    after = (cols >= x_e[:, None]) & (cols < (x_e + reach)[:, None]) & np.isfinite(fused)
-    first = np.where(after.any(axis=1), after.argmax(axis=1), 0)
-    with np.errstate(invalid="ignore"):
-        confirmed = (
-            has
-            & after.any(axis=1)
-            & (np.abs(t[rows, first] - fused[rows, first]) <= BAND_CONFIRM_GAP)
-        )
-        # step[x]: pixel x continues the chain from x + 1 (within the step, confidence > 0).
-        step = np.abs(t[:, :-1] - t[:, 1:]) <= BAND_CHAIN_STEP
-        if c is not None:
-            step &= c[:, :-1] > 0
-    inside = cols[:, :-1] < x_e[:, None]
-    broken = inside & ~step
-    # The chain starts after the last break below the edge (or at column 0).
-    last_break = np.where(broken.any(axis=1), w - 2 - np.argmax(broken[:, ::-1], axis=1), -1)
-    start = last_break + 1
-    take = confirmed[:, None] & (cols >= start[:, None]) & (cols < x_e[:, None])
-    if flip:
-        take = take[:, ::-1]
-    _take(disp, plaus, source, take, tof, tof_confidence, SOURCE_TOF)
+    _rgbd_rs.extend_tof_into_band(
+        disp,
+        plaus,
+        source,
+        _c(tof),
+        _opt(tof_confidence),
+        float(sign),
+        BAND_CHAIN_STEP,
+        BAND_CONFIRM_GAP,
+    )

@@ -1,0 +1,134 @@
+//! Thin adapters for `rgbd_fusion::sources` (the steps after LC, editing the fused maps in
+//! place); `python/rgbd_rs/fusion/sources.py` documents them.
+
+use numpy::prelude::*;
+use numpy::{PyReadonlyArray2, PyReadwriteArray2};
+use pyo3::prelude::*;
+use rgbd_fusion::sources::{self, Fused};
+
+use crate::errors::{borrow, run, InvalidArgumentError};
+
+/// A writable C-contiguous map as a slice.
+fn slice_mut<'a, T: numpy::Element>(
+    arg: &str,
+    a: &'a mut PyReadwriteArray2<'_, T>,
+) -> PyResult<&'a mut [T]> {
+    a.as_slice_mut().map_err(|_| {
+        InvalidArgumentError::new_err(format!(
+            "{arg}: got a non-C-contiguous array, expected a C-contiguous one"
+        ))
+    })
+}
+
+/// Runs one step on the fused maps.
+fn with_fused<'py>(
+    py: Python<'py>,
+    mut disparity: PyReadwriteArray2<'py, f32>,
+    mut plausibility: PyReadwriteArray2<'py, f32>,
+    mut source: PyReadwriteArray2<'py, u8>,
+    step: impl FnOnce(&mut Fused<'_>) -> rgbd_geom::Result<()> + Send,
+) -> PyResult<()> {
+    let (height, width) = match disparity.shape() {
+        &[h, w] => (h, w),
+        s => {
+            return Err(InvalidArgumentError::new_err(format!(
+                "disparity: got shape {s:?}, expected (H, W)"
+            )))
+        }
+    };
+    let mut fused = Fused {
+        disparity: slice_mut("disparity", &mut disparity)?,
+        plausibility: slice_mut("plausibility", &mut plausibility)?,
+        source: slice_mut("source", &mut source)?,
+        width,
+        height,
+    };
+    run(py, || step(&mut fused))
+}
+
+/// An optional confidence map as a slice.
+fn maybe<'a>(arg: &str, c: &'a Option<PyReadonlyArray2<'_, f32>>) -> PyResult<Option<&'a [f32]>> {
+    c.as_ref().map(|c| borrow(arg, c)).transpose()
+}
+
+/// `_fill_single_source` on LC's maps (copies the caller made).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub fn fill_single_source<'py>(
+    py: Python<'py>,
+    disparity: PyReadwriteArray2<'py, f32>,
+    plausibility: PyReadwriteArray2<'py, f32>,
+    source: PyReadwriteArray2<'py, u8>,
+    tof: PyReadonlyArray2<'py, f32>,
+    stereo: PyReadonlyArray2<'py, f32>,
+    tof_confidence: Option<PyReadonlyArray2<'py, f32>>,
+    stereo_confidence: Option<PyReadonlyArray2<'py, f32>>,
+    keep_out_zero: bool,
+    cross_check: bool,
+) -> PyResult<()> {
+    let (t, s) = (borrow("tof", &tof)?, borrow("stereo", &stereo)?);
+    let ct = maybe("tof_confidence", &tof_confidence)?;
+    let cs = maybe("stereo_confidence", &stereo_confidence)?;
+    with_fused(py, disparity, plausibility, source, |f| {
+        sources::fill_single_source(f, t, s, ct, cs, keep_out_zero, cross_check)
+    })
+}
+
+/// `_unseen_from_tof`, in place.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub fn unseen_from_tof<'py>(
+    py: Python<'py>,
+    disparity: PyReadwriteArray2<'py, f32>,
+    plausibility: PyReadwriteArray2<'py, f32>,
+    source: PyReadwriteArray2<'py, u8>,
+    tof: PyReadonlyArray2<'py, f32>,
+    stereo: PyReadonlyArray2<'py, f32>,
+    tof_confidence: Option<PyReadonlyArray2<'py, f32>>,
+    sign: f32,
+) -> PyResult<()> {
+    let (t, s) = (borrow("tof", &tof)?, borrow("stereo", &stereo)?);
+    let ct = maybe("tof_confidence", &tof_confidence)?;
+    with_fused(py, disparity, plausibility, source, |f| {
+        sources::unseen_from_tof(f, t, s, ct, sign)
+    })
+}
+
+/// `_extend_tof_into_band`, in place.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub fn extend_tof_into_band<'py>(
+    py: Python<'py>,
+    disparity: PyReadwriteArray2<'py, f32>,
+    plausibility: PyReadwriteArray2<'py, f32>,
+    source: PyReadwriteArray2<'py, u8>,
+    tof: PyReadonlyArray2<'py, f32>,
+    tof_confidence: Option<PyReadonlyArray2<'py, f32>>,
+    sign: f32,
+    chain_step: f32,
+    confirm_gap: f32,
+) -> PyResult<()> {
+    let t = borrow("tof", &tof)?;
+    let ct = maybe("tof_confidence", &tof_confidence)?;
+    with_fused(py, disparity, plausibility, source, |f| {
+        sources::extend_tof_into_band(f, t, ct, sign, (chain_step, confirm_gap))
+    })
+}
+
+/// `_carry_tof_to_border`, in place.
+#[pyfunction]
+pub fn carry_tof_to_border<'py>(
+    py: Python<'py>,
+    disparity: PyReadwriteArray2<'py, f32>,
+    plausibility: PyReadwriteArray2<'py, f32>,
+    source: PyReadwriteArray2<'py, u8>,
+    tof: PyReadonlyArray2<'py, f32>,
+    tof_confidence: Option<PyReadonlyArray2<'py, f32>>,
+    sign: f32,
+) -> PyResult<()> {
+    let t = borrow("tof", &tof)?;
+    let ct = maybe("tof_confidence", &tof_confidence)?;
+    with_fused(py, disparity, plausibility, source, |f| {
+        sources::carry_tof_to_border(f, t, ct, sign)
+    })
+}
