@@ -12,6 +12,8 @@ import numpy.typing as npt
 import pytest
 
 from rgbd_rs.fusion.sources import (
+    BAND_CHAIN_STEP,
+    BAND_CONFIRM_GAP,
     SOURCE_LC,
     SOURCE_LC_UNMEASURED,
     SOURCE_NONE,
@@ -36,8 +38,6 @@ def ref_take(
     confidence: F32 | None,
     code: int,
 ) -> None:
-    """In place: the ``take`` pixels get ``value``, its ``confidence`` as plausibility (1 for
-    uniform weights) and the source ``code``."""
     disp[take] = value[take]
     plaus[take] = 1.0 if confidence is None else confidence[take]
     source[take] = code
@@ -54,16 +54,6 @@ def ref_fill_single_source(
     keep_out_zero: bool = False,
     cross_check: bool = False,
 ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
-    """The LC map with the pixels it leaves empty but an input measures (outside the stereo
-    overlap, stereo holes, ToF dropouts) given that input's value, with that input's confidence
-    as plausibility (1 for uniform weights; the ToF's where both measured a pixel LC left
-    empty); returns ``(disparity, plausibility, source)``. With ``keep_out_zero`` (confidences
-    the caller gave) an input whose confidence there is 0 or NaN stays out; estimated
-    confidences never hide the only measurement of a pixel, their value tells how far to trust
-    it. After LC's two-view ``cross_check`` nothing is filled: its rejections stand. LC's pixels
-    that neither input measured (has a finite value at) are marked :data:`SOURCE_LC_UNMEASURED`
-    either way; a value whose confidence is 0 still counts as measured, since the caller sees
-    it in ``tof_fused`` / ``stereo_disparity``."""
     disp = lc_disparity.copy()
     plaus = lc_plausibility.copy()
     source = np.where(np.isfinite(disp), SOURCE_LC, SOURCE_NONE).astype(np.uint8)
@@ -92,17 +82,6 @@ def ref_unseen_from_tof(
     tof_confidence: F32 | None,
     sign: int,
 ) -> None:
-    """In place: the pixels whose ToF disparity puts their match outside the other image (the
-    band of columns the other camera does not see) and that the stereo matcher could not match
-    take the ToF's value and confidence. LC cannot check a hypothesis there (its photometric
-    terms need the target pixel), so it kept only the few hypotheses that happened to land
-    inside the image: wrong ones (a median error of 18-26 px on the real val scenes' bands,
-    where the ToF had 0.02-0.13 px; over the 40 train + val cases the band's median error went
-    from 25.7 to 11.6 px). Where the stereo map has a match the pixel may be seen after all and
-    the ToF's disparity is the suspect one (ToF outliers 36 px too far on Bowling1, which taking
-    every such pixel from the ToF made 1.21 x its good stereo map), so LC's answer stays. A ToF
-    pixel of confidence 0 (the caller's weights, or an unconfirmed one:
-    :data:`UNCONFIRMED_COLOR_GAP`) is not taken either."""
     w = tof.shape[1]
     with np.errstate(invalid="ignore"):
         target = np.arange(w, dtype=np.float32)[None, :] + np.float32(sign) * tof
@@ -120,26 +99,6 @@ def ref_carry_tof_to_border(
     tof_confidence: F32 | None,
     sign: int,
 ) -> None:
-    """In place: along the border the other camera cannot see (the left one for a left
-    reference, target ``x - d``; the right one for a right reference), the pixels before each
-    row's first ToF pixel whose target, at that pixel's disparity, lies outside the other image
-    take that disparity and confidence: the surface the ToF reaches first, carried to the
-    border, is unseen there. The upsampled ToF often stops a few pixels short of the border,
-    and whatever else fills the strip is wrong by construction: LC's window lends it hypotheses
-    whose targets are inside the image, and the matcher's matches are forced. On the real train
-    and val scenes (60 cases under three ToF laws, 20 under the dense protocol) the pixels the
-    other camera cannot see went from 46-54 % to 10-16 % off by more than 2 px (RMS 23-27 px to
-    9-11 px); the scored, visible pixels are untouched. Where the row's first ToF pixel has
-    confidence 0 (an unconfirmed pixel, or the caller's weights), the value carried is the
-    row's first pixel of confidence > 0 further in (the strip still ends at the first ToF
-    pixel): those rows had kept LC's answers, forced matches near 0 px among them (on the 20
-    train / val scenes under law 0, fused disparities under half the scene's smallest true one
-    went from 15,475 to 8,950 pixels; the unseen pixels > 2 px off from 11.8 to 10.4 % on val,
-    14.1 to 12.7 % on train; the scored pixels unchanged). A row without such a pixel is left
-    as it was. The risk,
-    not seen in those cases: a ToF dropout along the border in front of a near surface carries
-    that surface over a seen background (a limit on the strip's length in pixels, 4-32, lost
-    most of the gain: the ToF often starts 16-32 px in)."""
     h, w = tof.shape
     flip = sign > 0  # scan from the border the other camera cannot see
     t = tof[:, ::-1] if flip else tof
@@ -169,13 +128,6 @@ def ref_carry_tof_to_border(
     source[r, c] = SOURCE_TOF_CARRIED
 
 
-#: Largest step (px) between neighbouring ToF disparities of the chain
-#: :func:`_extend_tof_into_band` follows, and largest gap (px) between the ToF and the fused map
-#: that confirms its start.
-BAND_CHAIN_STEP = 1.0
-BAND_CONFIRM_GAP = 1.0
-
-
 def ref_extend_tof_into_band(
     disp: F32,
     plaus: F32,
@@ -184,15 +136,6 @@ def ref_extend_tof_into_band(
     tof_confidence: F32 | None,
     sign: int,
 ) -> None:
-    """In place: in each row, the pixels the ToF says the other camera cannot see that continue
-    a surface the fusion confirmed take the ToF's value and confidence. From the row's innermost
-    pixel whose ToF target is inside the other image, where the fused map (LC, which could still
-    weigh both inputs there) agrees with the ToF within :data:`BAND_CONFIRM_GAP` (at its first
-    value within that pixel's disparity of it), the chain runs towards the border while the ToF
-    has a value within :data:`BAND_CHAIN_STEP` of its neighbour's (and confidence > 0). There
-    the stereo map's value is a forced match (the true one lies beyond its search) and LC can
-    weigh no other hypothesis (its photometric terms need the target pixel), so it kept the
-    forced one with full plausibility."""
     h, w = tof.shape
     flip = sign > 0  # make the border the other camera cannot see column 0 (target x - d)
     t = tof[:, ::-1] if flip else tof
