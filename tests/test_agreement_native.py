@@ -5,6 +5,7 @@ map with a Python float."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from rgbd_rs import _rgbd_rs
 from rgbd_rs.fusion._inputs import disagreement_warning
@@ -32,3 +33,10 @@ def test_disagreement_warning_reads_the_counts() -> None:
     few = np.full_like(a, np.nan)
     few[0, :50] = 1
     assert disagreement_warning(few, few + 10) is None  # under 100 pixels: no judgement
+
+
+def test_agreement_refuses_maps_of_other_shapes() -> None:
+    from rgbd_rs.errors import RgbdError
+
+    with pytest.raises(RgbdError, match=r"stereo_disparity: got shape \[6, 4\]"):
+        _rgbd_rs.agreement(np.zeros((4, 6), np.float32), np.zeros((6, 4), np.float32), 1.0)

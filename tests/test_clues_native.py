@@ -87,3 +87,10 @@ def test_native_normalisation_equals_the_numpy_arithmetic() -> None:
         _normalise(Clues(wide), sigmas),
         np.where(np.isfinite(wide / sigmas[:, None, None]), wide / sigmas[:, None, None], 0),
     )
+
+
+def test_normalisation_wants_one_map_per_sigma() -> None:
+    from rgbd_rs.errors import RgbdError
+
+    with pytest.raises(RgbdError, match=r"expected \(4, H, W\): one map per sigma"):
+        _normalise(Clues(np.ones((2, 4, 4), np.float32)), np.ones(4, np.float32))

@@ -257,3 +257,19 @@ def _same(got, want) -> None:
             np.testing.assert_array_equal(
                 np.nan_to_num(g).view(np.uint32), np.nan_to_num(w).view(np.uint32)
             )
+
+
+def test_the_native_steps_refuse_maps_they_would_misread() -> None:
+    from rgbd_rs.errors import RgbdError
+
+    nan = np.nan
+    tof = np.array([[nan, 5.0, nan], [nan, nan, nan]], np.float32)
+    stereo = np.full((2, 3), nan, np.float32)
+    fortran = [np.asfortranarray(np.zeros((2, 3), t)) for t in (np.float32, np.float32, np.uint8)]
+    with pytest.raises(RgbdError, match="disparity: got a non-C-contiguous"):
+        _unseen_from_tof(*fortran, tof, stereo, None, 1)
+    maps = [np.zeros((2, 3), t) for t in (np.float32, np.float32, np.uint8)]
+    with pytest.raises(RgbdError, match=r"tof: got shape \[3, 2\]"):
+        _carry_tof_to_border(*maps, tof.reshape(3, 2).copy(), None, 1)
+    with pytest.raises(RgbdError, match=r"plausibility: got shape \[1, 6\]"):
+        _extend_tof_into_band(maps[0], maps[1].reshape(1, 6), maps[2], tof, None, 1)

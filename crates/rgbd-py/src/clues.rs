@@ -51,6 +51,19 @@ pub fn clue_maps<'py>(
     amplitude: f32,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let (h, w) = dims("grey_reference", &grey_reference)?;
+    for (arg, m) in [
+        ("warped", &warped),
+        ("tof_disparity", &tof_disparity),
+        ("tof_amplitude", &tof_amplitude),
+        ("stereo_disparity", &stereo_disparity),
+    ] {
+        if dims(arg, m)? != (h, w) {
+            return Err(shape_err(format!(
+                "{arg}: got shape {:?}, expected ({h}, {w}) (the reference image's)",
+                m.shape()
+            )));
+        }
+    }
     let g = borrow("grey_reference", &grey_reference)?;
     let wp = borrow("warped", &warped)?;
     let dt = borrow("tof_disparity", &tof_disparity)?;
@@ -76,10 +89,11 @@ pub fn normalise_clues<'py>(
     sigmas: PyReadonlyArray1<'py, f32>,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let shape = match maps.shape() {
-        &[k, h, w] => (k, h, w),
+        &[k, h, w] if k == sigmas.len() => (k, h, w),
         s => {
             return Err(shape_err(format!(
-                "maps: got shape {s:?}, expected (K, H, W)"
+                "maps: got shape {s:?}, expected ({}, H, W): one map per sigma",
+                sigmas.len()
             )))
         }
     };
@@ -97,6 +111,13 @@ pub fn agreement<'py>(
     b: PyReadonlyArray2<'py, f32>,
     tol: f32,
 ) -> PyResult<(u64, u64)> {
+    if a.shape() != b.shape() {
+        return Err(shape_err(format!(
+            "stereo_disparity: got shape {:?}, expected {:?} (the ToF map's)",
+            b.shape(),
+            a.shape()
+        )));
+    }
     let (x, y) = (
         borrow("tof_disparity", &a)?,
         borrow("stereo_disparity", &b)?,

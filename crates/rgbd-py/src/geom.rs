@@ -72,7 +72,14 @@ pub fn land_points<'py>(
     map: PyReadonlyArray2<'py, f32>,
     bf: f64,
 ) -> PyResult<Landed<'py>> {
-    let n = points.shape()[0];
+    let n = match points.shape() {
+        &[n, 3] => n,
+        s => {
+            return Err(shape_err(format!(
+                "points: got shape {s:?}, expected (N, 3)"
+            )))
+        }
+    };
     let (h, w) = (map.shape()[0], map.shape()[1]);
     let cam = camera(cam)?;
     let pts = borrow("points", &points)?;

@@ -8,16 +8,39 @@ use rgbd_fusion::sources::{self, Fused};
 
 use crate::errors::{borrow, run, InvalidArgumentError};
 
-/// A writable C-contiguous map as a slice.
+/// A writable C-contiguous `H x W` map as a slice.
 fn slice_mut<'a, T: numpy::Element>(
     arg: &str,
     a: &'a mut PyReadwriteArray2<'_, T>,
+    shape: [usize; 2],
 ) -> PyResult<&'a mut [T]> {
+    same_shape(arg, a.shape(), shape)?;
+    if !a.is_c_contiguous() {
+        return Err(InvalidArgumentError::new_err(format!(
+            "{arg}: got a non-C-contiguous array, expected a C-contiguous one"
+        )));
+    }
     a.as_slice_mut().map_err(|_| {
         InvalidArgumentError::new_err(format!(
             "{arg}: got a non-C-contiguous array, expected a C-contiguous one"
         ))
     })
+}
+
+/// Refuses a map whose shape is not the fused map's.
+fn same_shape(arg: &str, got: &[usize], shape: [usize; 2]) -> PyResult<()> {
+    if got != shape {
+        return Err(InvalidArgumentError::new_err(format!(
+            "{arg}: got shape {got:?}, expected {shape:?} (the fused map's)"
+        )));
+    }
+    Ok(())
+}
+
+/// A read-only map of the fused map's shape as a slice.
+fn map<'a>(arg: &str, a: &'a PyReadonlyArray2<'_, f32>, shape: [usize; 2]) -> PyResult<&'a [f32]> {
+    same_shape(arg, a.shape(), shape)?;
+    borrow(arg, a)
 }
 
 /// Runs one step on the fused maps.
@@ -36,19 +59,30 @@ fn with_fused<'py>(
             )))
         }
     };
+    let shape = [height, width];
     let mut fused = Fused {
-        disparity: slice_mut("disparity", &mut disparity)?,
-        plausibility: slice_mut("plausibility", &mut plausibility)?,
-        source: slice_mut("source", &mut source)?,
+        disparity: slice_mut("disparity", &mut disparity, shape)?,
+        plausibility: slice_mut("plausibility", &mut plausibility, shape)?,
+        source: slice_mut("source", &mut source, shape)?,
         width,
         height,
     };
     run(py, || step(&mut fused))
 }
 
-/// An optional confidence map as a slice.
-fn maybe<'a>(arg: &str, c: &'a Option<PyReadonlyArray2<'_, f32>>) -> PyResult<Option<&'a [f32]>> {
-    c.as_ref().map(|c| borrow(arg, c)).transpose()
+/// An optional confidence map of the fused map's shape as a slice.
+fn maybe<'a>(
+    arg: &str,
+    c: &'a Option<PyReadonlyArray2<'_, f32>>,
+    shape: [usize; 2],
+) -> PyResult<Option<&'a [f32]>> {
+    c.as_ref().map(|c| map(arg, c, shape)).transpose()
+}
+
+/// The fused map's `[H, W]`.
+fn fused_shape(d: &PyReadwriteArray2<'_, f32>) -> [usize; 2] {
+    let s = d.shape();
+    [s[0], s[1]]
 }
 
 /// `_fill_single_source` on LC's maps (copies the caller made).
@@ -66,9 +100,10 @@ pub fn fill_single_source<'py>(
     keep_out_zero: bool,
     cross_check: bool,
 ) -> PyResult<()> {
-    let (t, s) = (borrow("tof", &tof)?, borrow("stereo", &stereo)?);
-    let ct = maybe("tof_confidence", &tof_confidence)?;
-    let cs = maybe("stereo_confidence", &stereo_confidence)?;
+    let shape = fused_shape(&disparity);
+    let (t, s) = (map("tof", &tof, shape)?, map("stereo", &stereo, shape)?);
+    let ct = maybe("tof_confidence", &tof_confidence, shape)?;
+    let cs = maybe("stereo_confidence", &stereo_confidence, shape)?;
     with_fused(py, disparity, plausibility, source, |f| {
         sources::fill_single_source(f, t, s, ct, cs, keep_out_zero, cross_check)
     })
@@ -87,8 +122,9 @@ pub fn unseen_from_tof<'py>(
     tof_confidence: Option<PyReadonlyArray2<'py, f32>>,
     sign: f32,
 ) -> PyResult<()> {
-    let (t, s) = (borrow("tof", &tof)?, borrow("stereo", &stereo)?);
-    let ct = maybe("tof_confidence", &tof_confidence)?;
+    let shape = fused_shape(&disparity);
+    let (t, s) = (map("tof", &tof, shape)?, map("stereo", &stereo, shape)?);
+    let ct = maybe("tof_confidence", &tof_confidence, shape)?;
     with_fused(py, disparity, plausibility, source, |f| {
         sources::unseen_from_tof(f, t, s, ct, sign)
     })
@@ -108,8 +144,9 @@ pub fn extend_tof_into_band<'py>(
     chain_step: f32,
     confirm_gap: f32,
 ) -> PyResult<()> {
-    let t = borrow("tof", &tof)?;
-    let ct = maybe("tof_confidence", &tof_confidence)?;
+    let shape = fused_shape(&disparity);
+    let t = map("tof", &tof, shape)?;
+    let ct = maybe("tof_confidence", &tof_confidence, shape)?;
     with_fused(py, disparity, plausibility, source, |f| {
         sources::extend_tof_into_band(f, t, ct, sign, (chain_step, confirm_gap))
     })
@@ -126,8 +163,9 @@ pub fn carry_tof_to_border<'py>(
     tof_confidence: Option<PyReadonlyArray2<'py, f32>>,
     sign: f32,
 ) -> PyResult<()> {
-    let t = borrow("tof", &tof)?;
-    let ct = maybe("tof_confidence", &tof_confidence)?;
+    let shape = fused_shape(&disparity);
+    let t = map("tof", &tof, shape)?;
+    let ct = maybe("tof_confidence", &tof_confidence, shape)?;
     with_fused(py, disparity, plausibility, source, |f| {
         sources::carry_tof_to_border(f, t, ct, sign)
     })
