@@ -70,6 +70,16 @@ struct Tap {
     label: i32,
 }
 
+/// The first sample of `row` at `x >= lo`, searched from `*cursor` on (the window moves right
+/// along the output row, so each row's cursor only advances); stored back in `cursor`.
+#[inline(always)]
+fn first_from(row: &[Tap], cursor: &mut usize, lo: u32) -> usize {
+    while *cursor < row.len() && row[*cursor].x < lo {
+        *cursor += 1;
+    }
+    *cursor
+}
+
 /// Per row: the samples, and the channel value each carries (empty rows without a channel).
 type Rows = (Vec<Vec<Tap>>, Vec<Vec<f32>>);
 
@@ -248,11 +258,7 @@ impl Ctx<'_> {
             for (k, yq) in (y0..=y1).enumerate() {
                 let row = &self.rows[yq];
                 let row_a = &self.rows_a[yq];
-                let mut c = cursor[k];
-                while c < row.len() && row[c].x < lo {
-                    c += 1;
-                }
-                cursor[k] = c;
+                let c = first_from(row, &mut cursor[k], lo);
                 let srow = (yq as i64 - y as i64 + r) as usize * side;
                 for (i, t) in row[c..].iter().enumerate().take_while(|(_, t)| t.x <= hi) {
                     let ws = self.spatial[srow + (t.x as i64 - x as i64 + r) as usize];

@@ -5,7 +5,7 @@
 //! filter does, with the same f32 operations: the same bits, on every instruction set. The
 //! loops are compiled for AVX-512, AVX2 and the baseline and chosen at run time.
 
-use super::{estimate, Ctx, Sums};
+use super::{estimate, first_from, Ctx, Sums};
 use crate::color::MAX_SUM;
 
 /// Output pixels filtered together.
@@ -108,11 +108,7 @@ impl Ctx<'_> {
             for (k, yq) in (y0..=y1).enumerate() {
                 let row = &self.rows[yq];
                 let row_a = &self.rows_a[yq];
-                let mut c = cursor[k];
-                while c < row.len() && row[c].x < lo {
-                    c += 1;
-                }
-                cursor[k] = c;
+                let c = first_from(row, &mut cursor[k], lo);
                 let dy = (yq as i64 - y as i64 + r) as usize;
                 let table = &self.spatial_lanes[dy * len..(dy + 1) * len];
                 for (i, t) in row[c..].iter().enumerate().take_while(|(_, t)| t.x <= hi) {
