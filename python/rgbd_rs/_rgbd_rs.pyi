@@ -20,6 +20,12 @@ __all__ = [
     "OVERSEG_DEFAULT_SPATIAL_WEIGHT",
     "OVERSEG_DEFAULT_VECTORS",
     "OVERSEG_MAX_SAMPLES",
+    "SOURCE_LC",
+    "SOURCE_LC_UNMEASURED",
+    "SOURCE_NONE",
+    "SOURCE_STEREO",
+    "SOURCE_TOF",
+    "SOURCE_TOF_CARRIED",
     "SPLINE_DEFAULT_LAMBDA",
     "SPLINE_MAX_DEGREE",
     "T_C",
@@ -105,6 +111,12 @@ MAX_PIXELS: int
 MAX_ELEMENTS: int
 SPLINE_MAX_DEGREE: int
 SPLINE_DEFAULT_LAMBDA: float
+SOURCE_NONE: int
+SOURCE_LC: int
+SOURCE_TOF: int
+SOURCE_STEREO: int
+SOURCE_TOF_CARRIED: int
+SOURCE_LC_UNMEASURED: int
 
 def num_threads() -> int: ...
 def project_points(
@@ -185,10 +197,10 @@ def clue_warp_maps(
 def clue_maps(
     grey_reference: npt.NDArray[np.float32],
     warped: npt.NDArray[np.float32],
+    columns: npt.NDArray[np.float32],
     tof_disparity: npt.NDArray[np.float32],
     tof_amplitude: npt.NDArray[np.float32],
     stereo_disparity: npt.NDArray[np.float32],
-    sign: float,
     mu_reference: float,
     mu_target: float,
     amplitude: float,

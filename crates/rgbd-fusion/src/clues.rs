@@ -31,24 +31,20 @@ pub fn warp_maps(
         .for_each(|(y, ((xr, yr), dr))| {
             for (x, ((o, r), &v)) in xr.iter_mut().zip(yr.iter_mut()).zip(dr).enumerate() {
                 let at = x as f32 + sign * v;
-                *o = if inside(at, width) { at } else { -1.0 };
+                *o = if at.is_finite() && at >= 0.0 && at <= (width - 1) as f32 {
+                    at
+                } else {
+                    -1.0
+                };
                 *r = y as f32;
             }
         });
     Ok((xs, ys))
 }
 
-/// Whether a warp column lies in the image.
-#[inline]
-fn inside(at: f32, width: usize) -> bool {
-    at.is_finite() && at >= 0.0 && at <= (width - 1) as f32
-}
-
 /// What [`clue_maps`] reads besides the maps.
 #[derive(Debug, Clone, Copy)]
 pub struct ClueScales {
-    /// The warp's direction (+1 for a right reference, -1 for a left one).
-    pub sign: f32,
     /// Mean grey level of the reference and of the target (never 0).
     pub mu_reference: f32,
     pub mu_target: f32,
@@ -57,11 +53,13 @@ pub struct ClueScales {
 }
 
 /// The raw clues `4 x H x W` (delta_lr, ToF disparity, stereo disparity, amplitude; NaN where
-/// undefined) from the grey reference `g_r`, the target warped onto it, and the maps.
+/// undefined) from the grey reference `g_r`, the target warped onto it through `columns` (the
+/// first map of [`warp_maps`]: -1 where the warp leaves the target), and the maps.
 #[allow(clippy::too_many_arguments)]
 pub fn clue_maps(
     g_r: &[f32],
     warped: &[f32],
+    columns: &[f32],
     tof_disparity: &[f32],
     tof_amplitude: &[f32],
     stereo_disparity: &[f32],
@@ -73,6 +71,7 @@ pub fn clue_maps(
     for (name, m) in [
         ("reference_image", g_r),
         ("warped", warped),
+        ("columns", columns),
         ("tof_disparity", tof_disparity),
         ("tof_amplitude", tof_amplitude),
         ("stereo_disparity", stereo_disparity),
@@ -100,8 +99,7 @@ pub fn clue_maps(
             let at = c * CHUNK;
             for (i, (o, a)) in dl.iter_mut().zip(am.iter_mut()).enumerate() {
                 let p = at + i;
-                let x = (p % width) as f32;
-                *o = if inside(x + s.sign * stereo_disparity[p], width) {
+                *o = if columns[p] >= 0.0 {
                     (warped[p] / s.mu_target - g_r[p] / s.mu_reference).abs()
                 } else {
                     f32::NAN

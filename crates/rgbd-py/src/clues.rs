@@ -42,10 +42,10 @@ pub fn clue_maps<'py>(
     py: Python<'py>,
     grey_reference: PyReadonlyArray2<'py, f32>,
     warped: PyReadonlyArray2<'py, f32>,
+    columns: PyReadonlyArray2<'py, f32>,
     tof_disparity: PyReadonlyArray2<'py, f32>,
     tof_amplitude: PyReadonlyArray2<'py, f32>,
     stereo_disparity: PyReadonlyArray2<'py, f32>,
-    sign: f32,
     mu_reference: f32,
     mu_target: f32,
     amplitude: f32,
@@ -53,6 +53,7 @@ pub fn clue_maps<'py>(
     let (h, w) = dims("grey_reference", &grey_reference)?;
     for (arg, m) in [
         ("warped", &warped),
+        ("columns", &columns),
         ("tof_disparity", &tof_disparity),
         ("tof_amplitude", &tof_amplitude),
         ("stereo_disparity", &stereo_disparity),
@@ -66,17 +67,17 @@ pub fn clue_maps<'py>(
     }
     let g = borrow("grey_reference", &grey_reference)?;
     let wp = borrow("warped", &warped)?;
+    let cols = borrow("columns", &columns)?;
     let dt = borrow("tof_disparity", &tof_disparity)?;
     let at = borrow("tof_amplitude", &tof_amplitude)?;
     let ds = borrow("stereo_disparity", &stereo_disparity)?;
     let scales = ClueScales {
-        sign,
         mu_reference,
         mu_target,
         amplitude,
     };
     let out = run(py, || {
-        rgbd_fusion::clue_maps(g, wp, dt, at, ds, w, h, scales)
+        rgbd_fusion::clue_maps(g, wp, cols, dt, at, ds, w, h, scales)
     })?;
     to_numpy(py, (4, h, w), out)
 }

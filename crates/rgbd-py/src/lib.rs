@@ -109,5 +109,15 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_ELEMENTS", rgbd_error::MAX_ELEMENTS)?;
     m.add("SPLINE_MAX_DEGREE", rgbd_spline::MAX_DEGREE)?;
     m.add("SPLINE_DEFAULT_LAMBDA", rgbd_spline::DEFAULT_LAMBDA)?;
+    // The fused map's source codes, defined where the steps after LC write them.
+    {
+        use rgbd_fusion::sources::*;
+        m.add("SOURCE_NONE", SOURCE_NONE)?;
+        m.add("SOURCE_LC", SOURCE_LC)?;
+        m.add("SOURCE_TOF", SOURCE_TOF)?;
+        m.add("SOURCE_STEREO", SOURCE_STEREO)?;
+        m.add("SOURCE_TOF_CARRIED", SOURCE_TOF_CARRIED)?;
+        m.add("SOURCE_LC_UNMEASURED", SOURCE_LC_UNMEASURED)?;
+    }
     Ok(())
 }

@@ -89,7 +89,7 @@ def compute_clues(
     with np.errstate(invalid="ignore"):
         amp_ok = np.isfinite(a_t) & (a_t > 0)
     scale = float(np.median(a_t[amp_ok])) if amp_ok.any() else 1.0
-    maps = _rgbd_rs.clue_maps(g_r, warped, d_t, a_t, d_s, sign, mu_r, mu_t, scale)
+    maps = _rgbd_rs.clue_maps(g_r, warped, xs, d_t, a_t, d_s, mu_r, mu_t, scale)
     return Clues(maps)
 
 
@@ -124,7 +124,7 @@ def _normalise(clues: Clues, sigmas: npt.ArrayLike) -> F32:
     if np.any(sig <= 0):
         raise InvalidArgumentError(f"sigmas: got {sig.tolist()}, expected positive values")
     maps = np.ascontiguousarray(clues.maps, dtype=np.float32)
-    return _rgbd_rs.normalise_clues(maps, np.ascontiguousarray(sig, dtype=np.float32))
+    return _rgbd_rs.normalise_clues(maps, sig)
 
 
 def _target_confidence(disparity: npt.ArrayLike, gt: npt.ArrayLike, threshold: float) -> F32:

@@ -19,8 +19,10 @@ from rgbd_rs.fusion._inputs import F32
 #: neighbours. Its ``plausibility`` is as high as anywhere (LC's winner share), but on the real
 #: val scenes (18 cases, 3 ToF laws) 23 % of these pixels were more than 2 px off against 1.2 %
 #: of LC's measured ones (train: 27 % against 1.2 %): mask them when a hole is better than a guess.
-SOURCE_NONE, SOURCE_LC, SOURCE_TOF, SOURCE_STEREO, SOURCE_TOF_CARRIED = 0, 1, 2, 3, 4
-SOURCE_LC_UNMEASURED = 5
+#: The codes are defined once, in ``rgbd_fusion::sources``, where the native steps write them.
+SOURCE_NONE, SOURCE_LC, SOURCE_TOF = _rgbd_rs.SOURCE_NONE, _rgbd_rs.SOURCE_LC, _rgbd_rs.SOURCE_TOF
+SOURCE_STEREO, SOURCE_TOF_CARRIED = _rgbd_rs.SOURCE_STEREO, _rgbd_rs.SOURCE_TOF_CARRIED
+SOURCE_LC_UNMEASURED = _rgbd_rs.SOURCE_LC_UNMEASURED
 
 
 def _c(m: F32) -> F32:
@@ -29,6 +31,7 @@ def _c(m: F32) -> F32:
 
 
 def _opt(m: F32 | None) -> F32 | None:
+    """:func:`_c` of an optional map."""
     return None if m is None else _c(m)
 
 
