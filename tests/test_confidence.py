@@ -10,7 +10,15 @@ import torch
 
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.fusion.clues import Clues, _normalise, _target_confidence, compute_clues
-from rgbd_rs.nn.confidence import ConfidenceEstimator, ConfidenceNet, predict
+from rgbd_rs.nn.confidence import (
+    SQUARE_TILE,
+    STRIPE_PIXELS,
+    STRIPE_WIDTH,
+    ConfidenceEstimator,
+    ConfidenceNet,
+    predict,
+    tile_shape,
+)
 from rgbd_rs.nn.confidence_data import PatchDataset, TileDataset, _masked_mse
 from rgbd_rs.nn.train import TrainConfig, train
 
@@ -79,6 +87,26 @@ def test_network_keeps_the_size_and_tiles_equal_the_whole() -> None:
     np.testing.assert_allclose(p_t, whole[0], atol=1e-5)
     np.testing.assert_allclose(p_s, whole[1], atol=1e-5)
     assert sum(p.numel() for p in ConfidenceNet(128).parameters()) == 605_570  # Fig. 3.3
+
+
+def test_default_tiles_cover_the_image_in_equal_stripes() -> None:
+    assert tile_shape(540, 960, half=False) == (SQUARE_TILE, SQUARE_TILE)
+    assert tile_shape(540, 960, half=True) == (135, 960)  # four stripes of 129,600 pixels
+    assert tile_shape(1080, 1920, half=True) == (135, 960)  # two columns of eight stripes
+    for h, w in [(1, 1), (7, 5000), (5000, 3), (481, 641), (1110, 1390), (8192, 8192)]:
+        th, tw = tile_shape(h, w, half=True)
+        assert 1 <= th <= h and 1 <= tw <= min(w, STRIPE_WIDTH)
+        assert th * tw <= max(STRIPE_PIXELS, 16 * tw)
+        rows, cols = -(-h // th), -(-w // tw)
+        assert (rows - 1) * th < h and (cols - 1) * tw < w  # no empty tile
+    torch.manual_seed(0)
+    net = ConfidenceNet(8)
+    x = RNG.normal(size=(4, 300, 1100)).astype(np.float32)
+    for half in (False, True):
+        precision = "bfloat16" if half else "float32"
+        tiled = predict(net, x, precision=precision)
+        squares = predict(net, x, tile=64, precision=precision)
+        np.testing.assert_allclose(tiled, squares, atol=1e-5 if not half else 1e-2)
 
 
 def _scene(h: int = 48, w: int = 64) -> dict[str, np.ndarray]:

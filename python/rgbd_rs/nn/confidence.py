@@ -116,22 +116,24 @@ def predict(
     net: ConfidenceNet,
     inputs: npt.ArrayLike,
     *,
-    tile: int = 256,
+    tile: int | None = None,
     precision: Precision = "float32",
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """``(P_T, P_S)`` in [0, 1] for a ``4 x H x W`` normalised clue image.
 
-    Runs in tiles of ``tile`` x ``tile`` output pixels with a 7-pixel halo (the receptive field's
-    radius), so memory stays bounded on large images and the result equals a whole-image pass.
+    Runs in tiles with a 7-pixel halo (the receptive field's radius), so memory stays bounded on
+    large images and the result equals a whole-image pass: ``tile`` x ``tile`` output pixels,
+    or with ``tile=None`` the shape :func:`tile_shape` chooses for the precision.
     ``precision``: see :data:`PRECISIONS` (the result is the same for any thread count either
-    way).
+    way; the tiling changes the time, and the result by float rounding at most).
     """
     if not isinstance(net, ConfidenceNet):
         raise InvalidArgumentError(f"net: got {type(net).__name__}, expected a ConfidenceNet")
     x = _validate.array("inputs", inputs, shape=(IN_CHANNELS, None, None), finite=True)
-    t = _validate.integer("tile", tile, minimum=16, maximum=8192)
+    t = None if tile is None else _validate.integer("tile", tile, minimum=16, maximum=8192)
     half = _resolve_precision(precision, next(net.parameters()).device.type) == "bfloat16"
     h, w = x.shape[1:]
+    th, tw = tile_shape(h, w, half) if t is None else (t, t)
     device = next(net.parameters()).device
     out = np.empty((OUT_CHANNELS, h, w), np.float32)
     # Replicate-pad once here; each tile then takes its halo from real or replicated pixels,
@@ -139,9 +141,9 @@ def predict(
     padded = np.pad(x, ((0, 0), (PAD, PAD), (PAD, PAD)), mode="edge")
     net.eval()
     with torch.inference_mode(), _exact_float32(device, half):
-        for y0 in range(0, h, t):
-            for x0 in range(0, w, t):
-                y1, x1 = min(h, y0 + t), min(w, x0 + t)
+        for y0 in range(0, h, th):
+            for x0 in range(0, w, tw):
+                y1, x1 = min(h, y0 + th), min(w, x0 + tw)
                 patch = padded[:, y0 : y1 + 2 * PAD, x0 : x1 + 2 * PAD]
                 inp = torch.from_numpy(np.ascontiguousarray(patch))[None].to(device)
                 # Channels-last: oneDNN's direct convolution path, ~15 % less CPU than NCHW
@@ -151,6 +153,30 @@ def predict(
                     y = net.body(inp)
                 out[:, y0:y1, x0:x1] = y[0].float().clamp(0, 1).cpu().numpy()
     return out[0], out[1]
+
+
+#: :func:`tile_shape`'s bfloat16 tiles: about this many output pixels, in stripes at most
+#: :data:`STRIPE_WIDTH` wide. Measured (``predict`` alone, AMX bfloat16, 2 threads): 960x540 in
+#: 256 x 256 squares 50 ms, in four 135 x 960 stripes 38 ms; 1920x1080 202 -> 155 ms; 640x480
+#: 30 -> 25 ms; squares of 480 or one whole-image pass were slower (docs/speed.md).
+STRIPE_PIXELS = 1 << 17
+#: The widest stripe :func:`tile_shape` makes (wider images are cut into equal columns too).
+STRIPE_WIDTH = 1024
+#: :func:`tile_shape`'s float32 tiles (squares; stripes of :data:`STRIPE_PIXELS` were 5-15 %
+#: slower there).
+SQUARE_TILE = 256
+
+
+def tile_shape(height: int, width: int, half: bool) -> tuple[int, int]:
+    """``(rows, columns)`` of :func:`predict`'s tiles for a ``height x width`` image: in bfloat16
+    (``half``) equal stripes of about :data:`STRIPE_PIXELS` output pixels, at most
+    :data:`STRIPE_WIDTH` wide; in float32 :data:`SQUARE_TILE` squares."""
+    if not half:
+        return SQUARE_TILE, SQUARE_TILE
+    columns = -(-width // STRIPE_WIDTH)
+    tw = -(-width // columns)
+    rows = -(-height // max(16, STRIPE_PIXELS // tw))
+    return -(-height // rows), tw
 
 
 @contextlib.contextmanager
