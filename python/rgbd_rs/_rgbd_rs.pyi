@@ -63,6 +63,7 @@ __all__ = [
     "fill_single_source",
     "fit_surface",
     "hha_encode",
+    "interrupt_running",
     "label_regions",
     "land_points",
     "lc_fuse",
@@ -119,6 +120,7 @@ SOURCE_TOF_CARRIED: int
 SOURCE_LC_UNMEASURED: int
 
 def num_threads() -> int: ...
+def interrupt_running() -> None: ...
 def project_points(
     points: npt.NDArray[np.float64], cam: _CameraArgs, pose_args: _PoseArgs
 ) -> npt.NDArray[np.float64]: ...

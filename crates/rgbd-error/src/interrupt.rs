@@ -30,6 +30,19 @@ pub fn request_interrupt() {
     PENDING.store(true, Ordering::Relaxed);
 }
 
+/// Asks the kernels running now to stop at their next check, as Ctrl-C does (for a caller whose
+/// kernel runs on another thread, which sees no signal); nothing when none runs, where a request
+/// would outlive them and stop the next call.
+pub fn interrupt_running() {
+    if RUNNING.load(Ordering::SeqCst) > 0 {
+        PENDING.store(true, Ordering::SeqCst);
+        // The last one may have returned between the two steps, clearing nothing: clear it here.
+        if RUNNING.load(Ordering::SeqCst) == 0 {
+            PENDING.store(false, Ordering::SeqCst);
+        }
+    }
+}
+
 /// Marks a kernel call as running until dropped (see [`running`]).
 #[must_use = "the call counts as running only while the guard lives"]
 pub struct Running(());
@@ -57,6 +70,14 @@ mod tests {
         let guard = running();
         assert!(check_interrupt().is_ok());
         request_interrupt();
+        assert_eq!(check_interrupt(), Err(RgbdError::Interrupted));
+        drop(guard);
+        assert!(check_interrupt().is_ok());
+        // Without a running kernel the request is dropped (one test: the flags are global).
+        interrupt_running();
+        assert!(check_interrupt().is_ok());
+        let guard = running();
+        interrupt_running();
         assert_eq!(check_interrupt(), Err(RgbdError::Interrupted));
         drop(guard);
         assert!(check_interrupt().is_ok());

@@ -28,6 +28,14 @@ fn num_threads() -> usize {
     }
 }
 
+/// Asks the native kernels running now (on any thread) to stop at their next check, as Ctrl-C
+/// does on the thread that called them; nothing when none runs. For a caller whose kernel runs on
+/// a worker thread and that itself caught `KeyboardInterrupt`.
+#[pyfunction]
+fn interrupt_running() {
+    rgbd_error::interrupt_running();
+}
+
 /// `RAYON_NUM_THREADS` when set to a positive count.
 fn requested_threads() -> Option<usize> {
     std::env::var("RAYON_NUM_THREADS")
@@ -63,6 +71,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
         py.get_type::<errors::ShapeMismatchError>(),
     )?;
     m.add_function(wrap_pyfunction!(num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(interrupt_running, m)?)?;
     m.add_function(wrap_pyfunction!(geom::project_points, m)?)?;
     m.add_function(wrap_pyfunction!(geom::land_points, m)?)?;
     m.add_function(wrap_pyfunction!(geom::undistort_pixels, m)?)?;

@@ -234,7 +234,8 @@ def _warn_if_swapped(
 
     import numpy as np
 
-    from rgbd_rs.fusion.fuse import _match, _swap_warning
+    from rgbd_rs.fusion._fuse_checks import _swap_warning
+    from rgbd_rs.fusion.fuse import _match
 
     match = functools.partial(_match, matcher=method, width=left.shape[1])
     checked = (  # matched as given: the row check is the main match's business

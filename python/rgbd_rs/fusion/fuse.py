@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import sys
 import warnings
-from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, TypeGuard
@@ -15,35 +13,29 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
-from rgbd_rs.camera import Pose, ToFStereoRig
+from rgbd_rs.camera import Pose
 from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.fusion._ahead import Ahead, stopped_on_interrupt
+from rgbd_rs.fusion._fuse_checks import (
+    POSE_SEARCH_DEGREES,  # noqa: F401 (re-exported: fuse()'s docstring)
+    check_maps,
+)
 from rgbd_rs.fusion._inputs import (
     F32,
     U8,
-    disagreement_warning,
     far_camera_warning,
     map2d,
     negative_depth_error,
     rgb8,
     rig_arg,
-    scale_factor,
     tof_depth_warning,
     unit_map,
     views,
     with_reference,
 )
-from rgbd_rs.fusion._pose_check import pose_warning, turn_warning
 from rgbd_rs.fusion.census import CensusParams
 from rgbd_rs.fusion.confidence import stereo_confidence, tof_confidence
 from rgbd_rs.fusion.lc import LcParams, lc_fuse
-from rgbd_rs.fusion.pose_refine import WIDE_DEGREES, PoseRefinement, _pose_error
-from rgbd_rs.fusion.scale_refine import (
-    SCALE_GRID,
-    ScaleRefinement,
-    _clear_turn,
-    _rescaled,
-    _scale_and_turn,
-)
 from rgbd_rs.fusion.sources import (
     SOURCE_LC,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_LC_UNMEASURED,  # noqa: F401 (re-exported: FusionResult.source)
@@ -60,7 +52,6 @@ from rgbd_rs.fusion.stereo import (
     _predict_search_range,
     _same_search,
     _whole_steps,
-    _widest_range,
     search_range,
     sgm,
 )
@@ -85,10 +76,6 @@ DEFAULT_STEREO: StereoMatcher = "census"
 #: 0.867 / 1.068 without (the matcher alone prefers no check, where a hole counts as an error;
 #: in the fusion the ToF fills the holes).
 FUSION_CENSUS = CensusParams(lr_tolerance=1)
-#: The largest yaw / pitch ``fuse()``'s orientation refinement reaches, degrees (its wide probe's
-#: :data:`~rgbd_rs.fusion.pose_refine.WIDE_DEGREES`, then a degree around the probe's best): a
-#: turn found there is reported as the edge of the search.
-POSE_SEARCH_DEGREES = WIDE_DEGREES + 1.0
 #: Confidence kinds by name ("convnet" runs the shipped ConvNet, rgbd_rs/nn/weights).
 CONFIDENCE_KINDS = ("convnet", "uniform", "heuristic")
 #: Unconfirmed ToF pixels: where the colour of a pixel differs by more than this (mean absolute
@@ -116,21 +103,6 @@ def _shipped(far: bool) -> ConfidenceEstimator:
     from rgbd_rs.nn.confidence import WEIGHTS_FAR, ConfidenceEstimator
 
     return ConfidenceEstimator.load(WEIGHTS_FAR if far else None)
-
-
-#: Swapped left/right images. A pair's match score is the share of the pixels SGM can search
-#: (those at least ``max_disparity`` from the image edge) that SGM matches and, where the ToF has
-#: a disparity, matches within ``SWAP_AGREE`` px of it. Below ``SWAP_SUSPECT_SCORE`` the pair is
-#: also matched with the images exchanged, and a score there of at least ``SWAP_GAIN`` times
-#: (and at least ``SWAP_SUSPECT_SCORE``) means the images were swapped. Chosen on the synthetic
-#: test set and Middlebury: correct pairs score 0.36-0.97, swapped ones 0.01-0.16. Without a ToF
-#: the score is SGM's coverage alone, both orders are always matched, and the exchanged order
-#: must reach ``SWAP_GAIN_STEREO_ONLY`` times the given one (there swapped pairs reach 0.28-0.68
-#: of the correct order's 0.78-0.97, a ratio of 1.3 or more).
-SWAP_AGREE = 2.0
-SWAP_SUSPECT_SCORE = 0.25
-SWAP_GAIN = 2.0
-SWAP_GAIN_STEREO_ONLY = 1.2
 
 
 @dataclass(frozen=True)
@@ -192,18 +164,6 @@ def _is_estimator(value: object) -> TypeGuard[ConfidenceEstimator]:
     return module is not None and isinstance(value, module.ConfidenceEstimator)
 
 
-def _match_score(stereo: F32, tof_disparity: F32, max_disparity: int, sign: int) -> float:
-    """The share of searchable pixels SGM matches, consistently with the ToF where it has one."""
-    w = stereo.shape[1]
-    cols = slice(max_disparity, w) if sign < 0 else slice(0, max(0, w - max_disparity))
-    st, tof = stereo[:, cols], tof_disparity[:, cols]
-    if st.size == 0:
-        return 0.0
-    with np.errstate(invalid="ignore"):
-        good = np.isfinite(st) & ~(np.abs(st - tof) >= SWAP_AGREE)
-    return float(good.mean())
-
-
 def _match(
     left: U8,
     right: U8,
@@ -231,72 +191,6 @@ def _match(
             params=params,
         )
     return sgm(left, right, reference=reference, max_disparity=max_disparity)
-
-
-def _scale_check(
-    left: U8,
-    right: U8,
-    reference: str,
-    stereo: F32,
-    tof_disparity: F32,
-    widest: int | None,
-    match: Callable[..., F32],
-) -> tuple[str, float, F32] | None:
-    """:func:`~rgbd_rs.fusion._inputs.scale_factor` of the ToF against the stereo map (with the
-    map it was read on); where they disagree on most pixels and no factor explains it, once
-    more against a map searched over ``widest`` (None: the caller's range stands): depths too
-    far make the range derived from them too short for the pair's disparities."""
-    said = scale_factor(tof_disparity, stereo)
-    if said is not None:
-        return (*said, stereo)
-    if widest is None or disagreement_warning(tof_disparity, stereo) is None:
-        return None
-    wide = match(left, right, reference=reference, max_disparity=widest)
-    said = scale_factor(tof_disparity, wide)
-    return None if said is None else (*said, wide)
-
-
-def _a_turn_explains(
-    depth: F32, rig: ToFStereoRig, stereo: F32, factor: float, refine: bool
-) -> bool:
-    """Whether a clear turn of the ToF fits ``stereo`` better than its depths divided by
-    ``factor`` do: on a slanted flat scene a pitch reads like a scale (Bull, 3 degrees of
-    pitch: a factor of 0.74), and the refinement corrects it."""
-    if not refine:
-        return False
-    turn = _clear_turn(depth, rig, stereo)
-    return turn is not None and turn.error_after < _pose_error(
-        _rescaled(depth, factor), rig, stereo
-    )
-
-
-def _swap_warning(
-    left: U8,
-    right: U8,
-    reference: str,
-    stereo: F32,
-    tof_disparity: F32,
-    dmax: int,
-    match: Callable[..., F32],
-) -> str | None:
-    """A message when the pair looks swapped: SGM matches few pixels (its left-right check fails,
-    or its disparities disagree with the ToF) as given and far more with the images exchanged,
-    i.e. the pair's disparities as given are negative."""
-    sign = 1 if reference == "right" else -1
-    has_tof = bool(np.isfinite(tof_disparity).any())
-    given = _match_score(stereo, tof_disparity, dmax, sign)
-    if has_tof and given >= SWAP_SUSPECT_SCORE:
-        return None
-    exchanged = match(right, left, reference=reference, max_disparity=dmax, align_rows=False)
-    swapped = _match_score(exchanged, tof_disparity, dmax, sign)
-    gain = SWAP_GAIN if has_tof else SWAP_GAIN_STEREO_ONLY
-    if swapped < max(SWAP_SUSPECT_SCORE, gain * given):
-        return None
-    return (
-        f"left/right: the images look swapped: SGM matches {given:.0%} of the pixels as given "
-        f"and {swapped:.0%} with left and right exchanged; check that the left image is the "
-        "left camera's (the right camera sits baseline metres along +x of the left one)"
-    )
 
 
 def fuse(
@@ -418,19 +312,22 @@ def fuse(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         sparse = _reproject_tof(depth_map, tof_amplitude, r)
+
     # SGM runs on a worker thread (OpenCV releases the GIL) while the ToF is upsampled here (the
     # native filter releases it too): with the range predicted from the sparse ToF, re-run in
     # the rare scene where the upsampled ToF's range asks for another SGBM step.
-    if max_disparity is None:
-        sparse_disp = depth_to_disparity(sparse.depth, r.stereo.baseline, r.stereo.focal)
-        guess = _predict_search_range(sparse_disp, w)
-    else:
+    def early_match() -> tuple[int, F32]:
         guess = max_disparity
+        if guess is None:
+            sparse_disp = depth_to_disparity(sparse.depth, r.stereo.baseline, r.stereo.focal)
+            guess = _predict_search_range(sparse_disp, w)
+        return guess, match(lft, rgt, reference=r.reference, max_disparity=guess)
+
     with ThreadPoolExecutor(max_workers=1) as pool:
-        early = pool.submit(match, lft, rgt, reference=r.reference, max_disparity=guess)
+        early = pool.submit(early_match)
         tof = _densify_tof(sparse, r, ref_img)
         dmax = search_range(tof.disparity, w) if max_disparity is None else max_disparity
-        st_map = early.result()
+        guess, st_map = early.result()
     if not _same_search(guess, dmax):
         st_map = match(lft, rgt, reference=r.reference, max_disparity=dmax)
     no_tof = not np.isfinite(tof.disparity).any()
@@ -452,95 +349,76 @@ def fuse(
             warnings.warn(c.message, c.category, stacklevel=2)
         if implausible is not None:
             warnings.warn(implausible[0], RuntimeWarning, stacklevel=2)
-    # Depths in another unit or scale first: the checks below read the ToF's disparities as true.
-    off_scale = None
-    if not no_tof:
-        wide = None if max_disparity is not None else _widest_range(w)
-        scaled_by = _scale_check(lft, rgt, r.reference, st_map, tof.disparity, wide, match)
-        if scaled_by is not None and not _a_turn_explains(
-            depth_map, r, scaled_by[2], scaled_by[1], refine_pose
-        ):
-            off_scale = scaled_by[0]
-    if off_scale is not None:
-        warnings.warn(off_scale, RuntimeWarning, stacklevel=2)
-    swapped = (
-        None
-        if off_scale is not None
-        else _swap_warning(lft, rgt, r.reference, st_map, tof.disparity, dmax, match)
-    )
-    if swapped is not None:
-        warnings.warn(swapped, RuntimeWarning, stacklevel=2)
     tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
-    # The ToF's depth scale against the stereo pair's first (a scale error shifts every ToF
-    # disparity, which a turn would partly absorb), then a ToF turned by a fraction of a degree
-    # is refined; a pose read the wrong way round is named (only when another reading beats
-    # even the refined pose: a turn can make the inverted reading fit a flat scene better than
-    # the turned pose as given); other disagreement only in general terms.
-    refine = refine_pose and swapped is None and off_scale is None and not no_tof
-    rescale, found = _scale_and_turn(depth_map, r, st_map) if refine else (None, None)
-    fitted = None if found is None else found.pose
-    # The readings are compared on the depths the fits chose (a depth scale a few percent off
-    # otherwise makes the inverted reading fit better than the pose as given).
-    checked = depth_map if rescale is None else _rescaled(depth_map, rescale.factor)
-    wrong_way = (
-        None
-        if swapped is not None or off_scale is not None
-        else pose_warning(checked, asked, r, st_map, fitted)
-    )
-    if wrong_way is not None:
-        warnings.warn(wrong_way, RuntimeWarning, stacklevel=2)
-        found = rescale = None  # fits made with a pose read the wrong way round
-    if rescale is not None:
-        warnings.warn(_rescaled_message(rescale), RuntimeWarning, stacklevel=2)
-        depth_map = checked  # the rescaled depths the pose check read
-    if found is not None:
-        warnings.warn(_refined_message(found), RuntimeWarning, stacklevel=2)
-        r = dataclasses.replace(r, tof_to_reference=found.pose)
-    if found is not None or rescale is not None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # said once already, for the given pose and depths
-            tof = _densify_tof(_reproject_tof(depth_map, tof_amplitude, r), r, ref_img)
-        if max_disparity is None:  # the corrected ToF's range, as a corrected rig would give
-            refit = search_range(tof.disparity, w)
-            if not _same_search(dmax, refit):
-                st_map = match(lft, rgt, reference=r.reference, max_disparity=refit)
-            dmax = refit
-        tof_disp = np.where(tof.disparity <= dmax, tof.disparity, np.nan).astype(np.float32)
-    # Several degrees off: only where the refinement did not act (its warning says when it
-    # stopped at the edge of its search).
-    quiet = swapped or off_scale or wrong_way or no_tof or found is not None or rescale is not None
-    turned = None if quiet else turn_warning(depth_map, r, st_map)
-    if turned is not None:
-        warnings.warn(turned, RuntimeWarning, stacklevel=2)
-    apart = (
-        None
-        if swapped or off_scale or wrong_way or turned
-        else disagreement_warning(tof_disp, st_map)
-    )
-    if apart is not None:
-        warnings.warn(apart, RuntimeWarning, stacklevel=2)
-    if not np.isfinite(st_map).any() and no_tof:
-        raise InvalidArgumentError(
-            "left/right: stereo matching found no valid disparity and the ToF has none either; "
-            "expected textured images or valid ToF data"
-        )
-    if given is None and kind != "uniform" and not no_tof:
-        _warn_without_amplitude(tof_disp, tof.amplitude, network=estimator is not None)
-    ct: F32 | None
-    cs: F32 | None
-    if given is not None:
-        ct, cs = given
-    elif kind == "uniform":
-        ct = cs = None
-    elif estimator is not None:
-        ct, cs = estimator(ref_img, tgt_img, tof_disp, tof.amplitude, st_map, reference=r.reference)
-        ct = _unconfirmed_to_zero(ct, tof.color_gap)
-    else:
+
+    def confidences(
+        tof_disp: F32, tof: ToFOnReference, st_map: F32, dmax: int
+    ) -> tuple[F32 | None, F32 | None]:
+        if given is not None:
+            return given
+        if kind == "uniform":
+            return None, None
+        if estimator is not None:
+            ct, cs = estimator(
+                ref_img, tgt_img, tof_disp, tof.amplitude, st_map, reference=r.reference
+            )
+            return _unconfirmed_to_zero(ct, tof.color_gap), cs
         ct = _unconfirmed_to_zero(tof_confidence(tof_disp, tof.amplitude), tof.color_gap)
         cs = stereo_confidence(ref_img, tgt_img, st_map, target_sign=sign, max_disparity=dmax)
-    lc_disp, lc_plaus = lc_fuse(
-        ref_img, tgt_img, [tof_disp, st_map], [ct, cs], target_sign=sign, params=params
-    )
+        return ct, cs
+
+    def fused(tof_disp: F32, st_map: F32, ct: F32 | None, cs: F32 | None) -> tuple[F32, F32]:
+        return lc_fuse(
+            ref_img, tgt_img, [tof_disp, st_map], [ct, cs], target_sign=sign, params=params
+        )
+
+    # The confidences and LC on the maps as they stand, LC on a worker thread beside the
+    # checks (it releases the GIL; they are mostly single-threaded): kept unless the checks
+    # correct the ToF's pose or depth scale (then both run again on the corrected maps). Their
+    # warnings are said where they were before, after the checks'.
+    ahead: Ahead[tuple[F32, F32]] | None = None
+    if not no_tof:
+        with warnings.catch_warnings(record=True) as said_ahead:
+            warnings.simplefilter("always")
+            conf_ahead = confidences(tof_disp, tof, st_map, dmax)
+        ahead = Ahead(fused, tof_disp, st_map, *conf_ahead)
+    with stopped_on_interrupt(ahead):
+        checked = check_maps(
+            lft,
+            rgt,
+            asked,
+            r,
+            depth_map,
+            tof_amplitude,
+            ref_img,
+            tof,
+            st_map,
+            dmax,
+            tof_disp,
+            max_disparity=max_disparity,
+            match=match,
+            refine_pose=refine_pose,
+            no_tof=no_tof,
+        )
+        r, tof, st_map, dmax = checked.rig, checked.tof, checked.stereo, checked.max_disparity
+        tof_disp = checked.tof_disparity
+        if not np.isfinite(st_map).any() and no_tof:
+            raise InvalidArgumentError(
+                "left/right: stereo matching found no valid disparity and the ToF has none "
+                "either; expected textured images or valid ToF data"
+            )
+        if given is None and kind != "uniform" and not no_tof:
+            _warn_without_amplitude(tof_disp, tof.amplitude, network=estimator is not None)
+        if ahead is not None and not checked.corrected:
+            ct, cs = conf_ahead
+            for c in said_ahead:
+                warnings.warn(c.message, c.category, stacklevel=2)
+            lc_disp, lc_plaus = ahead.result()
+        else:
+            if ahead is not None:
+                ahead.wait()  # LC of the maps before the correction: not used
+            ct, cs = confidences(tof_disp, tof, st_map, dmax)
+            lc_disp, lc_plaus = fused(tof_disp, st_map, ct, cs)
     # After LC's two-view check nothing is filled back: its rejections stand.
     cross_check = params is not None and params.cross_check
     disp, plaus, source = _fill_single_source(
@@ -572,43 +450,7 @@ def fuse(
         matcher,
         source,
         r.tof_to_reference,
-        1.0 if rescale is None else rescale.factor,
-    )
-
-
-def _refined_message(found: PoseRefinement) -> str:
-    """The warning of a ToF orientation that ``fuse()`` refined against the stereo map."""
-    return (
-        f"rig: the ToF fits the stereo map better turned by {found.yaw:+.2f} degrees of yaw and "
-        f"{found.pitch:+.2f} of pitch (disparity difference {found.error_before:.2f} -> "
-        f"{found.error_after:.2f} px, truncated mean): fused with that orientation"
-        f"{_edge_note(max(abs(found.yaw), abs(found.pitch)) >= POSE_SEARCH_DEGREES - 1e-6)}. "
-        "Correct the calibration (the result's tof_pose is the pose fused with, relative to "
-        "its reference camera; rgbd fuse writes it to fused.npz), or pass refine_pose=False "
-        "(rgbd fuse --keep-pose) to fuse the pose as given"
-    )
-
-
-def _edge_note(at_edge: bool) -> str:
-    """A clause for a fit that stopped at the edge of its search."""
-    if not at_edge:
-        return ""
-    return (
-        " (the edge of the search: the calibration may be further off than that, and the "
-        "fused map worse than with a corrected one)"
-    )
-
-
-def _rescaled_message(found: ScaleRefinement) -> str:
-    """The warning of a ToF depth scale that ``fuse()`` refined against the stereo map."""
-    return (
-        f"tof_depth/rig: the ToF's depths fit the stereo map better divided by {found.factor:.3f} "
-        f"(disparity difference {found.error_before:.2f} -> {found.error_after:.2f} px, "
-        f"truncated mean): fused with them rescaled"
-        f"{_edge_note(found.factor in (float(SCALE_GRID[0]), float(SCALE_GRID[-1])))}. A ToF "
-        "depth scale error, or a stereo baseline that far off, reads so; the result's "
-        "tof_scale is the factor (rgbd fuse writes it to fused.npz). Pass refine_pose=False "
-        "(rgbd fuse --keep-pose) to fuse the depths as given"
+        1.0 if checked.rescale is None else checked.rescale.factor,
     )
 
 

@@ -1,0 +1,53 @@
+"""A native call started on a worker thread ahead of the code that decides whether its result is
+used: :func:`~rgbd_rs.fusion.fuse` runs LC this way beside its input checks (LC releases the GIL
+and keeps both cores busy; the checks are mostly single-threaded numpy)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from typing import Generic, TypeVar
+
+from rgbd_rs import _rgbd_rs
+
+T = TypeVar("T", covariant=True)
+
+
+class Ahead(Generic[T]):
+    """``fn(*args)`` running on a thread of its own, started here; the thread ends with the
+    call (a new one per call: a thread kept between calls would not survive a fork)."""
+
+    def __init__(self, fn: Callable[..., T], *args: object) -> None:
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rgbd-ahead")
+        self._future = pool.submit(fn, *args)
+        pool.shutdown(wait=False)  # the thread exits once the call returns
+
+    def result(self) -> T:
+        """The call's result (waiting for it); its exception is raised here."""
+        return self._future.result()
+
+    def wait(self) -> None:
+        """Waits for the call to end, whatever its outcome (a result no longer needed)."""
+        with contextlib.suppress(BaseException):
+            self._future.result()
+
+
+@contextlib.contextmanager
+def stopped_on_interrupt(ahead: Ahead[object] | None) -> Iterator[None]:
+    """Around the code that waits for ``ahead``: on Ctrl-C (``KeyboardInterrupt`` on this
+    thread, which the worker does not see) the native kernels running now are asked to stop, as
+    Ctrl-C stops a kernel running on the main thread, and the call is waited for before the
+    interrupt propagates; on any other exception the call is waited for too (so no work
+    outlives the caller's)."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        if ahead is not None:
+            _rgbd_rs.interrupt_running()
+            ahead.wait()
+        raise
+    except BaseException:
+        if ahead is not None:
+            ahead.wait()
+        raise

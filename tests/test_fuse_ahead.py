@@ -1,0 +1,133 @@
+"""fuse() runs LC on a worker thread beside its input checks (`fusion._ahead`): the result, the
+warnings and their order are those of the sequential code, Ctrl-C stops the worker's kernel, and
+no thread outlives the call."""
+
+from __future__ import annotations
+
+import importlib
+import threading
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+from rgbd_rs import _rgbd_rs
+from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
+from rgbd_rs.fusion import LcParams, fuse, lc_fuse
+from rgbd_rs.fusion._ahead import Ahead, stopped_on_interrupt
+
+RIG = synth3_rig(0.25)  # 480 x 270
+FUSE = importlib.import_module("rgbd_rs.fusion.fuse")  # the name is also the function
+
+
+@pytest.fixture(scope="module")
+def scene() -> SynthSample:
+    return generate(0, "test", 1, RIG)[0]
+
+
+def _ahead_threads(wait: float = 2.0) -> list[str]:
+    """Names of the worker threads still alive (after up to ``wait`` s for them to exit)."""
+    end = time.monotonic() + wait
+    while True:
+        alive = [t.name for t in threading.enumerate() if t.name.startswith("rgbd-ahead")]
+        if not alive or time.monotonic() > end:
+            return alive
+        time.sleep(0.01)
+
+
+def test_ahead_returns_the_result_and_raises_the_exception() -> None:
+    assert Ahead(lambda a, b: a + b, 2, 3).result() == 5
+
+    def fail() -> None:
+        raise ValueError("boom")
+
+    failed = Ahead(fail)
+    with pytest.raises(ValueError, match="boom"):
+        failed.result()
+    failed.wait()  # swallowed: the result is no longer wanted
+    assert _ahead_threads() == []
+
+
+def test_interrupting_with_no_kernel_running_leaves_the_next_call_alone() -> None:
+    img = np.full((8, 16, 3), 128, np.uint8)
+    d = np.full((8, 16), 3.0, np.float32)
+    before = lc_fuse(img, img, [d])[0]
+    assert np.isfinite(before).sum() > 64
+    _rgbd_rs.interrupt_running()
+    np.testing.assert_array_equal(lc_fuse(img, img, [d])[0], before)
+
+
+def test_ctrl_c_beside_the_worker_stops_its_kernel() -> None:
+    # A dense radius-64 LC on 960x540 runs ~25 s on two cores; KeyboardInterrupt on this thread
+    # 0.3 s in must stop it within a few rows and propagate, and the next call runs normally.
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 255, (540, 960, 3), dtype=np.uint8)
+    d = rng.uniform(0, 64, (540, 960)).astype(np.float32)
+    params = LcParams(radius=64, stride=1)
+    t0 = time.monotonic()
+    ahead = Ahead(_lc, img, d, params)
+    with pytest.raises(KeyboardInterrupt), stopped_on_interrupt(ahead):
+        time.sleep(0.3)
+        raise KeyboardInterrupt
+    assert time.monotonic() - t0 < 8.0
+    with pytest.raises(KeyboardInterrupt):
+        ahead.result()  # the kernel's own answer to the request
+    assert _ahead_threads() == []
+    assert np.isfinite(lc_fuse(img[:8, :16], img[:8, :16], [d[:8, :16]])[0]).any()
+
+
+def _lc(img: np.ndarray, d: np.ndarray, params: LcParams) -> np.ndarray:
+    return lc_fuse(img, img, [d], params=params)[0]
+
+
+def test_fuse_says_the_checks_warnings_before_the_confidences(
+    scene: SynthSample, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The confidences are computed before the checks run (LC starts on them), but their
+    # warnings come after the checks', as when everything ran in order.
+    checks, confidence = FUSE.check_maps, FUSE.tof_confidence
+
+    def noisy_checks(*args: object, **kwargs: object) -> object:
+        warnings.warn("from the checks", RuntimeWarning, stacklevel=2)
+        return checks(*args, **kwargs)
+
+    def noisy_confidence(*args: object, **kwargs: object) -> object:
+        warnings.warn("from the confidences", RuntimeWarning, stacklevel=2)
+        return confidence(*args, **kwargs)
+
+    monkeypatch.setattr(FUSE, "check_maps", noisy_checks)
+    monkeypatch.setattr(FUSE, "tof_confidence", noisy_confidence)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = fuse(
+            scene.left,
+            scene.right,
+            scene.tof_depth,
+            scene.tof_amplitude,
+            RIG,
+            confidence="heuristic",
+        )
+    said = [str(c.message) for c in caught if str(c.message).startswith("from the")]
+    assert said == ["from the checks", "from the confidences"]
+    assert np.isfinite(out.disparity).any()
+    assert _ahead_threads() == []
+
+
+def test_fuse_equals_lc_of_its_own_maps(scene: SynthSample) -> None:
+    # What fuse() returns is LC of the maps and confidences it returns (the ones the checks
+    # kept), with the single-source steps after it.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG)
+    assert out.tof_confidence is not None and out.stereo_confidence is not None
+    lc = lc_fuse(
+        scene.right,
+        scene.left,
+        [out.tof_fused, out.stereo_disparity],
+        [out.tof_confidence, out.stereo_confidence],
+        target_sign=1,
+    )[0]
+    from_lc = out.source == FUSE.SOURCE_LC
+    assert from_lc.mean() > 0.5
+    np.testing.assert_array_equal(out.disparity[from_lc], lc[from_lc])
