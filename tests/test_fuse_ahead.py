@@ -5,6 +5,7 @@ no thread outlives the call."""
 from __future__ import annotations
 
 import importlib
+import multiprocessing
 import threading
 import time
 import warnings
@@ -77,6 +78,27 @@ def test_ctrl_c_beside_the_worker_stops_its_kernel() -> None:
     assert np.isfinite(lc_fuse(img[:8, :16], img[:8, :16], [d[:8, :16]])[0]).any()
 
 
+def test_the_callers_kernels_do_not_queue_behind_the_workers() -> None:
+    # The worker's kernels run in a pool of their own: a parallel kernel called here while a
+    # ~25 s LC runs there finishes in its own time, not after the worker's (as it would in one
+    # shared pool, whose threads take queued jobs only once theirs are done).
+    rng = np.random.default_rng(1)
+    img = rng.integers(0, 255, (540, 960, 3), dtype=np.uint8)
+    d = rng.uniform(0, 64, (540, 960)).astype(np.float32)
+    small = (img[:96, :128], d[:96, :128])
+    alone = lc_fuse(small[0], small[0], [small[1]])[0]
+    ahead = Ahead(_lc, img, d, LcParams(radius=64, stride=1))
+    with pytest.raises(KeyboardInterrupt), stopped_on_interrupt(ahead):
+        time.sleep(0.2)
+        t0 = time.monotonic()
+        beside = lc_fuse(small[0], small[0], [small[1]])[0]
+        took = time.monotonic() - t0
+        raise KeyboardInterrupt
+    assert took < 5.0, took
+    np.testing.assert_array_equal(beside, alone)
+    assert _ahead_threads() == []
+
+
 def _lc(img: np.ndarray, d: np.ndarray, params: LcParams) -> np.ndarray:
     return lc_fuse(img, img, [d], params=params)[0]
 
@@ -131,3 +153,42 @@ def test_fuse_equals_lc_of_its_own_maps(scene: SynthSample) -> None:
     from_lc = out.source == FUSE.SOURCE_LC
     assert from_lc.mean() > 0.5
     np.testing.assert_array_equal(out.disparity[from_lc], lc[from_lc])
+
+
+def _heuristic(scene: SynthSample) -> np.ndarray:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = fuse(
+            scene.left,
+            scene.right,
+            scene.tof_depth,
+            scene.tof_amplitude,
+            RIG,
+            confidence="heuristic",
+        )
+    return out.disparity
+
+
+def _fuse_in_child(queue: multiprocessing.Queue[np.ndarray], scene: SynthSample) -> None:
+    queue.put(_heuristic(scene))
+
+
+@pytest.mark.skipif(
+    "fork" not in multiprocessing.get_all_start_methods(), reason="no fork on this platform"
+)
+def test_fuse_works_in_a_forked_child(scene: SynthSample) -> None:
+    # The parent's side pool (and its worker threads) exist before the fork; the child builds
+    # its own instead of waiting for threads it did not inherit. (Heuristic confidences: torch's
+    # OpenMP threads are not the subject here.)
+    here = _heuristic(scene)
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_fuse_in_child, args=(queue, scene))
+    child.start()
+    try:
+        there = queue.get(timeout=120)
+    finally:
+        child.join(timeout=10)
+        if child.is_alive():
+            child.kill()
+    np.testing.assert_array_equal(there, here)

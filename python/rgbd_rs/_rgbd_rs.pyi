@@ -94,6 +94,7 @@ __all__ = [
     "undistort_pixels",
     "unseen_from_tof",
     "upsample_depth",
+    "use_side_pool",
     "view_curvatures",
     "voxelize_mesh",
     "voxelize_points",
@@ -121,6 +122,7 @@ SOURCE_LC_UNMEASURED: int
 
 def num_threads() -> int: ...
 def interrupt_running() -> None: ...
+def use_side_pool(on: bool) -> None: ...
 def project_points(
     points: npt.NDArray[np.float64], cam: _CameraArgs, pose_args: _PoseArgs
 ) -> npt.NDArray[np.float64]: ...

@@ -59,6 +59,42 @@ static PARENT: OnceLock<u32> = OnceLock::new();
 /// A forked child's own pool, built at its first call (keyed by pid: a grandchild builds anew).
 static CHILD_POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
 
+/// The pool of kernels a caller runs on a worker thread beside other native calls (`fuse()`'s
+/// LC beside its input checks): in the global pool those calls' jobs would queue behind the
+/// kernel's until it ended. Keyed by pid as [`CHILD_POOL`]; as many threads as the global pool.
+static SIDE_POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+
+/// Which rayon pool a kernel runs in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pool {
+    /// The process's pool (a forked child's own, see [`in_own_pool`]).
+    Global,
+    /// [`SIDE_POOL`].
+    Side,
+}
+
+/// The pool in `slot` for this process, built with `threads` threads at the first call.
+fn pool_of(
+    slot: &Mutex<Option<(u32, Arc<rayon::ThreadPool>)>>,
+    threads: usize,
+) -> Arc<rayon::ThreadPool> {
+    let pid = std::process::id();
+    let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
+    match slot.as_ref() {
+        Some((owner, pool)) if *owner == pid => Arc::clone(pool),
+        _ => match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+            Ok(pool) => {
+                let pool = Arc::new(pool);
+                *slot = Some((pid, Arc::clone(&pool)));
+                pool
+            }
+            // No thread to be had: the caller's catch_unwind makes this an RgbdError instead
+            // of a hang.
+            Err(e) => panic!("could not start worker threads: {e}"),
+        },
+    }
+}
+
 /// Records the importing process (called once, when the module is created).
 pub fn record_parent() {
     PARENT.get_or_init(std::process::id);
@@ -76,29 +112,35 @@ fn in_own_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
     if !is_fork_child() {
         return f();
     }
-    let pid = std::process::id();
-    let pool = {
-        let mut slot = CHILD_POOL.lock().unwrap_or_else(|e| e.into_inner());
-        match slot.as_ref() {
-            Some((owner, pool)) if *owner == pid => Arc::clone(pool),
-            _ => {
-                let built = rayon::ThreadPoolBuilder::new()
-                    .num_threads(crate::fork_child_threads())
-                    .build();
-                match built {
-                    Ok(pool) => {
-                        let pool = Arc::new(pool);
-                        *slot = Some((pid, Arc::clone(&pool)));
-                        pool
-                    }
-                    // No thread to be had: the caller's catch_unwind makes this an RgbdError
-                    // instead of a hang.
-                    Err(e) => panic!("could not start worker threads after a fork: {e}"),
-                }
-            }
-        }
-    };
-    pool.install(f)
+    pool_of(&CHILD_POOL, crate::fork_child_threads()).install(f)
+}
+
+thread_local! {
+    /// The pool the kernels this thread calls run in (see [`use_side_pool`]).
+    static POOL: std::cell::Cell<Pool> = const { std::cell::Cell::new(Pool::Global) };
+}
+
+/// Makes the kernels the calling thread starts run in [`SIDE_POOL`] (`on`) or the process's pool:
+/// for a Python worker thread that runs native calls beside those of another thread (`fuse()`'s
+/// matcher beside its ToF upsampling, its LC beside its input checks). Each thread starts with
+/// the process's pool.
+#[pyfunction]
+pub fn use_side_pool(on: bool) {
+    POOL.with(|p| p.set(if on { Pool::Side } else { Pool::Global }));
+}
+
+/// Runs `f` in the pool the calling thread asked for (see [`use_side_pool`]); the pool is read
+/// on the calling thread, `f` may run on another.
+fn in_pool<T: Send>(pool: Pool, f: impl FnOnce() -> T + Send) -> T {
+    match pool {
+        Pool::Global => in_own_pool(f),
+        Pool::Side => pool_of(&SIDE_POOL, crate::num_threads()).install(f),
+    }
+}
+
+/// The pool the calling thread asked for.
+fn chosen_pool() -> Pool {
+    POOL.with(std::cell::Cell::get)
 }
 
 /// Runs `f` with the GIL released; a panic becomes `RgbdError` instead of crossing into Python.
@@ -108,7 +150,8 @@ where
     F: FnOnce() -> Result<T, CoreError> + Send,
 {
     let _running = rgbd_error::running();
-    finish(py.detach(|| catch_unwind(AssertUnwindSafe(|| in_own_pool(f)))))
+    let pool = chosen_pool();
+    finish(py.detach(|| catch_unwind(AssertUnwindSafe(|| in_pool(pool, f)))))
 }
 
 /// [`run`] for kernels that can take seconds: `f` runs on a scoped thread while this thread
@@ -119,6 +162,7 @@ where
     T: Send,
     F: FnOnce() -> Result<T, CoreError> + Send,
 {
+    let pool = chosen_pool();
     let _running = rgbd_error::running();
     let mut signal: Option<PyErr> = None;
     let out = py.detach(|| {
@@ -128,7 +172,7 @@ where
             let (tx, rx) = mpsc::channel();
             s.spawn(move || {
                 // The receiver lives until the scope ends, so this send cannot fail.
-                let _ = tx.send(catch_unwind(AssertUnwindSafe(|| in_own_pool(f))));
+                let _ = tx.send(catch_unwind(AssertUnwindSafe(|| in_pool(pool, f))));
             });
             loop {
                 match rx.recv_timeout(SIGNAL_POLL) {

@@ -20,7 +20,13 @@ mod voxel;
 /// Number of threads rayon uses in this process (set `RAYON_NUM_THREADS` before import; in a
 /// forked child, 1 unless `RAYON_NUM_THREADS` says otherwise).
 #[pyfunction]
-fn num_threads() -> usize {
+#[pyo3(name = "num_threads")]
+fn py_num_threads() -> usize {
+    num_threads()
+}
+
+/// See [`py_num_threads`].
+pub(crate) fn num_threads() -> usize {
     if errors::is_fork_child() {
         fork_child_threads()
     } else {
@@ -70,8 +76,9 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "ShapeMismatchError",
         py.get_type::<errors::ShapeMismatchError>(),
     )?;
-    m.add_function(wrap_pyfunction!(num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(py_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(interrupt_running, m)?)?;
+    m.add_function(wrap_pyfunction!(errors::use_side_pool, m)?)?;
     m.add_function(wrap_pyfunction!(geom::project_points, m)?)?;
     m.add_function(wrap_pyfunction!(geom::land_points, m)?)?;
     m.add_function(wrap_pyfunction!(geom::undistort_pixels, m)?)?;

@@ -1,6 +1,8 @@
-"""A native call started on a worker thread ahead of the code that decides whether its result is
-used: :func:`~rgbd_rs.fusion.fuse` runs LC this way beside its input checks (LC releases the GIL
-and keeps both cores busy; the checks are mostly single-threaded numpy)."""
+"""Native work started on a worker thread beside the caller's: :func:`~rgbd_rs.fusion.fuse` runs
+its matcher this way beside the ToF upsampling, and LC beside its input checks, before they
+decide whether its result is used (the native kernels release the GIL; the checks are mostly
+single-threaded numpy). The worker's kernels run in a rayon pool of their own, so the caller's
+native calls do not queue behind them in the process's pool."""
 
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ class Ahead(Generic[T]):
 
     def __init__(self, fn: Callable[..., T], *args: object) -> None:
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rgbd-ahead")
-        self._future = pool.submit(fn, *args)
+        self._future = pool.submit(_beside, fn, *args)
         pool.shutdown(wait=False)  # the thread exits once the call returns
 
     def result(self) -> T:
@@ -31,6 +33,15 @@ class Ahead(Generic[T]):
         """Waits for the call to end, whatever its outcome (a result no longer needed)."""
         with contextlib.suppress(BaseException):
             self._future.result()
+
+
+def _beside(fn: Callable[..., T], *args: object) -> T:
+    """``fn(*args)`` with the calling thread's kernels in the side pool."""
+    _rgbd_rs.use_side_pool(True)
+    try:
+        return fn(*args)
+    finally:
+        _rgbd_rs.use_side_pool(False)
 
 
 @contextlib.contextmanager

@@ -5,7 +5,6 @@ from __future__ import annotations
 import functools
 import sys
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, TypeGuard
 
@@ -313,9 +312,10 @@ def fuse(
         warnings.simplefilter("always")
         sparse = _reproject_tof(depth_map, tof_amplitude, r)
 
-    # SGM runs on a worker thread (OpenCV releases the GIL) while the ToF is upsampled here (the
-    # native filter releases it too): with the range predicted from the sparse ToF, re-run in
-    # the rare scene where the upsampled ToF's range asks for another SGBM step.
+    # SGM runs on a worker thread (fusion._ahead; the matchers release the GIL) while the ToF is
+    # upsampled here (the native filter releases it too): with the range predicted there from
+    # the sparse ToF, re-run in the rare scene where the upsampled ToF's range asks for another
+    # SGBM step.
     def early_match() -> tuple[int, F32]:
         guess = max_disparity
         if guess is None:
@@ -323,8 +323,8 @@ def fuse(
             guess = _predict_search_range(sparse_disp, w)
         return guess, match(lft, rgt, reference=r.reference, max_disparity=guess)
 
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        early = pool.submit(early_match)
+    early = Ahead(early_match)
+    with stopped_on_interrupt(early):
         tof = _densify_tof(sparse, r, ref_img)
         dmax = search_range(tof.disparity, w) if max_disparity is None else max_disparity
         guess, st_map = early.result()
