@@ -136,22 +136,22 @@ def predict(
     th, tw = tile_shape(h, w, half) if t is None else (t, t)
     device = next(net.parameters()).device
     out = np.empty((OUT_CHANNELS, h, w), np.float32)
-    # Replicate-pad once here; each tile then takes its halo from real or replicated pixels,
-    # exactly what the whole-image pass would see.
-    padded = np.pad(x, ((0, 0), (PAD, PAD), (PAD, PAD)), mode="edge")
+    # Replicate-pad once here, channels last (H x W x C); each tile then takes its halo from
+    # real or replicated pixels, exactly what the whole-image pass would see. Channels-last is
+    # oneDNN's direct convolution path, ~15 % less CPU than NCHW (same sums in another order:
+    # outputs differ by ~1e-6); a full-width stripe of it is already a contiguous input.
+    padded = np.pad(x.transpose(1, 2, 0), ((PAD, PAD), (PAD, PAD), (0, 0)), mode="edge")
     net.eval()
     with torch.inference_mode(), _exact_float32(device, half):
         for y0 in range(0, h, th):
             for x0 in range(0, w, tw):
                 y1, x1 = min(h, y0 + th), min(w, x0 + tw)
-                patch = padded[:, y0 : y1 + 2 * PAD, x0 : x1 + 2 * PAD]
-                inp = torch.from_numpy(np.ascontiguousarray(patch))[None].to(device)
-                # Channels-last: oneDNN's direct convolution path, ~15 % less CPU than NCHW
-                # (same sums in another order: outputs differ by ~1e-6).
+                patch = np.ascontiguousarray(padded[y0 : y1 + 2 * PAD, x0 : x1 + 2 * PAD])
+                inp = torch.from_numpy(patch).permute(2, 0, 1)[None].to(device)
                 inp = inp.contiguous(memory_format=torch.channels_last)
                 with torch.autocast(device.type, dtype=torch.bfloat16, enabled=half):
                     y = net.body(inp)
-                out[:, y0:y1, x0:x1] = y[0].float().clamp(0, 1).cpu().numpy()
+                out[:, y0:y1, x0:x1] = y[0].float().clamp_(0, 1).cpu().numpy()
     return out[0], out[1]
 
 
