@@ -10,12 +10,15 @@ import torch
 
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.fusion.clues import Clues, _normalise, _target_confidence, compute_clues
+from rgbd_rs.nn import confidence as confidence_module
 from rgbd_rs.nn.confidence import (
     SQUARE_TILE,
     STRIPE_PIXELS,
     STRIPE_WIDTH,
     ConfidenceEstimator,
     ConfidenceNet,
+    _fused_body,
+    _fused_layers,
     predict,
     tile_shape,
 )
@@ -107,6 +110,38 @@ def test_default_tiles_cover_the_image_in_equal_stripes() -> None:
         tiled = predict(net, x, precision=precision)
         squares = predict(net, x, tile=64, precision=precision)
         np.testing.assert_allclose(tiled, squares, atol=1e-5 if not half else 1e-2)
+
+
+@pytest.mark.parametrize("half", [False, True])
+def test_fused_relus_give_the_plain_networks_values(half: bool) -> None:
+    # predict() runs each ReLU as a oneDNN post-op of its convolution where it can: the same
+    # convolutions and ReLU, so the same values as the plain forward (with autocast in bfloat16).
+    torch.manual_seed(0)
+    net = ConfidenceNet(16).eval()
+    x = torch.randn(1, 4, 40, 70).contiguous(memory_format=torch.channels_last)
+    layers = _fused_layers(net, half)
+    if layers is None:
+        pytest.skip("this torch has no oneDNN fused convolution")
+    with torch.inference_mode():
+        fused = _fused_body(layers, x, half)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=half):
+            plain = net.body(x)
+    assert fused is not None
+    assert fused.dtype == plain.dtype and fused.shape == plain.shape == (1, 2, 26, 56)
+    assert torch.equal(fused, plain)
+
+
+def test_predict_without_the_fused_path_gives_the_same(monkeypatch: pytest.MonkeyPatch) -> None:
+    torch.manual_seed(0)
+    net = ConfidenceNet(8)
+    x = RNG.normal(size=(4, 30, 45)).astype(np.float32)
+    fused = predict(net, x, tile=16)
+    monkeypatch.setattr(confidence_module, "_fused_layers", lambda *_: None)
+    plain = predict(net, x, tile=16)
+    # (On inputs this small torch's plain float32 convolution is not oneDNN's: the sums differ
+    # in order there.)
+    np.testing.assert_allclose(fused[0], plain[0], atol=1e-5)
+    np.testing.assert_allclose(fused[1], plain[1], atol=1e-5)
 
 
 def _scene(h: int = 48, w: int = 64) -> dict[str, np.ndarray]:
