@@ -12,6 +12,7 @@ from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.fusion.clues import Clues, _normalise, _target_confidence, compute_clues
 from rgbd_rs.nn import confidence as confidence_module
 from rgbd_rs.nn.confidence import (
+    PAD,
     SQUARE_TILE,
     STRIPE_PIXELS,
     STRIPE_WIDTH,
@@ -94,12 +95,12 @@ def test_network_keeps_the_size_and_tiles_equal_the_whole() -> None:
 
 def test_default_tiles_cover_the_image_in_equal_stripes() -> None:
     assert tile_shape(540, 960, half=False) == (SQUARE_TILE, SQUARE_TILE)
-    assert tile_shape(540, 960, half=True) == (135, 960)  # four stripes of 129,600 pixels
+    assert tile_shape(540, 960, half=True) == (135, 960)  # four stripes of 135 x 960
     assert tile_shape(1080, 1920, half=True) == (135, 960)  # two columns of eight stripes
-    for h, w in [(1, 1), (7, 5000), (5000, 3), (481, 641), (1110, 1390), (8192, 8192)]:
+    for h, w in [(1, 1), (7, 5000), (5000, 3), (65536, 2), (481, 641), (1110, 1390), (8192, 8192)]:
         th, tw = tile_shape(h, w, half=True)
         assert 1 <= th <= h and 1 <= tw <= min(w, STRIPE_WIDTH)
-        assert th * tw <= max(STRIPE_PIXELS, 16 * tw)
+        assert (th + 2 * PAD) * (tw + 2 * PAD) <= STRIPE_PIXELS  # the halo counts
         rows, cols = -(-h // th), -(-w // tw)
         assert (rows - 1) * th < h and (cols - 1) * tw < w  # no empty tile
     torch.manual_seed(0)

@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import importlib
 import multiprocessing
+import subprocess
+import sys
+import textwrap
 import threading
 import time
 import warnings
@@ -134,6 +137,86 @@ def test_fuse_says_the_checks_warnings_before_the_confidences(
     assert said == ["from the checks", "from the confidences"]
     assert np.isfinite(out.disparity).any()
     assert _ahead_threads() == []
+
+
+def test_a_failing_confidence_still_lets_the_checks_speak_first(
+    scene: SynthSample, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The confidences run before the checks now; where they raise, the error comes after the
+    # checks' warnings, as it did when everything ran in order.
+    checks = FUSE.check_maps
+
+    def noisy_checks(*args: object, **kwargs: object) -> object:
+        warnings.warn("from the checks", RuntimeWarning, stacklevel=2)
+        return checks(*args, **kwargs)
+
+    def failing(*_: object, **__: object) -> None:
+        raise RuntimeError("the confidence failed")
+
+    monkeypatch.setattr(FUSE, "check_maps", noisy_checks)
+    monkeypatch.setattr(FUSE, "stereo_confidence", failing)
+    with (
+        warnings.catch_warnings(record=True) as caught,
+        pytest.raises(RuntimeError, match="failed"),
+    ):
+        warnings.simplefilter("always")
+        fuse(
+            scene.left,
+            scene.right,
+            scene.tof_depth,
+            scene.tof_amplitude,
+            RIG,
+            confidence="heuristic",
+        )
+    assert "from the checks" in [str(c.message) for c in caught]
+
+
+def test_ctrl_c_while_fuse_waits_for_a_discarded_lc_interrupts() -> None:
+    # Where the checks correct the ToF, fuse() waits for the LC started on the old maps before
+    # fusing again: Ctrl-C during that wait must stop it and raise, not be swallowed. SIGINT
+    # comes 0.5 s into a slow LC (radius 48, stride 1: seconds at 480 x 270).
+    code = """
+        import dataclasses, importlib, os, signal, threading, time, warnings
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        from rgbd_rs.data.synth import generate, synth3_rig
+        from rgbd_rs.fusion import LcParams, fuse
+        FUSE = importlib.import_module("rgbd_rs.fusion.fuse")
+        rig = synth3_rig(0.25)
+        s = generate(0, "test", 1, rig)[0]
+        checks = FUSE.check_maps
+        def corrected(*a, **k):
+            c = checks(*a, **k)
+            threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+            return dataclasses.replace(c, found=object())  # as if the pose were corrected
+        FUSE.check_maps = corrected
+        t0 = time.monotonic()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                fuse(s.left, s.right, s.tof_depth, s.tof_amplitude, rig,
+                     confidence="heuristic", params=LcParams(radius=48, stride=1))
+            print("returned", time.monotonic() - t0)
+        except KeyboardInterrupt:
+            print("interrupted", time.monotonic() - t0)
+        end = time.monotonic() + 2.0  # the worker thread exits just after its call
+        while True:
+            alive = [t for t in threading.enumerate() if t.name.startswith("rgbd-ahead")]
+            if not alive or time.monotonic() > end:
+                break
+            time.sleep(0.01)
+        print("alive", len(alive))
+        """
+    out = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    words = out.stdout.split()
+    assert out.returncode == 0, out.stderr
+    assert words[0] == "interrupted", out.stdout
+    assert float(words[1]) < 8.0, out.stdout
+    assert words[2:] == ["alive", "0"], out.stdout
 
 
 def test_fuse_equals_lc_of_its_own_maps(scene: SynthSample) -> None:

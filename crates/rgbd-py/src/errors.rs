@@ -85,7 +85,12 @@ fn pool_of(
         _ => match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
             Ok(pool) => {
                 let pool = Arc::new(pool);
-                *slot = Some((pid, Arc::clone(&pool)));
+                // A pool inherited through a fork is leaked, never dropped: dropping it would
+                // wake its threads, which do not exist here, through locks one of them may have
+                // held at the fork.
+                if let Some(stale) = slot.replace((pid, Arc::clone(&pool))) {
+                    std::mem::forget(stale);
+                }
                 pool
             }
             // No thread to be had: the caller's catch_unwind makes this an RgbdError instead

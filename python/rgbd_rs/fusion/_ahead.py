@@ -8,12 +8,15 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Iterator
+from concurrent import futures
 from concurrent.futures import ThreadPoolExecutor
 from typing import Generic, TypeVar
 
 from rgbd_rs import _rgbd_rs
 
 T = TypeVar("T", covariant=True)
+#: How often :meth:`Ahead.stop` repeats its request (seconds).
+STOP_POLL = 0.01
 
 
 class Ahead(Generic[T]):
@@ -30,9 +33,19 @@ class Ahead(Generic[T]):
         return self._future.result()
 
     def wait(self) -> None:
-        """Waits for the call to end, whatever its outcome (a result no longer needed)."""
-        with contextlib.suppress(BaseException):
-            self._future.result()
+        """Waits for the call to end, whatever its outcome (a result no longer needed); Ctrl-C
+        while waiting propagates."""
+        futures.wait([self._future])
+
+    def stop(self) -> None:
+        """Asks the native kernels running now to stop (as Ctrl-C does; the request is
+        process-wide), again every :data:`STOP_POLL` s until the call has ended, since it may be
+        between two kernels, and waits for it."""
+        while True:
+            _rgbd_rs.interrupt_running()
+            done, _ = futures.wait([self._future], timeout=STOP_POLL)
+            if done:
+                return
 
 
 def _beside(fn: Callable[..., T], *args: object) -> T:
@@ -47,16 +60,14 @@ def _beside(fn: Callable[..., T], *args: object) -> T:
 @contextlib.contextmanager
 def stopped_on_interrupt(ahead: Ahead[object] | None) -> Iterator[None]:
     """Around the code that waits for ``ahead``: on Ctrl-C (``KeyboardInterrupt`` on this
-    thread, which the worker does not see) the native kernels running now are asked to stop, as
-    Ctrl-C stops a kernel running on the main thread, and the call is waited for before the
-    interrupt propagates; on any other exception the call is waited for too (so no work
-    outlives the caller's)."""
+    thread, which the worker does not see) the call is stopped (:meth:`Ahead.stop`), as Ctrl-C
+    stops a kernel running on the main thread, before the interrupt propagates; on any other
+    exception the call is waited for (so no work outlives the caller's)."""
     try:
         yield
     except KeyboardInterrupt:
         if ahead is not None:
-            _rgbd_rs.interrupt_running()
-            ahead.wait()
+            ahead.stop()
         raise
     except BaseException:
         if ahead is not None:

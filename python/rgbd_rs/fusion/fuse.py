@@ -377,11 +377,16 @@ def fuse(
     # correct the ToF's pose or depth scale (then both run again on the corrected maps). Their
     # warnings are said where they were before, after the checks'.
     ahead: Ahead[tuple[F32, F32]] | None = None
+    conf_ahead: tuple[F32 | None, F32 | None] | None = None
     if not no_tof:
         with warnings.catch_warnings(record=True) as said_ahead:
             warnings.simplefilter("always")
-            conf_ahead = confidences(tof_disp, tof, st_map, dmax)
-        ahead = Ahead(fused, tof_disp, st_map, *conf_ahead)
+            try:
+                conf_ahead = confidences(tof_disp, tof, st_map, dmax)
+            except Exception:  # raised again in its place, after the checks have spoken
+                conf_ahead = None
+        if conf_ahead is not None:
+            ahead = Ahead(fused, tof_disp, st_map, *conf_ahead)
     with stopped_on_interrupt(ahead):
         checked = check_maps(
             lft,
@@ -409,7 +414,7 @@ def fuse(
             )
         if given is None and kind != "uniform" and not no_tof:
             _warn_without_amplitude(tof_disp, tof.amplitude, network=estimator is not None)
-        if ahead is not None and not checked.corrected:
+        if ahead is not None and conf_ahead is not None and not checked.corrected:
             ct, cs = conf_ahead
             for c in said_ahead:
                 warnings.warn(c.message, c.category, stacklevel=2)

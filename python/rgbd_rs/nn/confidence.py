@@ -202,11 +202,12 @@ def _fused_body(layers: _Layers, x: torch.Tensor, half: bool) -> torch.Tensor | 
     return y
 
 
-#: :func:`tile_shape`'s bfloat16 tiles: about this many output pixels, in stripes at most
-#: :data:`STRIPE_WIDTH` wide. Measured (``predict`` alone, AMX bfloat16, 2 threads): 960x540 in
-#: 256 x 256 squares 50 ms, in four 135 x 960 stripes 38 ms; 1920x1080 202 -> 155 ms; 640x480
-#: 30 -> 25 ms; squares of 480 or one whole-image pass were slower (docs/speed.md).
-STRIPE_PIXELS = 1 << 17
+#: :func:`tile_shape`'s bfloat16 tiles: at most this many input pixels (the output and its
+#: 7-px halo, which sizes the activations), in stripes at most :data:`STRIPE_WIDTH` wide: 135 x
+#: 960 output pixels at 960x540. Measured (``predict`` alone, AMX bfloat16, 2 threads): 960x540
+#: in 256 x 256 squares 50 ms, in four 135 x 960 stripes 38 ms; 1920x1080 202 -> 155 ms;
+#: 640x480 30 -> 25 ms; squares of 480 or one whole-image pass were slower (docs/speed.md).
+STRIPE_PIXELS = 9 << 14
 #: The widest stripe :func:`tile_shape` makes (wider images are cut into equal columns too).
 STRIPE_WIDTH = 1024
 #: :func:`tile_shape`'s float32 tiles (squares; stripes of :data:`STRIPE_PIXELS` were 5-15 %
@@ -215,15 +216,16 @@ SQUARE_TILE = 256
 
 
 def tile_shape(height: int, width: int, half: bool) -> tuple[int, int]:
-    """``(rows, columns)`` of :func:`predict`'s tiles for a ``height x width`` image: in bfloat16
-    (``half``) equal stripes of about :data:`STRIPE_PIXELS` output pixels, at most
-    :data:`STRIPE_WIDTH` wide; in float32 :data:`SQUARE_TILE` squares."""
+    """``(rows, columns)`` of :func:`predict`'s output tiles for a ``height x width`` image: in
+    bfloat16 (``half``) equal stripes of at most :data:`STRIPE_PIXELS` input pixels (halo
+    included), at most :data:`STRIPE_WIDTH` wide; in float32 :data:`SQUARE_TILE` squares."""
     if not half:
         return SQUARE_TILE, SQUARE_TILE
     columns = -(-width // STRIPE_WIDTH)
     tw = -(-width // columns)
-    rows = -(-height // max(16, STRIPE_PIXELS // tw))
-    return -(-height // rows), tw
+    most = max(1, STRIPE_PIXELS // (tw + 2 * PAD) - 2 * PAD)
+    stripes = -(-height // most)
+    return -(-height // stripes), tw
 
 
 @contextlib.contextmanager
