@@ -5,7 +5,6 @@ or give the right result."""
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import stat
 from pathlib import Path
@@ -14,6 +13,7 @@ import numpy as np
 import pytest
 
 from bad_input import Case, check, params
+from forked import NEEDS_FORK, in_forked_child
 from rgbd_rs import PinholeCamera, RgbdError
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
@@ -238,7 +238,7 @@ def test_readers_refuse_special_files(reader: str, tmp_path: Path) -> None:
         _write(reader)(_fifo(tmp_path))  # a FIFO read would block forever
 
 
-def _points_in_child(queue: multiprocessing.Queue[object], threads: str | None) -> None:
+def _points_in_child(threads: str | None) -> tuple[object, int, int | None]:
     # Read at the child's first native call, when its own pool is built.
     os.environ.pop("RAYON_NUM_THREADS", None)
     if threads is not None:
@@ -254,12 +254,10 @@ def _points_in_child(queue: multiprocessing.Queue[object], threads: str | None) 
     shapes = (cam.depth_to_points(depth).shape, sgm(img, img, max_disparity=8).shape)
     # The threads the child's own pool started (None where /proc is missing).
     started = None if before is None else len(list(tasks.iterdir())) - before
-    queue.put((shapes, _rgbd_rs.num_threads(), started))
+    return shapes, _rgbd_rs.num_threads(), started
 
 
-@pytest.mark.skipif(
-    "fork" not in multiprocessing.get_all_start_methods(), reason="no fork on this platform"
-)
+@NEEDS_FORK
 @pytest.mark.parametrize("threads", [None, "2"])
 def test_native_calls_work_in_a_forked_child(threads: str | None) -> None:
     # rayon's pool is the parent's: a forked child (DataLoader workers, multiprocessing's
@@ -267,17 +265,7 @@ def test_native_calls_work_in_a_forked_child(threads: str | None) -> None:
     depth = np.ones((240, 320), np.float32)
     cam = PinholeCamera(fx=300.0, fy=300.0, cx=160.0, cy=120.0, width=320, height=240)
     cam.depth_to_points(depth)  # the parent's pool now exists
-    ctx = multiprocessing.get_context("fork")
-    queue = ctx.Queue()
-    child = ctx.Process(target=_points_in_child, args=(queue, threads))
-    child.start()
-    try:
-        got = queue.get(timeout=60)
-    finally:
-        child.join(timeout=10)
-        if child.is_alive():
-            child.kill()
-    shapes, said, started = got
+    shapes, said, started = in_forked_child(_points_in_child, threads, timeout=60)
     assert shapes == ((240, 320, 3), (60, 80))
     # One of N workers: one thread, as torch's DataLoader workers get, unless asked otherwise.
     cores = len(os.sched_getaffinity(0))

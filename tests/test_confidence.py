@@ -20,8 +20,8 @@ from rgbd_rs.nn.confidence import (
     ConfidenceNet,
     _fused_body,
     _fused_layers,
+    _tile_shape,
     predict,
-    tile_shape,
 )
 from rgbd_rs.nn.confidence_data import PatchDataset, TileDataset, _masked_mse
 from rgbd_rs.nn.train import TrainConfig, train
@@ -94,11 +94,11 @@ def test_network_keeps_the_size_and_tiles_equal_the_whole() -> None:
 
 
 def test_default_tiles_cover_the_image_in_equal_stripes() -> None:
-    assert tile_shape(540, 960, half=False) == (SQUARE_TILE, SQUARE_TILE)
-    assert tile_shape(540, 960, half=True) == (135, 960)  # four stripes of 135 x 960
-    assert tile_shape(1080, 1920, half=True) == (135, 960)  # two columns of eight stripes
+    assert _tile_shape(540, 960, half=False) == (SQUARE_TILE, SQUARE_TILE)
+    assert _tile_shape(540, 960, half=True) == (135, 960)  # four stripes of 135 x 960
+    assert _tile_shape(1080, 1920, half=True) == (135, 960)  # two columns of eight stripes
     for h, w in [(1, 1), (7, 5000), (5000, 3), (65536, 2), (481, 641), (1110, 1390), (8192, 8192)]:
-        th, tw = tile_shape(h, w, half=True)
+        th, tw = _tile_shape(h, w, half=True)
         assert 1 <= th <= h and 1 <= tw <= min(w, STRIPE_WIDTH)
         assert (th + 2 * PAD) * (tw + 2 * PAD) <= STRIPE_PIXELS  # the halo counts
         rows, cols = -(-h // th), -(-w // tw)

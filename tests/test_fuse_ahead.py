@@ -5,7 +5,6 @@ no thread outlives the call."""
 from __future__ import annotations
 
 import importlib
-import multiprocessing
 import subprocess
 import sys
 import textwrap
@@ -16,9 +15,10 @@ import warnings
 import numpy as np
 import pytest
 
+from forked import NEEDS_FORK, in_forked_child
 from rgbd_rs import _rgbd_rs
 from rgbd_rs.data.synth import SynthSample, generate, synth3_rig
-from rgbd_rs.fusion import LcParams, fuse, lc_fuse
+from rgbd_rs.fusion import FusionResult, LcParams, fuse, lc_fuse
 from rgbd_rs.fusion._ahead import Ahead, stopped_on_interrupt
 
 RIG = synth3_rig(0.25)  # 480 x 270
@@ -106,33 +106,39 @@ def _lc(img: np.ndarray, d: np.ndarray, params: LcParams) -> np.ndarray:
     return lc_fuse(img, img, [d], params=params)[0]
 
 
-def test_fuse_says_the_checks_warnings_before_the_confidences(
-    scene: SynthSample, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    # The confidences are computed before the checks run (LC starts on them), but their
-    # warnings come after the checks', as when everything ran in order.
-    checks, confidence = FUSE.check_maps, FUSE.tof_confidence
+def _fuse_heuristic(scene: SynthSample) -> FusionResult:
+    return fuse(
+        scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, RIG, confidence="heuristic"
+    )
+
+
+def _checks_that_warn(monkeypatch: pytest.MonkeyPatch) -> None:
+    """fuse()'s checks, saying "from the checks" first."""
+    checks = FUSE.check_maps
 
     def noisy_checks(*args: object, **kwargs: object) -> object:
         warnings.warn("from the checks", RuntimeWarning, stacklevel=2)
         return checks(*args, **kwargs)
 
+    monkeypatch.setattr(FUSE, "check_maps", noisy_checks)
+
+
+def test_fuse_says_the_checks_warnings_before_the_confidences(
+    scene: SynthSample, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The confidences are computed before the checks run (LC starts on them), but their
+    # warnings come after the checks', as when everything ran in order.
+    confidence = FUSE.tof_confidence
+
     def noisy_confidence(*args: object, **kwargs: object) -> object:
         warnings.warn("from the confidences", RuntimeWarning, stacklevel=2)
         return confidence(*args, **kwargs)
 
-    monkeypatch.setattr(FUSE, "check_maps", noisy_checks)
+    _checks_that_warn(monkeypatch)
     monkeypatch.setattr(FUSE, "tof_confidence", noisy_confidence)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        out = fuse(
-            scene.left,
-            scene.right,
-            scene.tof_depth,
-            scene.tof_amplitude,
-            RIG,
-            confidence="heuristic",
-        )
+        out = _fuse_heuristic(scene)
     said = [str(c.message) for c in caught if str(c.message).startswith("from the")]
     assert said == ["from the checks", "from the confidences"]
     assert np.isfinite(out.disparity).any()
@@ -144,30 +150,18 @@ def test_a_failing_confidence_still_lets_the_checks_speak_first(
 ) -> None:
     # The confidences run before the checks now; where they raise, the error comes after the
     # checks' warnings, as it did when everything ran in order.
-    checks = FUSE.check_maps
-
-    def noisy_checks(*args: object, **kwargs: object) -> object:
-        warnings.warn("from the checks", RuntimeWarning, stacklevel=2)
-        return checks(*args, **kwargs)
 
     def failing(*_: object, **__: object) -> None:
         raise RuntimeError("the confidence failed")
 
-    monkeypatch.setattr(FUSE, "check_maps", noisy_checks)
+    _checks_that_warn(monkeypatch)
     monkeypatch.setattr(FUSE, "stereo_confidence", failing)
     with (
         warnings.catch_warnings(record=True) as caught,
         pytest.raises(RuntimeError, match="failed"),
     ):
         warnings.simplefilter("always")
-        fuse(
-            scene.left,
-            scene.right,
-            scene.tof_depth,
-            scene.tof_amplitude,
-            RIG,
-            confidence="heuristic",
-        )
+        _fuse_heuristic(scene)
     assert "from the checks" in [str(c.message) for c in caught]
 
 
@@ -241,37 +235,13 @@ def test_fuse_equals_lc_of_its_own_maps(scene: SynthSample) -> None:
 def _heuristic(scene: SynthSample) -> np.ndarray:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        out = fuse(
-            scene.left,
-            scene.right,
-            scene.tof_depth,
-            scene.tof_amplitude,
-            RIG,
-            confidence="heuristic",
-        )
-    return out.disparity
+        return _fuse_heuristic(scene).disparity
 
 
-def _fuse_in_child(queue: multiprocessing.Queue[np.ndarray], scene: SynthSample) -> None:
-    queue.put(_heuristic(scene))
-
-
-@pytest.mark.skipif(
-    "fork" not in multiprocessing.get_all_start_methods(), reason="no fork on this platform"
-)
+@NEEDS_FORK
 def test_fuse_works_in_a_forked_child(scene: SynthSample) -> None:
     # The parent's side pool (and its worker threads) exist before the fork; the child builds
     # its own instead of waiting for threads it did not inherit. (Heuristic confidences: torch's
     # OpenMP threads are not the subject here.)
     here = _heuristic(scene)
-    ctx = multiprocessing.get_context("fork")
-    queue = ctx.Queue()
-    child = ctx.Process(target=_fuse_in_child, args=(queue, scene))
-    child.start()
-    try:
-        there = queue.get(timeout=120)
-    finally:
-        child.join(timeout=10)
-        if child.is_alive():
-            child.kill()
-    np.testing.assert_array_equal(there, here)
+    np.testing.assert_array_equal(in_forked_child(_heuristic, scene), here)

@@ -123,7 +123,7 @@ def predict(
 
     Runs in tiles with a 7-pixel halo (the receptive field's radius), so memory stays bounded on
     large images and the result equals a whole-image pass: ``tile`` x ``tile`` output pixels,
-    or with ``tile=None`` the shape :func:`tile_shape` chooses for the precision.
+    or with ``tile=None`` the shape :func:`_tile_shape` chooses for the precision.
     ``precision``: see :data:`PRECISIONS` (the result is the same for any thread count either
     way; the tiling changes the time, and the result by float rounding at most).
     """
@@ -133,7 +133,7 @@ def predict(
     t = None if tile is None else _validate.integer("tile", tile, minimum=16, maximum=8192)
     half = _resolve_precision(precision, next(net.parameters()).device.type) == "bfloat16"
     h, w = x.shape[1:]
-    th, tw = tile_shape(h, w, half) if t is None else (t, t)
+    th, tw = _tile_shape(h, w, half) if t is None else (t, t)
     device = next(net.parameters()).device
     out = np.empty((OUT_CHANNELS, h, w), np.float32)
     # Replicate-pad once here, channels last (H x W x C); each tile then takes its halo from
@@ -202,20 +202,20 @@ def _fused_body(layers: _Layers, x: torch.Tensor, half: bool) -> torch.Tensor | 
     return y
 
 
-#: :func:`tile_shape`'s bfloat16 tiles: at most this many input pixels (the output and its
+#: :func:`_tile_shape`'s bfloat16 tiles: at most this many input pixels (the output and its
 #: 7-px halo, which sizes the activations), in stripes at most :data:`STRIPE_WIDTH` wide: 135 x
 #: 960 output pixels at 960x540. Measured (``predict`` alone, AMX bfloat16, 2 threads): 960x540
 #: in 256 x 256 squares 50 ms, in four 135 x 960 stripes 38 ms; 1920x1080 202 -> 155 ms;
 #: 640x480 30 -> 25 ms; squares of 480 or one whole-image pass were slower (docs/speed.md).
 STRIPE_PIXELS = 9 << 14
-#: The widest stripe :func:`tile_shape` makes (wider images are cut into equal columns too).
+#: The widest stripe :func:`_tile_shape` makes (wider images are cut into equal columns too).
 STRIPE_WIDTH = 1024
-#: :func:`tile_shape`'s float32 tiles (squares; stripes of :data:`STRIPE_PIXELS` were 5-15 %
+#: :func:`_tile_shape`'s float32 tiles (squares; stripes of :data:`STRIPE_PIXELS` were 5-15 %
 #: slower there).
 SQUARE_TILE = 256
 
 
-def tile_shape(height: int, width: int, half: bool) -> tuple[int, int]:
+def _tile_shape(height: int, width: int, half: bool) -> tuple[int, int]:
     """``(rows, columns)`` of :func:`predict`'s output tiles for a ``height x width`` image: in
     bfloat16 (``half``) equal stripes of at most :data:`STRIPE_PIXELS` input pixels (halo
     included), at most :data:`STRIPE_WIDTH` wide; in float32 :data:`SQUARE_TILE` squares."""
