@@ -9,14 +9,10 @@ use rgbd_fusion::ClueScales;
 use crate::errors::{borrow, run, shape_err};
 use crate::geom::to_numpy;
 
-/// `(height, width)` of a 2-D map.
-fn dims(arg: &str, m: &PyReadonlyArray2<'_, f32>) -> PyResult<(usize, usize)> {
-    match m.shape() {
-        &[h, w] => Ok((h, w)),
-        s => Err(shape_err(format!(
-            "{arg}: got shape {s:?}, expected (H, W)"
-        ))),
-    }
+/// `(height, width)` of a 2-D map (the binding's 2-D type guarantees two axes).
+fn dims(m: &PyReadonlyArray2<'_, f32>) -> (usize, usize) {
+    let s = m.shape();
+    (s[0], s[1])
 }
 
 /// Two `H x W` maps.
@@ -29,7 +25,7 @@ pub fn clue_warp_maps<'py>(
     stereo_disparity: PyReadonlyArray2<'py, f32>,
     sign: f32,
 ) -> PyResult<Maps<'py>> {
-    let (h, w) = dims("stereo_disparity", &stereo_disparity)?;
+    let (h, w) = dims(&stereo_disparity);
     let d = borrow("stereo_disparity", &stereo_disparity)?;
     let (xs, ys) = run(py, || rgbd_fusion::warp_maps(d, w, h, sign))?;
     Ok((to_numpy(py, (h, w), xs)?, to_numpy(py, (h, w), ys)?))
@@ -50,7 +46,7 @@ pub fn clue_maps<'py>(
     mu_target: f32,
     amplitude: f32,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-    let (h, w) = dims("grey_reference", &grey_reference)?;
+    let (h, w) = dims(&grey_reference);
     for (arg, m) in [
         ("warped", &warped),
         ("columns", &columns),
@@ -58,7 +54,7 @@ pub fn clue_maps<'py>(
         ("tof_amplitude", &tof_amplitude),
         ("stereo_disparity", &stereo_disparity),
     ] {
-        if dims(arg, m)? != (h, w) {
+        if dims(m) != (h, w) {
             return Err(shape_err(format!(
                 "{arg}: got shape {:?}, expected ({h}, {w}) (the reference image's)",
                 m.shape()

@@ -43,29 +43,21 @@ fn map<'a>(arg: &str, a: &'a PyReadonlyArray2<'_, f32>, shape: [usize; 2]) -> Py
     borrow(arg, a)
 }
 
-/// Runs one step on the fused maps.
+/// Runs one step on the fused maps, of the `shape` read from `disparity`.
 fn with_fused<'py>(
     py: Python<'py>,
+    shape: [usize; 2],
     mut disparity: PyReadwriteArray2<'py, f32>,
     mut plausibility: PyReadwriteArray2<'py, f32>,
     mut source: PyReadwriteArray2<'py, u8>,
     step: impl FnOnce(&mut Fused<'_>) -> rgbd_geom::Result<()> + Send,
 ) -> PyResult<()> {
-    let (height, width) = match disparity.shape() {
-        &[h, w] => (h, w),
-        s => {
-            return Err(InvalidArgumentError::new_err(format!(
-                "disparity: got shape {s:?}, expected (H, W)"
-            )))
-        }
-    };
-    let shape = [height, width];
     let mut fused = Fused {
         disparity: slice_mut("disparity", &mut disparity, shape)?,
         plausibility: slice_mut("plausibility", &mut plausibility, shape)?,
         source: slice_mut("source", &mut source, shape)?,
-        width,
-        height,
+        width: shape[1],
+        height: shape[0],
     };
     run(py, || step(&mut fused))
 }
@@ -79,7 +71,7 @@ fn maybe<'a>(
     c.as_ref().map(|c| map(arg, c, shape)).transpose()
 }
 
-/// The fused map's `[H, W]`.
+/// The fused map's `[H, W]` (the binding's 2-D type guarantees two axes).
 fn fused_shape(d: &PyReadwriteArray2<'_, f32>) -> [usize; 2] {
     let s = d.shape();
     [s[0], s[1]]
@@ -104,7 +96,7 @@ pub fn fill_single_source<'py>(
     let (t, s) = (map("tof", &tof, shape)?, map("stereo", &stereo, shape)?);
     let ct = maybe("tof_confidence", &tof_confidence, shape)?;
     let cs = maybe("stereo_confidence", &stereo_confidence, shape)?;
-    with_fused(py, disparity, plausibility, source, |f| {
+    with_fused(py, shape, disparity, plausibility, source, |f| {
         sources::fill_single_source(f, t, s, ct, cs, keep_out_zero, cross_check)
     })
 }
@@ -125,7 +117,7 @@ pub fn unseen_from_tof<'py>(
     let shape = fused_shape(&disparity);
     let (t, s) = (map("tof", &tof, shape)?, map("stereo", &stereo, shape)?);
     let ct = maybe("tof_confidence", &tof_confidence, shape)?;
-    with_fused(py, disparity, plausibility, source, |f| {
+    with_fused(py, shape, disparity, plausibility, source, |f| {
         sources::unseen_from_tof(f, t, s, ct, sign)
     })
 }
@@ -147,7 +139,7 @@ pub fn extend_tof_into_band<'py>(
     let shape = fused_shape(&disparity);
     let t = map("tof", &tof, shape)?;
     let ct = maybe("tof_confidence", &tof_confidence, shape)?;
-    with_fused(py, disparity, plausibility, source, |f| {
+    with_fused(py, shape, disparity, plausibility, source, |f| {
         sources::extend_tof_into_band(f, t, ct, sign, (chain_step, confirm_gap))
     })
 }
@@ -166,7 +158,7 @@ pub fn carry_tof_to_border<'py>(
     let shape = fused_shape(&disparity);
     let t = map("tof", &tof, shape)?;
     let ct = maybe("tof_confidence", &tof_confidence, shape)?;
-    with_fused(py, disparity, plausibility, source, |f| {
+    with_fused(py, shape, disparity, plausibility, source, |f| {
         sources::carry_tof_to_border(f, t, ct, sign)
     })
 }
