@@ -314,10 +314,13 @@ class Commands:
         return p
 
 
-def training_run_options(p: argparse.ArgumentParser) -> None:
+def training_run_options(
+    p: argparse.ArgumentParser,
+    init_help: str = "start from this checkpoint's weights (fine-tune)",
+) -> None:
     """The options every ``rgbd train WHAT`` of the shared trainer takes after its own: seed,
     checkpoint period, data-loader workers, device, ``--init``, ``--ship``, ``--no-resume`` and
-    ``--quiet`` (one wording for all)."""
+    ``--quiet`` (one wording for all; ``init_help`` says what ``--init`` takes from a network)."""
     from pathlib import Path
 
     p.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, metavar="N", help="seed (0)")
@@ -339,7 +342,10 @@ def training_run_options(p: argparse.ArgumentParser) -> None:
         help="auto, cpu, cuda or cuda:N (auto; under torchrun auto or cuda: GPU LOCAL_RANK)",
     )
     p.add_argument(
-        "--init", type=Path, metavar="FILE", help="start from this checkpoint's weights (fine-tune)"
+        "--init",
+        type=Path,
+        metavar="FILE",
+        help=init_help,
     )
     p.add_argument("--ship", action="store_true", help="copy the best checkpoint into the package")
     p.add_argument(

@@ -368,7 +368,11 @@ def _train(commands: Commands) -> None:
         "on, nor their scaled copies",
     )
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
-    training_run_options(p)
+    training_run_options(
+        p,
+        init_help="start from this checkpoint's weights (fine-tune; from a network of other "
+        "classes, e.g. ModelNet40's, every weight but the classifier's, which starts afresh)",
+    )
 
 
 def run_train(args: argparse.Namespace) -> int:

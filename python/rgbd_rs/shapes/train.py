@@ -234,15 +234,7 @@ def train_shapes(
         dropout=r.dropout,
     )
     if init is not None:
-        from rgbd_rs.nn.checkpoint import load_checkpoint
-
-        start = load_checkpoint(_validate.path("init", init), arch=ARCH)
-        if "members" in start.arch_config:
-            raise InvalidArgumentError(
-                f"init: got {start.path}, an ensemble of {start.arch_config['members']} "
-                "networks; expected one network's checkpoint (a member's own run)"
-            )
-        start.load_weights(model)
+        _load_init(model, init, normalisation_of(c, reps))
     result = train(
         model,
         train_set,
@@ -260,6 +252,49 @@ def train_shapes(
         metric_fn=accuracy,
     )
     return Path(result.best_checkpoint or result.last_checkpoint)
+
+
+def _load_init(
+    model: ShapeNet, init: str | os.PathLike[str], normalisation: dict[str, Any]
+) -> None:
+    """Start ``model`` from the network of checkpoint ``init``. Its inputs must be the cache's
+    (the same spec: resolution, representations, normalisation); its architecture the
+    recipe's. Where it was trained on other classes (a ModelNet40 network fine-tuned on
+    ModelNet10, or on other classes altogether), every weight but the classifier's is taken and
+    the classifier starts afresh from the seed: transfer to a new class list."""
+    from rgbd_rs.nn.checkpoint import load_checkpoint
+
+    start = load_checkpoint(_validate.path("init", init), arch=ARCH)
+    if "members" in start.arch_config:
+        raise InvalidArgumentError(
+            f"init: got {start.path}, an ensemble of {start.arch_config['members']} "
+            "networks; expected one network's checkpoint (a member's own run)"
+        )
+    theirs, ours = start.normalisation.get("spec"), normalisation["spec"]
+    if theirs is not None and theirs != ours:
+        differ = [
+            f"{k} {theirs.get(k)!r} instead of {ours.get(k)!r}"
+            for k in sorted(set(theirs) | set(ours))
+            if theirs.get(k) != ours.get(k)
+        ]
+        raise InvalidArgumentError(
+            f"init: got {start.path}, a network of other inputs than this cache's "
+            f"({'; '.join(differ)}); expected one trained on a cache of the same spec"
+        )
+    if list(start.normalisation.get("classes", [])) == normalisation["classes"]:
+        start.load_weights(model)
+        return
+    mine = {k: v for k, v in model.arch_config().items() if k != "n_classes"}
+    theirs_arch = {k: v for k, v in start.arch_config.items() if k != "n_classes"}
+    if mine != theirs_arch:
+        raise InvalidArgumentError(
+            f"init: got {start.path}, a network of {theirs_arch}; expected the recipe's "
+            f"{mine} (width, batch norm and dropout as trained)"
+        )
+    state = {k: v for k, v in start.model_state.items() if not k.startswith("classifier.")}
+    missing, unexpected = model.load_state_dict(state, strict=False)
+    if unexpected or any(not k.startswith("classifier.") for k in missing):
+        raise RgbdError(f"{start.path}: weights do not fit the model ({missing}, {unexpected})")
 
 
 def _without(
