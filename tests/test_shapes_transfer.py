@@ -4,6 +4,7 @@ taken, the classifier starts afresh from the seed; inputs and architecture must 
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 from typing import Any
 
@@ -104,34 +105,72 @@ def test_other_classes_give_the_backbone_and_a_fresh_seeded_classifier(
     assert torch.equal(net.classifier.weight, fresh)  # the seed's, untouched
 
 
+def test_fine_tuning_hands_the_trainer_the_pretrained_backbone(
+    caches: dict[str, Path], pretrained: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What the trainer receives, captured without training: not the run's fresh network."""
+    trainer = importlib.import_module("rgbd_rs.nn.train")  # the module, not rgbd_rs.nn.train()
+    seen: list[torch.nn.Module] = []
+
+    def capture(model: torch.nn.Module, *args: object, **kw: object) -> object:
+        seen.append(model)
+        raise RuntimeError("captured")
+
+    monkeypatch.setattr(trainer, "train", capture)
+    recipe = ShapeRecipe(width=4, val_fraction=0, batch_norm=True, dropout=0.5)
+    with pytest.raises(RuntimeError, match="captured"):
+        train_shapes(
+            caches["target"],
+            caches["root"] / "captured",
+            recipe=recipe,
+            config=_cfg(seed=2),
+            init=pretrained,
+            quiet=True,
+        )
+    start = load_checkpoint(pretrained).model_state
+    got = seen[0].state_dict()
+    fresh, _ = _target_net(caches, seed=2, dropout=0.5)  # dropout may differ: no weights
+    for k, v in got.items():
+        want = fresh.state_dict()[k] if k.startswith("classifier.") else start[k]
+        assert torch.equal(v, want), k
+
+
 def test_fine_tuning_on_new_classes_trains_and_records_them(
     caches: dict[str, Path], pretrained: Path
 ) -> None:
     recipe = ShapeRecipe(width=4, val_fraction=0, batch_norm=True)
+    out = caches["root"] / "tuned"
     best = train_shapes(
-        caches["target"],
-        caches["root"] / "tuned",
-        recipe=recipe,
-        config=_cfg(seed=2, epochs=3),
-        init=pretrained,
+        caches["target"], out, recipe=recipe, config=_cfg(seed=2, epochs=3), init=pretrained,
         quiet=True,
-    )
+    )  # fmt: skip
     ckpt = load_checkpoint(best)
     assert ckpt.normalisation["classes"] == ["bed", "chair", "monitor"]
     assert ckpt.arch_config["n_classes"] == 3
     losses = [h["train_loss"] for h in ckpt.history]
     assert losses[-1] < losses[0], losses
+    # A resumed run continues from last.pt and does not need the init any more.
+    again = train_shapes(
+        caches["target"], out, recipe=recipe, config=_cfg(seed=2, epochs=3),
+        init=caches["root"] / "moved_away.pt", quiet=True,
+    )  # fmt: skip
+    assert again == best
 
 
-def test_same_classes_load_every_weight(caches: dict[str, Path], pretrained: Path) -> None:
+def test_same_classes_in_any_order_load_every_weight(caches: dict[str, Path]) -> None:
     recipe = ShapeRecipe(width=4, val_fraction=0, batch_norm=True)
     run = train_shapes(
         caches["target"], caches["root"] / "own", recipe=recipe, config=_cfg(), quiet=True
     )
+    own = load_checkpoint(run).model_state
     net, norm = _target_net(caches, seed=4)
     _load_init(net, run, norm)
-    own = load_checkpoint(run).model_state
     assert all(torch.equal(v, own[k]) for k, v in net.state_dict().items())
+    # The same classes listed in another order: the classifier's rows follow their names.
+    net, norm = _target_net(caches, seed=4)
+    norm = norm | {"classes": ["monitor", "bed", "chair"]}
+    _load_init(net, run, norm)
+    assert torch.equal(net.classifier.weight, own["classifier.weight"][[2, 0, 1]])
 
 
 def test_other_inputs_or_architecture_are_refused(
@@ -140,7 +179,8 @@ def test_other_inputs_or_architecture_are_refused(
     recipe = ShapeRecipe(width=4, val_fraction=0, batch_norm=True)
     with pytest.raises(
         InvalidArgumentError,
-        match=r"^init: got .*pre_run.*other inputs.*normalisation 'standardize' instead of 'lcn'",
+        match=r"^init: got .*pre_run.*other inputs \(normalisation 'standardize' in the "
+        r"network, 'lcn' in this run; view_lcn_window None in the network, 9",
     ):
         train_shapes(
             caches["other_spec"],
@@ -150,9 +190,35 @@ def test_other_inputs_or_architecture_are_refused(
             init=pretrained,
             quiet=True,
         )
-    net, norm = _target_net(caches, seed=1, width=8)
-    with pytest.raises(InvalidArgumentError, match=r"^init: got .*'width': 4.*'width': 8"):
-        _load_init(net, pretrained, norm)
+    for kw, said in (
+        ({"width": 8}, r"width 4 in the network, 8 in this run \(pass --width as it was trained"),
+        ({"batch_norm": False}, r"batch_norm True in the network, False in this run \(pass "),
+    ):
+        net, norm = _target_net(caches, seed=1, **kw)
+        with pytest.raises(InvalidArgumentError, match=rf"^init: got .*pre_run.*, {said}"):
+            _load_init(net, pretrained, norm)
+    # The same classes are held to the same rules (they used to meet torch's own message).
+    own = caches["root"] / "own_wide"
+    run = train_shapes(
+        caches["target"], own, recipe=ShapeRecipe(width=8, val_fraction=0), config=_cfg(),
+        quiet=True,
+    )  # fmt: skip
     net, norm = _target_net(caches, seed=1, batch_norm=False)
-    with pytest.raises(InvalidArgumentError, match=r"^init: got .*batch_norm"):
-        _load_init(net, pretrained, norm)
+    with pytest.raises(InvalidArgumentError, match=r"^init: got .*own_wide.*width 8 in the net"):
+        _load_init(net, run, norm)
+
+
+def test_an_init_without_its_classes_or_spec_is_refused(
+    caches: dict[str, Path], pretrained: Path, tmp_path: Path
+) -> None:
+    from rgbd_rs.errors import RgbdError
+
+    raw = torch.load(pretrained, weights_only=False)
+    for key in ("classes", "spec"):
+        broken = dict(raw)
+        broken["normalisation"] = {k: v for k, v in raw["normalisation"].items() if k != key}
+        path = tmp_path / f"no_{key}.pt"
+        torch.save(broken, path)
+        net, norm = _target_net(caches, seed=1)
+        with pytest.raises(RgbdError, match=rf"no_{key}\.pt.*{key}"):
+            _load_init(net, path, norm)

@@ -370,8 +370,11 @@ def _train(commands: Commands) -> None:
     p.add_argument("--ablation", action="store_true", help="one network per Table 5.2 row")
     training_run_options(
         p,
-        init_help="start from this checkpoint's weights (fine-tune; from a network of other "
-        "classes, e.g. ModelNet40's, every weight but the classifier's, which starts afresh)",
+        init_help="start from checkpoint FILE's weights (fine-tuning): FILE must be of this "
+        "cache's settings and of the same --representations, --width and --batch-norm; from a "
+        "network of other classes (e.g. ModelNet40's) every weight but the classifier's is "
+        "taken, the classifier starting afresh from --seed; ignored when resuming --out's "
+        "last.pt",
     )
 
 

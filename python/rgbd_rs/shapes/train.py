@@ -189,7 +189,9 @@ def train_shapes(
 ) -> Path:
     """Train on ``cache``'s training split; return the best checkpoint's path: the epoch of the
     highest validation accuracy (ties: the lower validation loss); the last one without
-    validation. ``init`` starts from a checkpoint's weights (fine-tuning). Re-running
+    validation. ``init`` starts from a checkpoint's weights (fine-tuning; from a network of
+    other classes, every weight but the classifier's, which starts afresh: see
+    :func:`_load_init` for what must match); a resumed run ignores it. Re-running
     resumes from ``out/last.pt`` (see :func:`rgbd_rs.nn.train.train`). A cache with training
     shapes still to compute raises :class:`RgbdError` (:meth:`ShapeCache.dataset`)."""
     from rgbd_rs.nn.train import TrainConfig, seed_everything, train
@@ -233,7 +235,7 @@ def train_shapes(
         batch_norm=r.batch_norm,
         dropout=r.dropout,
     )
-    if init is not None:
+    if init is not None and not (resume and (out / "last.pt").is_file()):  # resume: last.pt's
         _load_init(model, init, normalisation_of(c, reps))
     result = train(
         model,
@@ -254,47 +256,62 @@ def train_shapes(
     return Path(result.best_checkpoint or result.last_checkpoint)
 
 
+#: The architecture settings an init must share with the run, and the flag that sets each
+#: (``dropout`` has no weights: a run may add or change it).
+_ARCH_FLAGS = {"width": "--width", "batch_norm": "--batch-norm"}
+
+
 def _load_init(
     model: ShapeNet, init: str | os.PathLike[str], normalisation: dict[str, Any]
 ) -> None:
-    """Start ``model`` from the network of checkpoint ``init``. Its inputs must be the cache's
-    (the same spec: resolution, representations, normalisation); its architecture the
-    recipe's. Where it was trained on other classes (a ModelNet40 network fine-tuned on
-    ModelNet10, or on other classes altogether), every weight but the classifier's is taken and
-    the classifier starts afresh from the seed: transfer to a new class list."""
+    """Start ``model`` from the network of checkpoint ``init``. It must have been trained on
+    inputs of the cache's spec (view and volume resolution, representations, normalisation) and
+    with the run's width and batch normalisation (dropout may differ: it has no weights). Of
+    the same classes, in any order, every weight is taken (the classifier's rows by class
+    name). Of other classes (a ModelNet40 network fine-tuned on ModelNet10, or classes the cache
+    does not have at all), every weight but the classifier's is taken and the classifier keeps
+    the fresh weights the run's seed gave it: transfer to a new class list."""
     from rgbd_rs.nn.checkpoint import load_checkpoint
 
-    start = load_checkpoint(_validate.path("init", init), arch=ARCH)
+    start = load_checkpoint(
+        _validate.path("init", init), arch=ARCH, normalisation_keys=("spec", "classes")
+    )
     if "members" in start.arch_config:
         raise InvalidArgumentError(
             f"init: got {start.path}, an ensemble of {start.arch_config['members']} "
             "networks; expected one network's checkpoint (a member's own run)"
         )
-    theirs, ours = start.normalisation.get("spec"), normalisation["spec"]
-    if theirs is not None and theirs != ours:
-        differ = [
-            f"{k} {theirs.get(k)!r} instead of {ours.get(k)!r}"
-            for k in sorted(set(theirs) | set(ours))
-            if theirs.get(k) != ours.get(k)
-        ]
+    theirs, ours = start.normalisation["spec"], normalisation["spec"]
+    differ = [
+        f"{k} {theirs.get(k)!r} in the network, {ours.get(k)!r} in this run"
+        for k in sorted(set(theirs) | set(ours))
+        if theirs.get(k) != ours.get(k)
+    ]
+    if differ:
         raise InvalidArgumentError(
-            f"init: got {start.path}, a network of other inputs than this cache's "
-            f"({'; '.join(differ)}); expected one trained on a cache of the same spec"
+            f"init: got {start.path}, a network of other inputs ({'; '.join(differ)}); "
+            "expected one trained on a cache of the same settings and --representations"
         )
-    if list(start.normalisation.get("classes", [])) == normalisation["classes"]:
-        start.load_weights(model)
-        return
-    mine = {k: v for k, v in model.arch_config().items() if k != "n_classes"}
-    theirs_arch = {k: v for k, v in start.arch_config.items() if k != "n_classes"}
-    if mine != theirs_arch:
-        raise InvalidArgumentError(
-            f"init: got {start.path}, a network of {theirs_arch}; expected the recipe's "
-            f"{mine} (width, batch norm and dropout as trained)"
-        )
+    mine, arch = model.arch_config(), start.arch_config
+    differ = [
+        f"{k} {arch.get(k, False)!r} in the network, {mine.get(k, False)!r} in this run "
+        f"(pass {flag} as it was trained)"
+        for k, flag in _ARCH_FLAGS.items()
+        if arch.get(k, False) != mine.get(k, False)
+    ]
+    if differ:
+        raise InvalidArgumentError(f"init: got {start.path}, {'; '.join(differ)}")
+    classes, own = list(start.normalisation["classes"]), list(normalisation["classes"])
     state = {k: v for k, v in start.model_state.items() if not k.startswith("classifier.")}
+    if sorted(classes) == sorted(own) and len(set(own)) == len(own):
+        rows = start.model_state["classifier.weight"]
+        state["classifier.weight"] = rows[[classes.index(c) for c in own]]
     missing, unexpected = model.load_state_dict(state, strict=False)
-    if unexpected or any(not k.startswith("classifier.") for k in missing):
-        raise RgbdError(f"{start.path}: weights do not fit the model ({missing}, {unexpected})")
+    if unexpected or set(missing) - {"classifier.weight"}:
+        raise RgbdError(
+            f"{start.path}: weights do not fit the model (missing {missing}, "
+            f"unexpected {unexpected})"
+        )
 
 
 def _without(
