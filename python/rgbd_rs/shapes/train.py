@@ -303,7 +303,7 @@ def _load_init(
         raise InvalidArgumentError(f"init: got {start.path}, {'; '.join(differ)}")
     classes, own = list(start.normalisation["classes"]), list(normalisation["classes"])
     state = {k: v for k, v in start.model_state.items() if not k.startswith("classifier.")}
-    if sorted(classes) == sorted(own) and len(set(own)) == len(own):
+    if sorted(classes) == sorted(own):  # the same classes (a cache names each once)
         rows = start.model_state["classifier.weight"]
         state["classifier.weight"] = rows[[classes.index(c) for c in own]]
     missing, unexpected = model.load_state_dict(state, strict=False)
