@@ -352,6 +352,14 @@ def _train(commands: Commands) -> None:
             flag, type=fraction, default=0.0, metavar="X", help=f"{what} (0; not in the thesis)"
         )
     p.add_argument(
+        "--mixup",
+        type=real(0, 100, low_open=False),
+        default=0.0,
+        metavar="ALPHA",
+        help="mix each training shape with another, inputs and targets alike, by a weight "
+        "~ Beta(ALPHA, ALPHA) (0 = off; 0.01-100; not in the thesis)",
+    )
+    p.add_argument(
         "--split-seed",
         type=integer(0, 2**32 - 1),
         default=None,
@@ -409,6 +417,7 @@ def run_train(args: argparse.Namespace) -> int:
         batch_norm=args.batch_norm,
         dropout=args.dropout,
         label_smoothing=args.label_smoothing,
+        mixup=args.mixup,
         split_seed=args.split_seed,
         exclude=() if args.exclude_names is None else _names_file(args.exclude_names),
     )

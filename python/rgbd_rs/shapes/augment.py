@@ -40,6 +40,7 @@ from rgbd_rs.nn.shapes import pack, unpack
 
 __all__ = [
     "AugmentedShapes",
+    "MixedShapes",
     "RotatedShapes",
 ]
 
@@ -170,3 +171,51 @@ class RotatedShapes(AugmentedShapes):
 
     def __init__(self, dataset: Any, shapes: Mapping[str, tuple[int, ...]]) -> None:
         super().__init__(dataset, shapes, turns=True, mirror=False)
+
+
+#: The mixup ``alpha`` accepted: past the largest Beta(alpha, alpha) is nearly 1/2 everywhere;
+#: below the smallest torch's Beta sampler degenerates (it returns 1/2 for alpha ~ 1e-10).
+MIN_MIXUP_ALPHA = 0.01
+MAX_MIXUP_ALPHA = 100.0
+
+
+class MixedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
+    """mixup (Zhang et al. 2018; not in the thesis) of ``dataset`` (items ``(packed inputs,
+    label)`` over ``classes`` classes): item ``i`` becomes ``lam * item_i + (1 - lam) * item_j``
+    for a random other item ``j`` of the dataset and ``lam ~ Beta(alpha, alpha)`` folded onto
+    [1/2, 1] (so item ``i``'s own class keeps the larger weight), its label the same mix of the
+    two one-hot targets (a float vector of ``classes`` entries, which
+    :func:`~rgbd_rs.shapes.train.cross_entropy` and :func:`~rgbd_rs.shapes.train.accuracy`
+    take). Every input is standardised by an affine map, so a mix of packed inputs is the packed
+    mix. The draws come from torch's global generator (seeded by the trainer: deterministic)."""
+
+    def __init__(self, dataset: Any, classes: int, alpha: float) -> None:
+        self.dataset = dataset
+        self.classes = _validate.integer("classes", classes, minimum=2)
+        a = _validate.real("alpha", alpha)
+        if not MIN_MIXUP_ALPHA <= a <= MAX_MIXUP_ALPHA:
+            raise InvalidArgumentError(
+                f"alpha: got {alpha}, expected {MIN_MIXUP_ALPHA:g} <= alpha <= {MAX_MIXUP_ALPHA:g}"
+            )
+        self.alpha = a
+        self._beta = torch.distributions.Beta(
+            torch.tensor(a, dtype=torch.float64), torch.tensor(a, dtype=torch.float64)
+        )
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def _onehot(self, y: torch.Tensor) -> torch.Tensor:
+        if y.ndim == 1 and y.shape[0] == self.classes and y.is_floating_point():
+            return y.to(torch.float32)  # already a soft target
+        return torch.nn.functional.one_hot(y.reshape(()).long(), self.classes).to(torch.float32)
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
+        x, y = self.dataset[i]
+        j = int(torch.randint(0, len(self.dataset), ()).item())
+        lam = float(self._beta.sample().item())
+        lam = max(lam, 1.0 - lam)
+        xj, yj = self.dataset[j]
+        mixed = lam * x + (1.0 - lam) * xj
+        target = lam * self._onehot(y) + (1.0 - lam) * self._onehot(yj)
+        return mixed.to(x.dtype), target

@@ -32,7 +32,12 @@ from torch.utils.data import Subset
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.nn.shapes import ARCH, THESIS_WIDTH, ShapeNet, _parse_representations
-from rgbd_rs.shapes.augment import AugmentedShapes
+from rgbd_rs.shapes.augment import (
+    MAX_MIXUP_ALPHA,
+    MIN_MIXUP_ALPHA,
+    AugmentedShapes,
+    MixedShapes,
+)
 from rgbd_rs.shapes.dataset import ShapeCache
 from rgbd_rs.shapes.scaling import original_name, original_rows
 
@@ -71,7 +76,9 @@ class ShapeRecipe:
     training shapes (e.g. ``chair_0001``) that are neither trained nor validated on, nor are
     their scaled copies: a network of another class list (ModelNet40) can then be measured on
     shapes it never saw (the validation shapes of a ModelNet10 run); each must name a training
-    shape of the cache."""
+    shape of the cache. ``mixup``: the ``alpha`` of mixup
+    (:class:`~rgbd_rs.shapes.augment.MixedShapes`: each training item mixed with another, inputs
+    and targets alike; 0: off, the default; not in the thesis)."""
 
     representations: tuple[str, ...] | None = None
     width: int = THESIS_WIDTH
@@ -83,6 +90,7 @@ class ShapeRecipe:
     label_smoothing: float = 0.0
     split_seed: int | None = None
     exclude: tuple[str, ...] = ()
+    mixup: float = 0.0
 
     def __post_init__(self) -> None:
         ex = self.exclude
@@ -122,6 +130,13 @@ class ShapeRecipe:
                     f"{name}: got {getattr(self, name)}, expected 0 <= {name} < 1"
                 )
             object.__setattr__(self, name, v)
+        m = _validate.real("mixup", self.mixup)
+        if m != 0 and not MIN_MIXUP_ALPHA <= m <= MAX_MIXUP_ALPHA:
+            raise InvalidArgumentError(
+                f"mixup: got {self.mixup}, expected 0 (off) or "
+                f"{MIN_MIXUP_ALPHA:g} <= mixup <= {MAX_MIXUP_ALPHA:g}"
+            )
+        object.__setattr__(self, "mixup", m)
 
 
 def default_config(**overrides: Any) -> Any:
@@ -147,16 +162,19 @@ def default_config(**overrides: Any) -> Any:
 def cross_entropy(
     output: torch.Tensor, batch: tuple[Any, ...], label_smoothing: float = 0.0
 ) -> torch.Tensor:
-    """The trainer's loss: mean cross-entropy of the logits against ``batch[1]`` (with
-    ``label_smoothing`` of the targets)."""
+    """The trainer's loss: mean cross-entropy of the logits against ``batch[1]``, class
+    indices or (mixup, :class:`~rgbd_rs.shapes.augment.MixedShapes`) a probability vector per
+    item (with ``label_smoothing`` of the targets)."""
     loss: torch.Tensor = F.cross_entropy(output, batch[1], label_smoothing=label_smoothing)
     return loss
 
 
 def accuracy(output: torch.Tensor, batch: tuple[Any, ...]) -> torch.Tensor:
-    """The trainer's metric: the fraction of the batch whose highest score is its label (what
-    chooses ``best.pt``)."""
+    """The trainer's metric: the fraction of the batch whose highest score is its label, the
+    largest entry of a probability target (what chooses ``best.pt``)."""
     labels: torch.Tensor = batch[1]
+    if labels.ndim == 2:  # mixup's targets
+        labels = labels.argmax(1)
     return (output.argmax(1) == labels).to(torch.float64).mean()
 
 
@@ -225,6 +243,8 @@ def train_shapes(
         )
     if r.rotate or r.mirror:
         train_set = AugmentedShapes(train_set, data.shapes, turns=r.rotate, mirror=r.mirror)
+    if r.mixup > 0:
+        train_set = MixedShapes(train_set, len(c.classes), r.mixup)
     seed_everything(cfg.seed)  # the initial weights come from the seed too
     model = ShapeNet(
         len(c.classes),
