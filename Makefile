@@ -85,8 +85,10 @@ bench: build ## run the benchmarks (criterion + Python vs OpenCV, scipy, trimesh
 	$(PY) benches/bench_spline.py
 	$(PY) benches/bench_render.py
 	$(PY) benches/bench_fusion.py
+	$(PY) benches/bench_stereo.py
 	cd benches && $(PY) bench_hha.py && $(PY) bench_oversegment.py --threads 2 && \
-	  $(PY) bench_merge.py && $(PY) bench_views.py --markdown && $(PY) bench_voxels.py
+	  $(PY) bench_merge.py && $(PY) bench_views.py --markdown && $(PY) bench_voxels.py && \
+	  $(PY) bench_curvature.py && $(PY) bench_segment.py
 
 clean: ## remove build outputs (keeps the cached venv)
 	cargo clean

@@ -54,6 +54,7 @@ KNOWN: dict[str, str] = {
     "rgbd_rs.segmentation.semantic_data.SemanticFrames": "returned by open_frames",
     "rgbd_rs.shapes.augment.AugmentedShapes": "dataset returned by the training pipeline",
     "rgbd_rs.shapes.augment.RotatedShapes": "dataset returned by the training pipeline",
+    "rgbd_rs.shapes.augment.MixedShapes": "dataset returned by the training pipeline (mixup)",
     "rgbd_rs.shapes.dataset.CachedShapes": "dataset returned by ShapeCache.dataset",
     "rgbd_rs.shapes.dataset.ShapeSource": "base class of OffTree / PointCloudSet (open_shapes)",
     "rgbd_rs.shapes.classify.shipped_weights": "which shipped checkpoints exist (rgbd classify)",

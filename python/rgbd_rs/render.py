@@ -34,6 +34,20 @@ F32 = npt.NDArray[np.float32]
 I32 = npt.NDArray[np.int32]
 
 TextureKind = Literal["uniform", "checker", "stripes", "noise", "image"]
+__all__ = [
+    "MAX_TOF_TERM",
+    "GBuffer",
+    "Material",
+    "OrthographicCamera",
+    "PointLight",
+    "RenderScene",
+    "Scene",
+    "Texture",
+    "ToFFrame",
+    "ToFModel",
+    "render_points",
+]
+
 _TEXTURE_KINDS = ("uniform", "checker", "stripes", "noise", "image")
 
 

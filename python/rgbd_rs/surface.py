@@ -29,6 +29,18 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
 
+__all__ = [
+    "DEFAULT_DEGREE",
+    "DEFAULT_SPACING",
+    "MAX_LAMBDA",
+    "SegmentFits",
+    "SurfaceFit",
+    "SurfaceMaps",
+    "fit_grid",
+    "fit_mask",
+    "ortho_points",
+]
+
 F32 = npt.NDArray[np.float32]
 I32 = npt.NDArray[np.int32]
 

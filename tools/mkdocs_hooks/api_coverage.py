@@ -1,7 +1,8 @@
 """mkdocs hook: the API reference leaves out no public name.
 
 After the build, every name in the ``__all__`` of each documented package must have its anchor
-on that package's page (``id="rgbd_rs.fusion.lc_fuse"``; a function that shares its name with
+on that package's page (``id="rgbd_rs.fusion.lc_fuse"``, or under a parent package that
+re-exports it: ``rgbd_rs.data.generate_indoor`` for ``rgbd_rs.data.synth_indoor``; a function that shares its name with
 its own submodule, such as ``rgbd_rs.fusion.fuse``, is documented from the submodule:
 ``rgbd_rs.fusion.fuse.fuse``). A missing one fails the build, so a new public function cannot
 ship without a reference entry.
@@ -18,10 +19,22 @@ PAGES = {
     "api/core/index.html": ("rgbd_rs",),
     "api/fusion/index.html": ("rgbd_rs.fusion",),
     "api/segmentation/index.html": ("rgbd_rs.segmentation",),
-    "api/shapes/index.html": ("rgbd_rs.shapes",),
+    "api/shapes/index.html": ("rgbd_rs.shapes", "rgbd_rs.shapes.curvature"),
     "api/nn/index.html": ("rgbd_rs.nn",),
-    "api/data/index.html": ("rgbd_rs.data",),
-    "api/tools/index.html": ("rgbd_rs.meshes", "rgbd_rs.metrics", "rgbd_rs.io"),
+    "api/data/index.html": (
+        "rgbd_rs.data",
+        "rgbd_rs.data.nyuv2",
+        "rgbd_rs.data.nyuv2_mat",
+        "rgbd_rs.data.synth_indoor",
+    ),
+    "api/tools/index.html": (
+        "rgbd_rs.surface",
+        "rgbd_rs.render",
+        "rgbd_rs.meshes",
+        "rgbd_rs.metrics",
+        "rgbd_rs.io",
+        "rgbd_rs.viz",
+    ),
 }
 
 
@@ -34,7 +47,10 @@ def missing(site: Path) -> list[str]:
             for name in importlib.import_module(package).__all__:
                 if name.startswith("__"):
                     continue
-                ids = (f'id="{package}.{name}"', f'id="{package}.{name}.{name}"')
+                # documented under the package or where a parent package re-exports it
+                parts = package.split(".")
+                owners = [".".join(parts[:k]) for k in range(len(parts), 0, -1)]
+                ids = [f'id="{o}.{name}"' for o in owners] + [f'id="{package}.{name}.{name}"']
                 if not any(i in html for i in ids):
                     out.append(f"{page}: {package}.{name}")
     return out
