@@ -18,7 +18,7 @@ PYDIRS := python tests benches tools
 help: ## list the targets
 	@grep -hE '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
 
-env: $(DEPS_STAMP) ## create/update the cached virtualenv ($(VENV))
+env: $(DEPS_STAMP) ## create/update the cached virtualenv (~/.cache/rgbd_rs/venv unless VENV= says)
 
 $(DEPS_STAMP):
 	@echo "rgbd_rs: installing the Python dependencies into $(VENV) (torch included: several minutes the first time)"
