@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 
 __all__ = ["Distortion", "PinholeCamera", "Pose", "StereoRig", "ToFStereoRig"]
@@ -114,6 +115,7 @@ class Distortion:
         return not self.to_opencv().any()
 
 
+@array_eq
 @dataclass(frozen=True)
 class Pose:
     """Rigid transform ``X_b = R X_a + t`` taking points of frame *a* into frame *b* (metres)."""

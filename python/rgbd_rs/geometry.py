@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import UNDISTORT_MAX_ITER, UNDISTORT_TOL, PinholeCamera, Pose
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
@@ -84,6 +85,7 @@ def _as_map(name: str, value: npt.ArrayLike) -> F32:
     )
 
 
+@array_eq
 @dataclass(frozen=True)
 class Reprojection:
     """Result of :func:`reproject_depth`, all on the target lattice.

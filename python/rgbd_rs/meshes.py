@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
 from ._reasons import reason
@@ -46,6 +47,7 @@ def _mesh_arg(name: str, value: object) -> Mesh:
 MAX_SEGMENTS = 4096
 
 
+@array_eq
 @dataclass(frozen=True)
 class Mesh:
     """``vertices`` (N x 3 float32, metres) and ``triangles`` (M x 3 vertex indices)."""

@@ -13,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
 __all__ = [
@@ -242,6 +243,7 @@ def _compact(x: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], int]:
     return inv.reshape(-1).astype(np.int64), int(uniq.size)
 
 
+@array_eq
 @dataclass(frozen=True)
 class _Table:
     """The non-zero cells of the contingency table of the compared pixels: ``counts[k]`` pixels

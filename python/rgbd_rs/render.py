@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera, Pose, _pose_arg
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.meshes import Mesh
@@ -65,6 +66,7 @@ def _grey_or_rgb(name: str, value: object) -> list[float]:
     return _reals(name, value, 3)
 
 
+@array_eq
 @dataclass(frozen=True)
 class Texture:
     """A texture in world units (tri-planar projection, no UVs needed).
@@ -264,6 +266,7 @@ class ToFModel:
         )
 
 
+@array_eq
 @dataclass(frozen=True)
 class ToFFrame:
     """A simulated ToF frame: measured ``depth`` (NaN = invalid), ``amplitude``, and the true
@@ -274,6 +277,7 @@ class ToFFrame:
     truth: F32
 
 
+@array_eq
 @dataclass(frozen=True)
 class GBuffer:
     """First-hit attributes: depth, camera-frame normals (H x W x 3, facing the camera), triangle

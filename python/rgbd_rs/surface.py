@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError
 
 __all__ = [
@@ -76,6 +77,7 @@ def _label(name: str, value: object) -> int:
     return _validate.integer(name, value, minimum=0, maximum=2**31 - 1)
 
 
+@array_eq
 @dataclass(frozen=True)
 class SurfaceMaps:
     """Per-pixel results; NaN where a pixel has no surface (or no measurement, for ``error``)."""

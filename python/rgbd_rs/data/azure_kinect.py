@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs._reasons import reason
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
@@ -56,6 +57,7 @@ class AzureKinectCalibration:
     depth_metric_radius: float
 
 
+@array_eq
 @dataclass(frozen=True)
 class AzureKinectFrame:
     """One capture: depth (metres, NaN invalid), IR amplitude, and the colour image (RGB)."""

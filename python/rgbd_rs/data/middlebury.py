@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.io import read_png
 
@@ -33,6 +34,7 @@ SCHEMES = (
 HALF_SIZE_MIN_WIDTH = 600
 
 
+@array_eq
 @dataclass(frozen=True)
 class MiddleburyPair:
     """A rectified pair (uint8 RGB) with ground-truth disparity of both views (NaN = unknown)."""

@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
@@ -80,6 +81,7 @@ LABELED_FRAMES = 1449
 SPLITS = ("all", "train", "test")
 
 
+@array_eq
 @dataclass(frozen=True)
 class NyuFrame:
     """One labeled frame: colour, depth in metres (float32, NaN where there is no measurement),

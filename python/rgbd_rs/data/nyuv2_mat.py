@@ -38,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.data.nyuv2 import (
     LABEL13_NAMES,
     LABELED_FRAMES,
@@ -144,6 +145,7 @@ def _classes(path: Path, name: str, values: Any, count: int, top: int) -> U8:
     return np.concatenate([[UNLABELED], flat]).astype(np.uint8)
 
 
+@array_eq
 @dataclass(frozen=True)
 class NyuClassMapping:
     """The class mappings of the NYUv2 protocol, as lookup tables indexed by class (0 =

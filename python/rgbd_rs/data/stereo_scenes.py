@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.io import read_png
@@ -26,6 +27,7 @@ COLUMNS = ("scene", "left", "right", "gt_left", "gt_right", "disparity_scale", "
 SPLITS = ("train", "val", "test")
 
 
+@array_eq
 @dataclass(frozen=True)
 class StereoScene:
     """One rectified pair (uint8 RGB) with ground-truth disparity in pixels (NaN = unknown).

@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.calibration import load_rig, save_rig
 from rgbd_rs.data.synth_scene import _random_scene, _shared_meshes
@@ -98,6 +99,7 @@ def synth3_rig(scale: float = 0.5) -> ToFStereoRig:
     )
 
 
+@array_eq
 @dataclass(frozen=True)
 class SynthSample:
     """One scene: the stereo pair (uint8 RGB), the ToF frame and ground truth (see module doc)."""

@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
 from .._reasons import reason
@@ -40,6 +41,7 @@ LAYOUT = {
 }
 
 
+@array_eq
 @dataclass(frozen=True)
 class Synth3Sample:
     """One SYNTH3 scene on the right camera: stereo and ToF disparity, ToF amplitude, GT."""

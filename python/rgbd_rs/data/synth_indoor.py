@@ -34,6 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.calibration import load_camera, save_camera
 from rgbd_rs.data.nyuv2 import DEPTH_PNG_PER_METRE, LABEL13_NAMES
@@ -86,6 +87,7 @@ LABEL13_COLORS: tuple[tuple[int, int, int], ...] = (
 )
 
 
+@array_eq
 @dataclass(frozen=True)
 class IndoorFrame:
     """One synthetic frame, with the attribute names of :class:`rgbd_rs.data.nyuv2.NyuFrame`:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import ToFStereoRig
 from rgbd_rs.fusion._inputs import F32, U8, disagreement_warning, scale_factor
 from rgbd_rs.fusion._pose_check import pose_warning, turn_warning
@@ -125,6 +126,7 @@ def _swap_warning(
     )
 
 
+@array_eq
 @dataclass(frozen=True)
 class Checked:
     """The maps :func:`~rgbd_rs.fusion.fuse` fuses once :func:`check_maps` has run: as given,

@@ -23,6 +23,7 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import views
 from rgbd_rs.fusion.evaluate import Sample, non_occluded
@@ -107,6 +108,7 @@ def best_score(scores: Sequence[PowerScore]) -> PowerScore:
     return min(scores, key=lambda s: (s.worst_damage, s.power))
 
 
+@array_eq
 @dataclass(frozen=True)
 class SceneInputs:
     """One scene's two inputs measured against its ground truth on ``mask``: what a fused map

@@ -28,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._inputs import F32, grey8, pair8
 from rgbd_rs.fusion.rows import (
@@ -130,6 +131,7 @@ class CensusParams:
         return CensusParams(**values)
 
 
+@array_eq
 @dataclass(frozen=True)
 class CensusMatch:
     """:func:`census_match`'s result on the reference view (``H x W`` float32).

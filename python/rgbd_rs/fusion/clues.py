@@ -28,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32, map2d, rgb8
 
@@ -35,6 +36,7 @@ from rgbd_rs.fusion._inputs import F32, map2d, rgb8
 NAMES = ("delta_lr", "tof_disparity", "stereo_disparity", "tof_amplitude")
 
 
+@array_eq
 @dataclass(frozen=True)
 class Clues:
     """Raw clues ``4 x H x W`` float32 (NaN where undefined) in :data:`NAMES` order."""

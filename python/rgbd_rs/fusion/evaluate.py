@@ -35,6 +35,7 @@ from rgbd_rs.meshes import Mesh
 
 if TYPE_CHECKING:  # torch is imported only when a ConvNet is evaluated
     from rgbd_rs.nn.confidence import ConfidenceEstimator
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.metrics import bad_pixel_rate, edge_band, rms_error
 from rgbd_rs.render import Material, Scene, ToFModel
 from rgbd_rs.viz import as_bgr, grid, image_panel, map_panel, save_png
@@ -62,6 +63,7 @@ TOF_OFFSET_Y = 0.04
 EDGE_RATIO = 1.03
 
 
+@array_eq
 @dataclass(frozen=True)
 class Sample:
     """One evaluation input: the pair, the ToF frame, the rig and GT on the reference view."""
@@ -75,6 +77,7 @@ class Sample:
     gt_disparity: F32
 
 
+@array_eq
 @dataclass
 class SceneResult:
     """Per method: ``rms`` (all compared pixels) and ``measures`` (``rms``, ``bad1``, ``bad2``,

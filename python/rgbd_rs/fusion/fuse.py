@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import Pose
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._ahead import Ahead, stopped_on_interrupt
@@ -104,6 +105,7 @@ def _shipped(far: bool) -> ConfidenceEstimator:
     return ConfidenceEstimator.load(WEIGHTS_FAR if far else None)
 
 
+@array_eq
 @dataclass(frozen=True)
 class FusionResult:
     """Everything :func:`fuse` computed, on the reference camera (``H x W`` float32, NaN = none).

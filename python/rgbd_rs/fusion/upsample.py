@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.fusion._inputs import F32, map2d, rgb8, rig_arg
 from rgbd_rs.geometry import depth_to_disparity, reproject_depth
@@ -169,6 +170,7 @@ def upsample_depth(
     return depth, carried
 
 
+@array_eq
 @dataclass(frozen=True)
 class ToFOnReference:
     """ToF data on the reference camera's lattice (all ``H x W`` float32, NaN = none)."""
@@ -214,6 +216,7 @@ def tof_to_reference(
     return _densify_tof(_reproject_tof(tof_depth, tof_amplitude, r), r, img, labels, radius, seg)
 
 
+@array_eq
 @dataclass(frozen=True)
 class SparseToF:
     """The ToF samples splatted onto the reference lattice (``H x W`` float32, NaN = none):

@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs._reasons import reason
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
@@ -145,6 +146,7 @@ def _restore_rng(state: Mapping[str, Any]) -> None:
         torch.cuda.set_rng_state_all(cuda)
 
 
+@array_eq
 @dataclass(frozen=True)
 class Checkpoint:
     """The contents of a checkpoint file (see the module docstring).

@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.segmentation.features import Features, features
@@ -50,6 +51,7 @@ CHANNELS: tuple[str, ...] = (
 CLIP_PERCENTILE = 99.0
 
 
+@array_eq
 @dataclass(frozen=True)
 class SemanticCues:
     """The cues of one frame and what they were computed from."""

@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import metrics
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.nyuv2 import LABEL13_NAMES, UNLABELED
 from rgbd_rs.segmentation.labeling import _weights_path
@@ -35,6 +36,7 @@ U8 = npt.NDArray[np.uint8]
 F32 = npt.NDArray[np.float32]
 
 
+@array_eq
 @dataclass
 class LabelingScores:
     """Confusion matrices (rows truth, columns prediction, NYUv2 label13) accumulated over the

@@ -38,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.segmentation.hha import ANGLE_RADIUS, _camera, square_normals
@@ -54,6 +55,7 @@ FEATURE_DIM = 9
 NORMAL_RADIUS: int = ANGLE_RADIUS
 
 
+@array_eq
 @dataclass(frozen=True)
 class Features:
     """The eq. 4.1 vectors of an image and what they were built from."""

@@ -50,6 +50,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 
@@ -75,6 +76,7 @@ GRAVITY_RADIUS: int = _rgbd_rs.HHA_GRAVITY_RADIUS
 MAX_MEDIAN_DEPTH_M: float = _rgbd_rs.HHA_MAX_MEDIAN_DEPTH_M
 
 
+@array_eq
 @dataclass(frozen=True)
 class HhaResult:
     """An HHA image and the gravity and floor it was computed with."""

@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS
 from rgbd_rs.surface import SegmentFits
@@ -60,6 +61,7 @@ class MergeStep:
     error_union: float
 
 
+@array_eq
 @dataclass(frozen=True)
 class MergeResult:
     """What :func:`merge_regions` returns."""

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.holes import DEFAULT_FILL_RADIUS, SPARSE_SHARE, _isolated_share, fill_depth_holes
@@ -97,6 +98,7 @@ def _suggested_depth_scale(median_m: float, scale: float) -> float | None:
     return min(fits, key=lambda u: abs(np.log(counts * u / TYPICAL_MEDIAN_DEPTH_M)))
 
 
+@array_eq
 @dataclass(frozen=True)
 class Segmentation:
     """What :func:`segment` returns."""

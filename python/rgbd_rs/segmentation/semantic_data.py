@@ -50,6 +50,7 @@ from torch.nn import functional as F
 from torch.utils.data import Dataset
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.nyuv2 import LABEL13_NAMES, NYUV2_CAMERA, UNLABELED
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
@@ -97,6 +98,7 @@ class Frame(Protocol):
     camera: PinholeCamera
 
 
+@array_eq
 @dataclass(frozen=True)
 class LabeledFrame:
     """One labeled RGB-D frame: ``rgb`` H x W x 3 uint8, ``depth`` H x W float32 metres (NaN =

@@ -38,6 +38,7 @@ import numpy as np
 import torch
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.nn.semantic import ARCH, THESIS_WIDTH, SemanticNet, class_probabilities, lcn_window
 from rgbd_rs.segmentation.semantic_data import SemanticCache
@@ -255,6 +256,7 @@ def ship(checkpoint: str | os.PathLike[str], dest: str | os.PathLike[str] | None
     return save_checkpoint(light, _weights_path() if dest is None else dest)
 
 
+@array_eq
 @dataclass(frozen=True)
 class SemanticScores:
     """Per-pixel accuracy of a network on a cache at its resolution (labeled pixels only):

@@ -21,6 +21,7 @@ import torch
 from tqdm import tqdm
 
 from rgbd_rs import _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.shapes.augment import _mirror_pair, _quarter_turns
 from rgbd_rs.shapes.classify import ShapeClassifier
@@ -53,6 +54,7 @@ def row_name(representations: Sequence[str]) -> str:
     return "+".join(reps)
 
 
+@array_eq
 @dataclass(frozen=True)
 class ShapeEvaluation:
     """One checkpoint on one split: ``confusion[t, p]`` counts shapes of true class ``t``

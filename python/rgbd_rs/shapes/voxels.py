@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
+from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh
 from rgbd_rs.shapes._cloud import centred_cloud, check_extent
@@ -28,6 +29,7 @@ DEFAULT_RESOLUTION = 32
 MAX_RESOLUTION: int = _rgbd_rs.VOXEL_MAX_RESOLUTION
 
 
+@array_eq
 @dataclass(frozen=True)
 class VoxelGrid:
     """An occupancy grid: ``filled[z, y, x]`` (bool, ``R x R x R``), voxel ``(x, y, z)`` covering
