@@ -295,6 +295,26 @@ def test_middlebury_samples(
         middlebury_samples()
 
 
+def test_a_mistyped_rgbd_data_is_refused_not_replaced(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rgbd_rs import RgbdError
+    from rgbd_rs.data import data_root
+
+    monkeypatch.setenv("RGBD_DATA", str(tmp_path / "no_such_dir"))
+    for required in (False, True):
+        with pytest.raises(
+            RgbdError, match=r"^RGBD_DATA: got '.*no_such_dir' \(no such directory\)"
+        ):
+            data_root(required=required)
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("RGBD_DATA", str(tmp_path / "file"))
+    with pytest.raises(RgbdError, match=r"\(a file\), expected the directory"):
+        data_root()
+    monkeypatch.setenv("RGBD_DATA", str(tmp_path))
+    assert data_root() == tmp_path
+
+
 def test_cli_fuse(scene: SynthSample, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     write_png(tmp_path / "l.png", scene.left)
     write_png(tmp_path / "r.png", scene.right)

@@ -11,11 +11,18 @@ from rgbd_rs.errors import InvalidArgumentError
 def data_root(required: bool = False) -> Path | None:
     """The dataset directory: ``$RGBD_DATA`` if set, else ``<repo>/../shared/data``.
 
-    Returns None when it does not exist, or raises when ``required``.
+    Returns None when it does not exist, or raises when ``required``. A ``$RGBD_DATA`` that is
+    not a directory always raises (a typo must not fall back to other data).
     """
     if not isinstance(required, bool):
         raise InvalidArgumentError(f"required: got {required!r}, expected True or False")
     env = os.environ.get("RGBD_DATA")
+    if env and not Path(env).is_dir():
+        what = "a file" if Path(env).exists() else "no such directory"
+        raise InvalidArgumentError(
+            f"RGBD_DATA: got {env!r} ({what}), expected the directory of the shared datasets "
+            "(or unset it to use ../shared/data beside the repository)"
+        )
     candidates = [Path(env)] if env else []
     here = Path(__file__).resolve()
     candidates += [p / "shared" / "data" for p in here.parents[3:5]]
