@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -454,6 +455,29 @@ def test_bad_command_lines_end_in_one_line(
     res = run(*argv)
     _assert_one_line_error(res, *needles)
     assert not (tmp_path / "out").exists(), "rejected before anything was written"
+
+
+def test_a_bound_copied_from_the_message_passes() -> None:
+    """16/1080 printed as 0.0148148 was itself refused."""
+    from rgbd_rs.cli._args import real
+
+    parse = real(16 / 1080, 4, low_open=False)
+    with pytest.raises(argparse.ArgumentTypeError) as refused:
+        parse("0.0148148")
+    bound = str(refused.value).split(">= ")[1].split(" ")[0]
+    assert bound == "0.014814814814814815" and parse(bound) == 16 / 1080
+    with pytest.raises(argparse.ArgumentTypeError, match=r"expected a number > 0 and <= 0\.9$"):
+        real(0, 0.9)("1")
+
+
+def test_eval_fusion_on_an_empty_split_is_one_line(tmp_path: Path) -> None:
+    ds = tmp_path / "ds"
+    made = run("synth", "--out", str(ds), "--train", "0", "--test", "1", "--scale", "0.05")
+    assert made.returncode == 0, made.stderr
+    res = run(
+        "eval", "fusion", "--synth", str(ds), "--split", "train", "--out", str(tmp_path / "e")
+    )
+    _assert_one_line_error(res, "--synth: got", "no scene in its train split")
 
 
 def test_synth_scale_1000_is_refused_before_allocating(tmp_path: Path) -> None:

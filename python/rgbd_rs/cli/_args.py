@@ -84,6 +84,13 @@ def device(*, auto: bool) -> Callable[[str], str]:
     return parse
 
 
+def _bound(x: float) -> str:
+    """``x`` short where that is exact (``0.9``, ``1e+06``), else every digit it needs
+    (``0.014814814814814815``): a bound copied from a message must pass."""
+    short = f"{x:g}"
+    return short if float(short) == x else repr(float(x))
+
+
 def real(minimum: float, maximum: float, *, low_open: bool = True) -> Callable[[str], float]:
     """An argparse type: a finite number in ``(minimum, maximum]`` (``[minimum, ...`` when not
     ``low_open``)."""
@@ -95,9 +102,9 @@ def real(minimum: float, maximum: float, *, low_open: bool = True) -> Callable[[
             raise argparse.ArgumentTypeError(f"got {text!r}, expected a number") from None
         low_ok = v > minimum if low_open else v >= minimum
         if not (low_ok and v <= maximum):  # also refuses nan
-            lo = f"> {minimum:g}" if low_open else f">= {minimum:g}"
+            lo = f"> {_bound(minimum)}" if low_open else f">= {_bound(minimum)}"
             raise argparse.ArgumentTypeError(
-                f"got {text}, expected a number {lo} and <= {maximum:g}"
+                f"got {text}, expected a number {lo} and <= {_bound(maximum)}"
             )
         return v
 

@@ -546,6 +546,11 @@ def run_eval(args: argparse.Namespace) -> int:
         samples = named(
             "--synth", lambda: list(islice(synth_samples(args.synth, args.split), args.limit))
         )
+        if not samples:
+            raise InvalidArgumentError(
+                f"--synth: got {args.synth} with no scene in its {args.split} split, expected "
+                "at least one (another --split, or rgbd synth --train/--test N)"
+            )
         res = evaluate(
             samples,
             args.out / "synth",

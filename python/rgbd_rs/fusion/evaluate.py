@@ -25,7 +25,7 @@ from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.middlebury import load_middlebury
 from rgbd_rs.data.paths import data_root
 from rgbd_rs.data.synth import SynthDataset
-from rgbd_rs.errors import RgbdError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
 from rgbd_rs.fusion._inputs import F32, U8, views
 from rgbd_rs.fusion.clues import _target_confidence
 from rgbd_rs.fusion.crosscheck import _warp_to_target
@@ -269,6 +269,8 @@ def evaluate_sample(
 def markdown_table(results: list[SceneResult], title: str) -> str:
     """Per-scene RMS and the average over scenes (thesis Table 3.2 layout, transposed), then the
     scene-averaged bad-pixel rates and the same measures in the band around depth edges."""
+    if not results:
+        raise InvalidArgumentError("results: got no scene, expected at least one")
     methods = results[0].methods
     head = "| scene | pixels | " + " | ".join(methods) + " |"
     rule = "|---|---:|" + "---:|" * len(methods)
