@@ -306,3 +306,34 @@ def test_suggested_depth_scale(median_m: float, scale: float, fix: float | None)
 
     got = _suggested_depth_scale(median_m, scale)
     assert got == fix if fix is None else got == pytest.approx(fix)
+
+
+@pytest.mark.parametrize(
+    ("rows", "cols"), [(slice(0, 480), slice(300, 307)), (slice(200, 208), slice(300, 308))]
+)
+def test_cli_segments_a_frame_narrower_than_a_panel(
+    rows: slice, cols: slice, tmp_path: Path
+) -> None:
+    """A 7-px-wide strip and an 8x8 crop: the pictures are drawn at a panel's least width and
+    no internal window radius reaches the user (both used to fail after or before the work)."""
+    import json
+
+    import cv2
+
+    root = data_root()
+    assert root is not None
+    f = root / "nyuv2" / "frames"
+    rgb = cv2.imread(str(f / "0046_rgb.png"))[rows, cols]
+    depth = cv2.imread(str(f / "0046_depth.png"), cv2.IMREAD_UNCHANGED)[rows, cols]
+    cv2.imwrite(str(tmp_path / "rgb.png"), rgb)
+    cv2.imwrite(str(tmp_path / "d.png"), depth)
+    cam = json.loads((Path(__file__).parents[1] / "examples" / "nyu_camera.json").read_text())
+    cam |= {"cx": cam["cx"] - cols.start, "cy": cam["cy"] - rows.start}
+    cam |= {"width": cols.stop - cols.start, "height": rows.stop - rows.start}
+    (tmp_path / "cam.json").write_text(json.dumps(cam))
+    argv = ["segment", "--rgb", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "d.png")]
+    argv += ["--calib", str(tmp_path / "cam.json"), "--out", str(tmp_path / "seg")]
+    assert main([*argv, "--labeler", "none", "--segments", "4", "--quiet"]) == 0
+    labels = np.load(tmp_path / "seg" / "labels.npy")
+    assert labels.shape == depth.shape and (labels >= 0).any()
+    assert cv2.imread(str(tmp_path / "seg" / "segments.png")).shape[1] >= 16

@@ -148,8 +148,12 @@ def _title_strip(title: str, width: int) -> U8:
     return strip
 
 
+#: The narrowest panel (its title must fit).
+MIN_PANEL_WIDTH = 16
+
+
 def _width(width: object) -> int:
-    return _validate.integer("width", width, minimum=16, maximum=MAX_TILE_WIDTH)
+    return _validate.integer("width", width, minimum=MIN_PANEL_WIDTH, maximum=MAX_TILE_WIDTH)
 
 
 def map_panel(

@@ -171,6 +171,14 @@ def class_names(pdfs: np.ndarray | None) -> list[str]:
     return [f"class {i}" for i in range(count)]
 
 
+def _preview_width(rgb: np.ndarray) -> int:
+    """The pictures' width: the frame's, within what a panel can take (a frame narrower than a
+    panel's title is drawn wider; its label maps keep its size)."""
+    from rgbd_rs.viz import MAX_TILE_WIDTH, MIN_PANEL_WIDTH
+
+    return min(max(int(rgb.shape[1]), MIN_PANEL_WIDTH), MAX_TILE_WIDTH)
+
+
 def run_segment(args: argparse.Namespace) -> int:
     from rgbd_rs.cli.fusion import depth_png_scale, load_map
     from rgbd_rs.data.calibration import load_camera
@@ -258,7 +266,7 @@ def run_segment(args: argparse.Namespace) -> int:
     seg_panel = image_panel(
         paint_segments(result.labels),
         f"{n_found} segments (labels.png in colour; white: boundaries)",
-        width=int(rgb.shape[1]),
+        width=_preview_width(rgb),
     )
     legend = class_legend(
         ["no depth: not segmented (labels.png 0)"], [NO_DATA_RGB], seg_panel.shape[1]
@@ -286,7 +294,7 @@ def run_segment(args: argparse.Namespace) -> int:
             ]
             + [{"id": -1, "name": "no data", "rgb": list(NO_DATA_RGB)}],
         )
-        width = int(rgb.shape[1])
+        width = _preview_width(rgb)
         save_png(
             out / "semantic.png",
             class_picture(result.semantic, names, colors, "classes after the segment refinement",

@@ -245,7 +245,9 @@ def segment(
             net, rgb, depth, camera, feats=f, hha=hh, over=over, fits=fits, n_segments=n, seed=seed
         )
         lap("semantic")
-    normals = None if touching else square_normals(depth, camera, radius=ADJACENCY_NORMAL_RADIUS)
+    # a window wider than the frame is the whole frame (clipped at the border): the same normals
+    r = min(ADJACENCY_NORMAL_RADIUS, max(np.shape(depth)[:2]))
+    normals = None if touching else square_normals(depth, camera, radius=r)
     # The merge's own descriptors (eq. 4.6 sums, argmax votes) give each final segment's class.
     merged = merge_regions(
         over,
