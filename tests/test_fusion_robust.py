@@ -230,6 +230,14 @@ def test_depth_in_millimetres_is_refused(scene: SynthSample) -> None:
         fuse(scene.left, scene.right, scene.tof_depth * 1000, scene.tof_amplitude, RIG)
     with pytest.raises(InvalidArgumentError, match=r"look like kilometres.*check the depth unit"):
         fuse(scene.left, scene.right, scene.tof_depth / 1000, scene.tof_amplitude, RIG)
+    # the same disparities come of a baseline in millimetres: the message names it too
+    mm = dataclasses.replace(
+        RIG, stereo=dataclasses.replace(RIG.stereo, baseline=RIG.stereo.baseline * 1000)
+    )
+    with pytest.raises(
+        InvalidArgumentError, match=r"kilometres.*or the calibration's baseline \(\d"
+    ):
+        fuse(scene.left, scene.right, scene.tof_depth, scene.tof_amplitude, mm)
 
 
 def test_depths_beyond_the_stereo_range_warn_once(scene: SynthSample) -> None:

@@ -259,6 +259,13 @@ def test_cli_stereo_refuses_what_it_cannot_search(
     assert (
         err.startswith("rgbd: error: --min-depth: a search range of 1e+301 px") and len(err) < 200
     )
+    # A baseline in millimetres against the default nearest depth in metres: the message says
+    # where the range came from and asks about the baseline's unit.
+    calib.write_text(json.dumps({"stereo": {"left": cam, "right": cam, "baseline": 120}}))
+    assert main([*argv, "--calib", str(calib), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "--calib's baseline 120 x focal 100.0 px / the default --min-depth" in err
+    assert "is the baseline in metres?" in err and len(err.splitlines()) == 1
     # --min-depth means nothing beside --max-disparity: refused, not ignored.
     both = ["--max-disparity", "16", "--min-depth", "1", "--out", str(tmp_path / "o")]
     assert main([*argv, *both]) == 2

@@ -124,10 +124,16 @@ def _search_range(args: argparse.Namespace, width: int, height: int) -> int:
             )
         min_depth = DEFAULT_MIN_DEPTH if args.min_depth is None else args.min_depth
         reach = rig.baseline * rig.focal / min_depth
-        if not math.isfinite(reach):  # a finite one too wide is refused below
+        if not math.isfinite(reach) or reach >= width:
+            how = f"--calib's baseline {rig.baseline:g} x focal {rig.focal:.1f} px / " + (
+                f"--min-depth {min_depth:g}"
+                if args.min_depth is not None
+                else f"the default --min-depth {min_depth:g} m (is the baseline in metres? "
+                "else give --min-depth in its unit, or --max-disparity)"
+            )
             raise InvalidArgumentError(
-                f"--min-depth: a search range of {reach:.4g} px (baseline x focal / min depth "
-                f"from --calib), expected less than the image width {width}"
+                f"--min-depth: a search range of {reach:.4g} px ({how}), expected less than "
+                f"the image width {width}"
             )
         dmax = math.ceil(reach)
     if dmax >= width:

@@ -208,11 +208,17 @@ def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> tuple[str, bool] | None:
         )
     for scale, unit in ((1e-3, "millimetres"), (1e3, "kilometres")):
         if plausible(scale) >= UNIT_MAJORITY:
+            # depths in metres with a baseline in millimetres read the same way
+            baseline = (
+                f"; or the calibration's baseline ({rig.stereo.baseline:g}) is in millimetres"
+                if scale > 1
+                else ""
+            )
             return (
                 f"tof_depth: the ToF depths look like {unit}, not metres (median {med:.4g}, "
                 f"outside the stereo rig's range: {rig_text}); check the depth unit (rgbd fuse "
                 "reads .npy/.npz in metres, a 16-bit PNG in millimetres unless --depth-scale "
-                "says otherwise)",
+                f"says otherwise){baseline}",
                 True,
             )
     where = "beyond" if d_med < MIN_STEREO_DISPARITY else "nearer than"
