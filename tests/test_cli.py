@@ -880,8 +880,24 @@ def test_a_dead_tof_frame_says_where_the_search_range_came_from(
     with warnings.catch_warnings():
         warnings.simplefilter("always")  # the dead frame's warning, printed by the CLI
         assert main(_fuse_argv(fuse_inputs, tof_depth=dead, out=tmp_path / "o")) == 0
-    out = capsys.readouterr().out
-    assert "(no ToF disparity: the largest range the width allows)" in out, out
+    dead_out = capsys.readouterr().out
+    assert "(no ToF disparity: the largest range the width allows)" in dead_out, dead_out
+    # A handful of valid pixels bound nothing either (one pixel capped the search at its own
+    # disparity, and SGM missed every nearer surface): the widest range, a warning, the reason.
+    few = np.load(fuse_inputs["--tof-depth"])
+    keep = np.zeros(few.shape, bool)
+    keep[200:204, 250:254] = True
+    np.save(tmp_path / "few.npy", np.where(keep, few, np.nan).astype(np.float32))
+    argv = _fuse_argv(fuse_inputs, tof_depth=tmp_path / "few.npy", out=tmp_path / "f")
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # printed by the CLI
+        assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "rgbd: warning: --tof-depth: valid ToF pixels cover 0.07" in err, err
+    assert "too few to bound the stereo search" in err and "--max-disparity" in err
+    assert "(too few ToF disparities: the largest range the width allows)" in out, out
+    widest = dead_out.split("SGM search range: ")[1].split(" px")[0]
+    assert f"SGM search range: {widest} px (too few" in out
 
 
 def test_train_confidence_names_a_data_folder_without_a_dataset(

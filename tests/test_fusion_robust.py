@@ -157,6 +157,12 @@ def test_search_range_clamps_and_falls_back() -> None:
     assert search_range(near) == int(MAX_RANGE_FRACTION * w)
     assert search_range(np.full((50, w), np.nan, np.float32)) == int(MAX_RANGE_FRACTION * w)
     assert search_range(np.full((50, w), 3.0, np.float32)) == DISPARITY_STEP
+    # a ToF valid on a handful of pixels bounds nothing: the widest range, as with none
+    few = np.full((50, w), np.nan, np.float32)
+    few[20:26, 100:106] = 3.0  # 36 pixels of 15,000, 4 after the 5 x 5 median filter
+    assert search_range(few) == int(MAX_RANGE_FRACTION * w)
+    few[20:35, 100:120] = 3.0  # 176 after the filter: over MIN_RANGE_COVERAGE (1 %)
+    assert search_range(few) == DISPARITY_STEP
     far = np.full((50, w), 40.0, np.float32)
     far[::7, ::9] = 280.0  # isolated spikes: gone after the median filter
     assert search_range(far) == int(np.ceil(40 * 1.15))

@@ -49,7 +49,9 @@ from rgbd_rs.fusion.sources import (
     _unseen_from_tof,
 )
 from rgbd_rs.fusion.stereo import (
+    MIN_RANGE_COVERAGE,
     _predict_search_range,
+    _range_coverage,
     _same_search,
     _whole_steps,
     search_range,
@@ -333,6 +335,17 @@ def fuse(
     if not _same_search(guess, dmax):
         st_map = match(lft, rgt, reference=r.reference, max_disparity=dmax)
     no_tof = not np.isfinite(tof.disparity).any()
+    if max_disparity is None and not no_tof:
+        share = _range_coverage(tof.disparity)
+        if share < MIN_RANGE_COVERAGE:
+            warnings.warn(
+                f"tof_depth: valid ToF pixels cover {100 * share:.2g} % of the reference "
+                f"image, too few to bound the stereo search: searched the widest range, {dmax} "
+                "px, as without a ToF (pass max_disparity, rgbd fuse --max-disparity, to "
+                "choose it)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
     if no_tof:
         pose = ""
         with np.errstate(invalid="ignore"):

@@ -49,6 +49,11 @@ RANGE_MARGIN = 1.15
 #: the image to the ToF alone (pass ``max_disparity`` to search further). Also the fallback
 #: when the ToF has no valid pixel. Chosen.
 MAX_RANGE_FRACTION = 1 / 3
+#: A ToF whose (median-filtered) valid pixels cover less than this share of the reference image
+#: is no sample of the scene's depths: the range is the widest, as with no ToF (one valid pixel
+#: capped the search at its disparity, and SGM missed every nearer surface). Chosen: a handful
+#: of pixels, far below what a ToF that sees the scene covers.
+MIN_RANGE_COVERAGE = 0.01
 
 
 def _num_disparities(min_disparity: int, max_disparity: int) -> int:
@@ -81,19 +86,32 @@ def search_range(tof_disparity: npt.ArrayLike, width: int | None = None) -> int:
     (NaN counts as no disparity), its ``RANGE_PERCENTILE``-th percentile times ``RANGE_MARGIN``
     is rounded up, and the result is clamped to ``[DISPARITY_STEP, MAX_RANGE_FRACTION x width]``
     and to :func:`_max_search` (what OpenCV SGBM allows on that width). A ToF map without a
-    valid pixel gives the upper clamp. ``width`` defaults to the map's.
+    valid pixel, or with valid pixels on less than ``MIN_RANGE_COVERAGE`` of the map, gives the
+    upper clamp. ``width`` defaults to the map's.
     """
     d = np.asarray(_validate.array("tof_disparity", tof_disparity, shape=(None, None)), np.float32)
     w = d.shape[1] if width is None else _validate.integer("width", width, minimum=2)
     top = _widest_range(w)
-    with np.errstate(invalid="ignore"):
-        filled = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
-    smooth = cv2.medianBlur(filled, RANGE_MEDIAN_WINDOW)
-    valid = smooth[smooth > 0]
-    if valid.size == 0:
+    valid = _range_samples(d)
+    if valid.size < MIN_RANGE_COVERAGE * d.size:
         return top
     want = math.ceil(float(np.percentile(valid, RANGE_PERCENTILE)) * RANGE_MARGIN)
     return int(min(top, max(DISPARITY_STEP, want)))
+
+
+def _range_samples(d: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    """The ToF disparities :func:`search_range` reads: the valid ones after the median filter."""
+    with np.errstate(invalid="ignore"):
+        filled = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
+    smooth = cv2.medianBlur(filled, RANGE_MEDIAN_WINDOW)
+    return np.asarray(smooth[smooth > 0], np.float32)
+
+
+def _range_coverage(tof_disparity: npt.NDArray[np.float32]) -> float:
+    """The share of the map whose ToF disparity :func:`search_range` reads (see
+    ``MIN_RANGE_COVERAGE``)."""
+    d = np.asarray(tof_disparity, np.float32)
+    return _range_samples(d).size / max(d.size, 1)
 
 
 def _predict_search_range(sparse_disparity: npt.ArrayLike, width: int | None = None) -> int:
