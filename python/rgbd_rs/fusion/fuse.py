@@ -227,7 +227,10 @@ def fuse(
             the reference camera.
         params: LC constants and window (:class:`LcParams`).
         max_disparity: SGM search range; default :func:`~rgbd_rs.fusion.stereo.search_range`
-            of the ToF disparities (robust to flying pixels, at most a third of the width).
+            of the ToF disparities (robust to flying pixels, at most a third of the width; the
+            widest when the ToF is valid on under 1 % of the image). The range reaches only
+            as near as the ToF saw: where it misses the nearest surfaces (saturated, outside
+            its view), give this.
         reference: the camera to fuse on, ``"left"`` or ``"right"``; default the rig's.
         stereo: the stereo matcher, ``"census"`` (ours) or ``"opencv"`` (SGBM); default the
             one the ConvNet was trained on (its clues come from the matcher), else
