@@ -10,6 +10,7 @@ Example:
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -235,8 +236,10 @@ def sphere(
 def load_mesh(path: str | Path) -> Mesh:
     """Read an OFF or PLY triangle mesh (polygons are fan-triangulated).
 
-    OFF files from ModelNet whose header is fused with the counts line (``OFF3514 3546 0``) are
-    accepted. Unreadable or truncated files raise :class:`RgbdError` naming the file.
+    OFF files may carry ``#`` comments, per-vertex extras (``COFF``, ``NOFF``, ``STOFF``, ...:
+    colours, normals, texture coordinates) and per-face colours, all ignored; ModelNet's files
+    whose header is fused with the counts line (``OFF3514 3546 0``) are accepted. Unreadable or
+    truncated files raise :class:`RgbdError` naming the file.
     """
     if not isinstance(path, (str, Path)) or not str(path):
         raise InvalidArgumentError(f"path: got {path!r}, expected a mesh file path")
@@ -256,58 +259,164 @@ def _fits_float32(v: np.ndarray) -> bool:
     return bool(np.all(np.abs(v) <= np.finfo(np.float32).max))
 
 
+#: An OFF header keyword, ``[ST][C][N][4][n]OFF`` (texture coordinates, colours, normals, 4-D
+#: or n-D vertices), and the rest of its word: ModelNet fuses the counts with it (``OFF490``).
+_OFF_KEYWORD = re.compile(r"(ST)?(C)?(N)?(4)?(n)?OFF(.*)")
+
+
 def _read_off(path: Path) -> Mesh:
-    tokens = path.read_text(errors="replace").split("#")[0].split()
+    """An ASCII OFF file (:func:`_parse_off`) as a Mesh; :class:`RgbdError` names the file and
+    what is wrong with it."""
     try:
-        if not tokens or not tokens[0].startswith("OFF"):
-            raise ValueError("no OFF header")
-        head = tokens[0][3:]
-        rest = ([head] if head else []) + tokens[1:]
-        try:
-            nv, nf = int(rest[0]), int(rest[1])
-        except (IndexError, ValueError):
-            raise ValueError("no 'vertices faces edges' counts after the OFF header") from None
-        if nv < 0 or nf < 0:
-            raise ValueError(f"the header gives negative counts ({nv} vertices, {nf} faces)")
-        vals = rest[3:]
-        if len(vals) < 3 * nv:
-            raise ValueError(
-                f"the header says {nv} vertices, found {len(vals) // 3} (truncated file?)"
-            )
-        try:
-            v = np.asarray(vals[: 3 * nv], np.float64).reshape(nv, 3)
-        except ValueError:
-            raise ValueError("a vertex coordinate is not a number") from None
-        pos = 3 * nv
-        tris: list[list[int]] = []
-        for face in range(nf):
-            if pos >= len(vals):
-                raise ValueError(f"the header says {nf} faces, found {face} (truncated file?)")
-            try:
-                k = int(vals[pos])
-                idx = [int(x) for x in vals[pos + 1 : pos + 1 + k]]
-            except ValueError:
-                raise ValueError(
-                    f"face {face} has a vertex count or index that is not a whole number"
-                ) from None
-            if k < 0:
-                raise ValueError(f"face {face} has a negative vertex count ({k})")
-            if len(idx) != k:
-                raise ValueError(f"the file ends inside face {face} (truncated file?)")
-            bad = [i for i in idx if not 0 <= i < nv]
-            if bad:
-                raise ValueError(
-                    f"face {len(tris)} has vertex index {bad[0]}, expected 0..{nv - 1}"
-                )
-            tris += [[idx[0], idx[i], idx[i + 1]] for i in range(1, k - 1)]
-            pos += 1 + k
+        v, tris = _parse_off(path.read_text(errors="replace"))
         if not _fits_float32(v):
             raise ValueError("vertex coordinates beyond float32 range or not finite")
-        if not tris:
+        if not len(tris):
             raise ValueError("no faces of three or more vertices: a mesh needs triangles")
-    except (ValueError, IndexError) as exc:
+    except ValueError as exc:
         raise RgbdError(f"{path}: not a valid OFF mesh ({exc})") from exc
-    return Mesh(_near_origin(path, v), np.asarray(tris, np.uint32).reshape(-1, 3))
+    return Mesh(_near_origin(path, v), tris)
+
+
+def _parse_off(text: str) -> tuple[npt.NDArray[np.float64], U32]:
+    """Vertices and fan-triangulated faces of an ASCII OFF file's ``text``; a ValueError says
+    what is wrong with it.
+
+    A ``#`` starts a comment that runs to the end of its line; blank lines are skipped. The
+    header keyword (``OFF``, ``COFF``, ``NOFF``, ``STOFF``, ...) is followed by the counts
+    ``vertices faces [edges]``: on the next line, on the keyword's line, or fused with the
+    keyword as ModelNet writes ``OFF490 518 0``. Then one vertex per line, its first three values
+    the coordinates (colours, normals or texture coordinates after them are ignored), and one
+    face per line: its vertex count ``n`` and ``n`` indices, anything after them (a colour)
+    ignored. 4-D and n-D vertices (``4OFF``, ``nOFF``) and binary files are refused.
+    """
+    lines = text.splitlines()
+    if "#" in text:
+        lines = [line.split("#", 1)[0] for line in lines]
+    rows = list(filter(str.strip, lines))  # the lines with content
+    head = rows[0].split() if rows else []
+    key = _OFF_KEYWORD.fullmatch(head[0]) if head else None
+    if key is None:
+        got = f"it begins {rows[0].strip()[:40]!r}" if rows else "the file is empty"
+        raise ValueError(f"no OFF header: {got}, expected OFF, COFF, NOFF, STOFF or the like")
+    if key[4] or key[5]:
+        raise ValueError(
+            f"the header {head[0]!r} declares {'4-D' if key[4] else 'n-D'} vertices, which are "
+            "not supported: expected 3-D ones, as in OFF, COFF, NOFF, STOFF or the like"
+        )
+    counts = ([key[6]] if key[6] else []) + head[1:]
+    if counts[:1] == ["BINARY"]:
+        raise ValueError("a binary OFF file, which is not supported; expected an ASCII one")
+    first = 1  # the row after the counts
+    if not counts and len(rows) > 1:
+        counts, first = rows[1].split(), 2
+    if len(counts) > 3:
+        raise ValueError(
+            f"the counts line {' '.join(counts)[:40]!r} holds {len(counts)} values, expected "
+            "'vertices faces edges', then one vertex or face per line"
+        )
+    try:
+        nv, nf = int(counts[0]), int(counts[1])
+    except (IndexError, ValueError):
+        got = f", got {' '.join(counts)!r}" if counts else ""
+        raise ValueError(f"no 'vertices faces edges' counts after the OFF header{got}") from None
+    if nv < 0 or nf < 0:
+        raise ValueError(f"the header gives negative counts ({nv} vertices, {nf} faces)")
+    vrows = rows[first : first + nv]
+    if len(vrows) < nv:
+        raise ValueError(f"the header says {nv} vertices, found {len(vrows)} (truncated file?)")
+    v = _off_vertices(vrows, last=first + nv == len(rows))
+    frows = rows[first + nv : first + nv + nf]
+    if len(frows) < nf:
+        raise ValueError(f"the header says {nf} faces, found {len(frows)} (truncated file?)")
+    return v, _off_faces(frows, nv, last=first + nv + nf == len(rows))
+
+
+def _off_vertices(rows: list[str], last: bool) -> npt.NDArray[np.float64]:
+    """The first three values of each of ``rows`` (vertex lines) as an ``N x 3`` array;
+    ``last``: the final row is the file's last line (cut short there, the file is truncated)."""
+    if not rows:
+        return np.zeros((0, 3))
+    try:  # the common case, at C speed
+        return np.loadtxt(rows, np.float64, comments=None, usecols=(0, 1, 2), ndmin=2)
+    except ValueError:
+        pass  # row by row, to say which is at fault
+    out = np.empty((len(rows), 3))
+    for i, row in enumerate(rows):
+        xyz = row.split()[:3]
+        if len(xyz) < 3 and last and i == len(rows) - 1:
+            raise ValueError(f"the header says {len(rows)} vertices, found {i} (truncated file?)")
+        if len(xyz) < 3:
+            raise ValueError(
+                f"vertex {i} ({row.strip()[:40]!r}) has {len(xyz)} values, expected x y z"
+            )
+        try:
+            out[i] = [float(x) for x in xyz]
+        except ValueError:
+            raise ValueError(
+                f"a vertex coordinate is not a number (vertex {i}: {row.strip()[:40]!r})"
+            ) from None
+    return out
+
+
+def _off_faces(rows: list[str], nv: int, last: bool) -> U32:
+    """The fan-triangulated faces of ``rows`` (face lines: a count ``n``, then ``n`` indices
+    into ``nv`` vertices, then anything) as ``M x 3`` indices; ``last``: the final row is the
+    file's last line (cut short there, the file is truncated)."""
+    idx = _same_size_faces(rows)
+    if idx is None:  # faces of several sizes, or a bad face: row by row
+        return _off_faces_by_row(rows, nv, last)
+    bad = (idx < 0) | (idx >= nv)
+    if bad.any():
+        f = int(np.flatnonzero(bad.any(axis=1))[0])
+        raise ValueError(f"face {f} has vertex index {idx[f][bad[f]][0]}, expected 0..{nv - 1}")
+    j = np.arange(1, idx.shape[1] - 1)  # fans (0, j, j + 1), face by face
+    fan = np.stack([np.broadcast_to(idx[:, :1], (len(idx), len(j))), idx[:, j], idx[:, j + 1]], -1)
+    return fan.reshape(-1, 3).astype(np.uint32)
+
+
+def _same_size_faces(rows: list[str]) -> npt.NDArray[np.int64] | None:
+    """``F x n`` vertex indices when all ``rows`` (face lines) are well-formed faces of the same
+    size ``n``, read at C speed; None otherwise."""
+    if not rows:
+        return np.zeros((0, 3), np.int64)
+    words = rows[0].split()
+    n = int(words[0]) if words[0].isdecimal() else -1
+    if not 0 <= n < len(words):
+        return None
+    try:
+        table = np.loadtxt(rows, np.int64, comments=None, usecols=range(n + 1), ndmin=2)
+    except ValueError:
+        return None
+    return table[:, 1:] if (table[:, 0] == n).all() else None
+
+
+def _off_faces_by_row(rows: list[str], nv: int, last: bool) -> U32:
+    """:func:`_off_faces` row by row (faces of several sizes), saying which face is at fault."""
+    tris: list[list[int]] = []
+    for f, row in enumerate(rows):
+        words = row.split()
+        try:
+            n = int(words[0])
+            idx = [int(x) for x in words[1 : 1 + max(n, 0)]]
+        except ValueError:
+            raise ValueError(
+                f"face {f} has a vertex count or index that is not a whole number "
+                f"({row.strip()[:40]!r})"
+            ) from None
+        if n < 0:
+            raise ValueError(f"face {f} has a negative vertex count ({n})")
+        if len(idx) < n and last and f == len(rows) - 1:
+            raise ValueError(f"the file ends inside face {f} (truncated file?)")
+        if len(idx) < n:
+            raise ValueError(
+                f"face {f} ({row.strip()[:40]!r}) lists {len(idx)} vertices, expected {n}"
+            )
+        bad = [i for i in idx if not 0 <= i < nv]
+        if bad:
+            raise ValueError(f"face {f} has vertex index {bad[0]}, expected 0..{nv - 1}")
+        tris += [[idx[0], idx[k], idx[k + 1]] for k in range(1, n - 1)]
+    return np.asarray(tris, np.uint32).reshape(-1, 3)
 
 
 def _ply_vertex_count(path: Path) -> int | None:

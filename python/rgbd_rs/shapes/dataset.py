@@ -28,9 +28,11 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import functools
+import io
 import json
 import math
 import os
+import re
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -190,6 +192,62 @@ def _obj_cut(p: Path) -> str:
     return " ".join(last) if last[:1] in (["v"], ["f"]) and len(last) < 4 else ""
 
 
+#: An OBJ face or line statement holding a negative (relative) or a zero index, searched for in
+#: ``b"\n"`` + the file (the literal ``\n`` first makes the search fast).
+_OBJ_RELATIVE = re.compile(rb"\n[ \t]*[fl][ \t][^\n#]*?(?<=[ \t/])(?:-|0+(?![^\s/]))")
+#: What the indices of an OBJ ``v/vt/vn`` reference count, singular and plural.
+_OBJ_REFS = (
+    (b"v", "vertex", "vertices"),
+    (b"vt", "texture coordinate", "texture coordinates"),
+    (b"vn", "normal", "normals"),
+)
+
+
+def _obj_absolute(p: Path, data: bytes) -> bytes:
+    """``data``, an OBJ file, with every negative index of its ``f`` and ``l`` statements made
+    absolute: ``-1`` is the last vertex (texture coordinate, normal) defined *above* the line.
+    trimesh counts it from the file's last one instead, which loads a file of several objects
+    with relative indices as the wrong mesh (trimesh issue #2364). A zero index, or one before
+    the first vertex, raises :class:`RgbdError` naming the line."""
+    seen = dict.fromkeys((key for key, _, _ in _OBJ_REFS), 0)
+    lines = data.split(b"\n")
+    for n, line in enumerate(lines):
+        words = line.split(b"#", 1)[0].split()
+        if not words:
+            continue
+        if words[0] in seen:
+            seen[words[0]] += 1
+            continue
+        if words[0] not in (b"f", b"l"):
+            continue
+        refs = []
+        for word in words[1:]:
+            parts = word.split(b"/")
+            for k, ((key, one, many), part) in enumerate(zip(_OBJ_REFS, parts, strict=False)):
+                try:
+                    i = int(part)
+                except ValueError:
+                    continue  # trimesh's to refuse
+                if i > 0:
+                    continue
+                count = seen[key]
+                if i == 0 or i + count < 0:
+                    have = (
+                        f"1..{count} or -1..-{count}, the {count} {many} defined above it"
+                        if count
+                        else f"a {one} defined above it, found none"
+                    )
+                    text = line.strip().decode(errors="replace")[:40]
+                    raise RgbdError(
+                        f"{p}: not a valid OBJ file (line {n + 1}, {text!r}: {one} index {i}, "
+                        f"expected {have})"
+                    )
+                parts[k] = b"%d" % (i + count + 1)
+            refs.append(b"/".join(parts))
+        lines[n] = b" ".join([words[0], *refs])
+    return b"\n".join(lines)
+
+
 def _trimesh_file(p: Path, suffix: str) -> Shape:
     import trimesh
 
@@ -197,11 +255,18 @@ def _trimesh_file(p: Path, suffix: str) -> Shape:
     if cut:
         raise RgbdError(f"{p}: the file ends inside the line {cut!r} (truncated file?)")
 
+    source: Path | io.BytesIO = p
+    resolver = None  # trimesh's for a path: material files beside it
+    if suffix == ".obj" and _OBJ_RELATIVE.search(b"\n" + (data := p.read_bytes())):
+        source = io.BytesIO(_obj_absolute(p, data))
+        resolver = trimesh.resolvers.FilePathResolver(str(p))  # the same, read from memory
     loaded: Any
     try:
         # fix_texture=False (PLY): per-face texture coordinates would split shared vertices.
         extra: dict[str, Any] = {"fix_texture": False} if suffix == ".ply" else {}
-        loaded = trimesh.load(p, file_type=suffix[1:], process=False, **extra)
+        loaded = trimesh.load(
+            source, file_type=suffix[1:], resolver=resolver, process=False, **extra
+        )
     except Exception as exc:  # trimesh raises many types for corrupt files
         why = reason(exc)
         raise RgbdError(f"{p}: not a readable {suffix} mesh or point cloud ({why})") from None
