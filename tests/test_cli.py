@@ -478,6 +478,16 @@ def test_eval_fusion_on_an_empty_split_is_one_line(tmp_path: Path) -> None:
         "eval", "fusion", "--synth", str(ds), "--split", "train", "--out", str(tmp_path / "e")
     )
     _assert_one_line_error(res, "--synth: got", "no scene in its train split")
+    # the training commands say the same of the split they read, before any work
+    res = run("train", "confidence", "--data", str(ds), "--out", str(tmp_path / "t"))
+    _assert_one_line_error(res, f"--data: got {ds} with no train scene", "rgbd synth --train N")
+    empty = tmp_path / "empty"
+    made = run("synth", "--out", str(empty), "--train", "1", "--test", "0", "--scale", "0.05")
+    assert made.returncode == 0, made.stderr
+    out = tmp_path / "c.pt"
+    res = run("train", "calibrate-confidence", "--data", str(empty), "--out", str(out))
+    _assert_one_line_error(res, f"--data: got {empty} with no test scene")
+    assert not (tmp_path / "t").exists() and not out.exists()
 
 
 def test_synth_scale_1000_is_refused_before_allocating(tmp_path: Path) -> None:

@@ -220,3 +220,25 @@ def test_off_tree_cache_marks_broken_meshes_failed(off_tree: Path, tmp_path: Pat
     assert cache.complete and int((cache.done == 2).sum()) == 1
     assert len(cache.dataset("all")) == 7 and cache.kind == "mesh"
     assert cache.meta["points_per_shape"] is None
+
+
+def test_a_split_without_shapes_is_named_not_sent_to_build(
+    shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A cache of test shapes only: asking for its training split said 'build the cache'."""
+    from rgbd_rs.cli import main
+    from rgbd_rs.errors import InvalidArgumentError
+
+    pack = modelnet10_subset(shared_data, tmp_path / "p.npz", (1, 2), ((1, 2),))
+    spec = D.InputSpec(representations=("volume",), normalisation="standardize")
+    D.build_cache(pack, tmp_path / "c", spec=spec, quiet=True)
+    cache = D.ShapeCache(tmp_path / "c")
+    assert len(cache.dataset("test")) == 4
+    with pytest.raises(InvalidArgumentError, match=r"^split: got 'train', which has no shape in"):
+        cache.dataset("train")
+    with pytest.raises(InvalidArgumentError, match=r"\(0 train, 4 test\), expected a split"):
+        cache.dataset("train")
+    argv = ["train", "shapes", "--cache", str(tmp_path / "c"), "--out", str(tmp_path / "t")]
+    assert main([*argv, "--quiet", "--device", "cpu"]) == 2
+    err = capsys.readouterr().err
+    assert "split: got 'train', which has no shape" in err and "build" not in err, err

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Literal
 
-from rgbd_rs.cli._args import Commands, fail, folder, integer, real, shard
+from rgbd_rs.cli._args import Commands, fail, folder, integer, named, real, shard
+from rgbd_rs.errors import InvalidArgumentError
 
 
 def register(commands: Commands) -> None:
@@ -112,6 +114,18 @@ def register_calibration(commands: Commands) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def _require_scenes(data: Path, split: Literal["train", "test"]) -> None:
+    """Refuse a ``--data`` set whose ``split`` has no scene (before any work)."""
+    from rgbd_rs.data.synth import SynthDataset
+
+    ds = named("--data", lambda: SynthDataset(data, split))
+    if len(ds) == 0:
+        raise InvalidArgumentError(
+            f"--data: got {data} with no {split} scene, expected at least one (rgbd synth "
+            f"--{split} N)"
+        )
+
+
 def run_train(args: argparse.Namespace) -> int:
     from rgbd_rs.nn.confidence_train import (
         Recipe,
@@ -127,6 +141,7 @@ def run_train(args: argparse.Namespace) -> int:
             f"--data: got {args.data}, expected a dataset folder of `rgbd synth` (it has no "
             "manifest.json)"
         )
+    _require_scenes(args.data, "train")
     if args.shard is not None:
         train, val = prepare_caches(
             args.data, args.out / "cache", shard=args.shard, quiet=args.quiet
@@ -165,6 +180,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     if args.out.is_dir():  # before the scenes are fused
         return fail(f"--out: got {args.out}, a folder; expected the calibrated checkpoint's file")
+    _require_scenes(args.data, "test")
     source = WEIGHTS if args.checkpoint is None else args.checkpoint
     estimator = ConfidenceEstimator.load(source)
     result = calibrate_stereo_power(

@@ -1095,6 +1095,12 @@ class ShapeCache:
                     f"0..{len(self) - 1}"
                 )
         if len(idx) == 0:
+            if not self._rows(split).any():  # nothing to build: the data has no such shapes
+                counts = ", ".join(f"{int(self._rows(s).sum())} {s}" for s in ("train", "test"))
+                raise InvalidArgumentError(
+                    f"split: got {split!r}, which has no shape in {self.path} ({counts}), "
+                    "expected a split with shapes"
+                )
             raise RgbdError(f"{self.path}: no computed shapes in split {split!r}; build the cache")
         return CachedShapes(self, reps, idx)
 
