@@ -98,3 +98,32 @@ def test_normals_plane_and_sphere() -> None:
     ref = (pts[inner] - c) / np.linalg.norm(pts[inner] - c, axis=1, keepdims=True)
     assert np.degrees(np.arccos(np.clip((nrm[inner] * ref).sum(axis=1), -1, 1))).max() < 2.0
     assert (nrm[inner] @ np.array([0, 0, 1.0]) < 0).all()
+
+
+def test_raw_integer_depth_is_refused_everywhere_depth_means_metres() -> None:
+    """reproject_depth and segment refused a uint16 millimetre map; these read it as metres."""
+    from rgbd_rs import InvalidArgumentError, PinholeCamera, depth_to_disparity
+    from rgbd_rs.geometry import normals_from_depth
+
+    cam = PinholeCamera(fx=100, fy=100, cx=3.5, cy=3.5, width=8, height=8)
+    raw = np.full((8, 8), 1500, np.uint16)
+    for call in (
+        lambda: cam.depth_to_points(raw),
+        lambda: depth_to_disparity(raw, 0.1, 100.0),
+        lambda: normals_from_depth(raw, cam),
+    ):
+        with pytest.raises(InvalidArgumentError, match=r"^depth: got dtype uint16, expected float"):
+            call()
+    metres = raw / 1000
+    assert np.allclose(cam.depth_to_points(metres)[..., 2], 1.5)
+    assert np.allclose(depth_to_disparity(metres, 0.1, 100.0), 0.1 * 100 / 1.5)
+
+
+def test_depth_and_disparity_of_a_single_value() -> None:
+    """'any shape' includes a scalar (it was refused as 'got shape (), expected (N)')."""
+    from rgbd_rs import depth_to_disparity, disparity_to_depth
+
+    d = depth_to_disparity(2.0, 0.1, 500.0)
+    assert d.shape == () and d.dtype == np.float32 and float(d) == 25.0
+    assert float(disparity_to_depth(d, 0.1, 500.0)) == 2.0
+    assert np.isnan(depth_to_disparity(0.0, 0.1, 500.0))

@@ -396,8 +396,10 @@ class PinholeCamera:
     def depth_to_points(self, depth: npt.ArrayLike) -> F32:
         """Back-project an ``H x W`` depth map (z, metres) to an ``H x W x 3`` point cloud.
 
-        Invalid depth (NaN, <= 0) gives NaN points.
+        Invalid depth (NaN, <= 0) gives NaN points. An integer map (a raw depth image, usually
+        millimetres) is refused: divide it into metres first.
         """
+        _validate.metric_depth("depth", depth)
         d = _validate.array("depth", depth, shape=(self.height, self.width))
         return _rgbd_rs.depth_to_points(d, self._native(), UNDISTORT_MAX_ITER, UNDISTORT_TOL)
 

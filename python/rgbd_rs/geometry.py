@@ -48,6 +48,7 @@ def depth_to_disparity(depth: npt.ArrayLike, baseline: float, focal: float) -> F
         baseline: stereo baseline in metres (> 0).
         focal: horizontal focal length in pixels (> 0).
     """
+    _validate.metric_depth("depth", depth)
     return _reciprocal("depth", depth, baseline, focal, "disparities")
 
 
@@ -80,9 +81,9 @@ def _reciprocal(name: str, values: npt.ArrayLike, baseline: float, focal: float,
 
 def _as_map(name: str, value: npt.ArrayLike) -> F32:
     arr = _validate.asarray(name, value)
-    return _validate.array(name, arr, shape=(None,) * max(arr.ndim, 1), allow_empty=True).reshape(
-        arr.shape
-    )
+    if arr.ndim == 0:  # a single value: checked as a 1-element map, returned 0-d
+        return _validate.array(name, arr.reshape(1), shape=(None,)).reshape(())
+    return _validate.array(name, arr, shape=(None,) * arr.ndim, allow_empty=True)
 
 
 @array_eq
@@ -139,12 +140,8 @@ def reproject_depth(
             )
     if not isinstance(pose, Pose):
         raise InvalidArgumentError(f"pose: got {type(pose).__name__}, expected a Pose")
+    _validate.metric_depth("depth", depth)
     d = _validate.array("depth", depth, shape=(source.height, source.width))
-    if isinstance(depth, np.ndarray) and depth.dtype.kind in "iub":
-        raise InvalidArgumentError(
-            f"depth: got dtype {depth.dtype}, expected float depth in metres (a raw 16-bit "
-            "depth image is usually millimetres: pass depth_mm / 1000)"
-        )
     ch = None
     squeeze = False
     if channels is not None:
