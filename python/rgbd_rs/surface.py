@@ -28,11 +28,18 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs._array_eq import array_eq
-from rgbd_rs.errors import InvalidArgumentError
+from rgbd_rs.errors import InvalidArgumentError, RgbdError
 
 __all__ = [
     "DEFAULT_DEGREE",
+    "DEFAULT_LAMBDA",
     "DEFAULT_SPACING",
+    "DEFAULT_TEST_SPACING",
+    "DEFAULT_TEST_WINDOW",
+    "DEFAULT_TOLERANCE",
+    "KINECT_V1_NOISE_POWER",
+    "KINECT_V1_NOISE_SCALE",
+    "MAX_DEGREE",
     "MAX_LAMBDA",
     "SegmentFits",
     "SurfaceFit",
@@ -380,10 +387,10 @@ class SegmentFits:
     """Spline fits of every segment of a label image, for region merging (thesis §4.7).
 
     ``labels`` is ``H x W`` integer, ``-1`` (any negative) for unlabelled pixels; any labels
-    ``>= 0`` (compacted internally, so sparse or huge ids cost nothing) name the segments, and the
-    methods take those labels. One object may be shared between threads. Each segment keeps its
-    normal equations; :meth:`union_error` sums two systems and
-    solves once (no pass over pixels), :meth:`merge` makes that union permanent.
+    ``>= 0`` and ``< 2**31`` (compacted internally, so sparse ids cost nothing) name the
+    segments, and the methods take those labels. One object may be shared between threads. Each
+    segment keeps its normal equations; :meth:`union_error` sums two systems and solves once
+    (no pass over pixels), :meth:`merge` makes that union permanent.
 
     ``criterion`` picks what :meth:`fit_error` reports:
 
@@ -472,6 +479,7 @@ class SegmentFits:
             p, lab32, s, d, lam_, crit, ts, ns, npow, tol, surfaces, win
         )
         self.shape: tuple[int, int] = (p.shape[0], p.shape[1])
+        self._surfaces = surfaces
 
     @property
     def n_labels(self) -> int:
@@ -500,8 +508,17 @@ class SegmentFits:
         return self._native.fit_error(_label("i", i))
 
     def mse(self, i: int) -> float:
-        """Plain mean squared 3-D distance of segment ``i`` to its surface."""
+        """Plain mean squared 3-D distance of segment ``i`` to its surface (fits built with
+        ``surfaces=True`` only)."""
+        self._need_surfaces("mse")
         return self._native.mse(_label("i", i))
+
+    def _need_surfaces(self, what: str) -> None:
+        if not self._surfaces:
+            raise RgbdError(
+                f"{what}: these fits were built with surfaces=False (the seam test alone), "
+                "expected SegmentFits(..., surfaces=True) for surface fits"
+            )
 
     def union_error(self, i: int, j: int) -> float:
         """Fitting error of the union of live segments ``i`` and ``j`` (nothing changes).
@@ -531,6 +548,8 @@ class SegmentFits:
         return self._native.labels()
 
     def maps(self, points: npt.ArrayLike) -> SurfaceMaps:
-        """Per-pixel maps of ``points`` against the surface of each pixel's current segment."""
+        """Per-pixel maps of ``points`` against the surface of each pixel's current segment
+        (fits built with ``surfaces=True`` only)."""
+        self._need_surfaces("maps")
         p = _validate.array("points", points, shape=(self.shape[0], self.shape[1], 3))
         return SurfaceMaps(**_maps(self._native.maps(p)))
