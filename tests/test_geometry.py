@@ -114,6 +114,8 @@ def test_raw_integer_depth_is_refused_everywhere_depth_means_metres() -> None:
     ):
         with pytest.raises(InvalidArgumentError, match=r"^depth: got dtype uint16, expected float"):
             call()
+    with pytest.raises(InvalidArgumentError, match=r"^depth: got dtype uint16"):
+        depth_to_disparity(raw[1, 1], 0.1, 100.0)  # a numpy scalar read from the raw map
     metres = raw / 1000
     assert np.allclose(cam.depth_to_points(metres)[..., 2], 1.5)
     assert np.allclose(depth_to_disparity(metres, 0.1, 100.0), 0.1 * 100 / 1.5)

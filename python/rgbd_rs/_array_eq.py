@@ -44,7 +44,13 @@ def same(a: object, b: object) -> bool:
         return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
         return type(a) is type(b) and len(a) == len(b) and all(map(same, a, b))
+    if _is_nan(a) and _is_nan(b):  # a score of no pixels equals itself
+        return True
     return bool(a == b)
+
+
+def _is_nan(x: object) -> bool:
+    return isinstance(x, (float, np.floating)) and x != x
 
 
 def key(x: object) -> object:
@@ -52,12 +58,16 @@ def key(x: object) -> object:
     arr = _as_array(x)
     if arr is not None:
         if arr.dtype.kind in "fc":
-            arr = arr + 0  # -0.0 -> 0.0: equal values, equal bytes
+            # -0.0 -> 0.0 and every NaN (0/0 sets the sign bit) -> one NaN: equal values,
+            # equal bytes
+            arr = np.where(np.isnan(arr), np.array(np.nan, arr.dtype), arr + 0)
         return ("array", arr.shape, arr.dtype.str, np.ascontiguousarray(arr).tobytes())
     if isinstance(x, Mapping):
         return ("map", tuple(sorted((repr(k), key(v)) for k, v in x.items())))
     if isinstance(x, (list, tuple)):
         return (type(x).__name__, tuple(key(v) for v in x))
+    if _is_nan(x):
+        return ("nan",)
     return x
 
 

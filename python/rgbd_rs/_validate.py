@@ -327,7 +327,7 @@ def device(name: str, value: object, *, auto: bool = False, available: bool = Tr
 def metric_depth(name: str, value: object) -> None:
     """Refuse an integer (or boolean) depth array: a raw depth image holds millimetres (or
     another sensor unit), and read as metres it would be silently 1000x too far."""
-    if isinstance(value, np.ndarray) and value.dtype.kind in "iub":
+    if isinstance(value, (np.ndarray, np.generic)) and value.dtype.kind in "iub":
         raise InvalidArgumentError(
             f"{name}: got dtype {value.dtype}, expected float depth in metres (a raw 16-bit "
             "depth image is usually millimetres: pass depth_mm / 1000)"

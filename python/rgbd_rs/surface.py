@@ -131,6 +131,10 @@ class SurfaceFit(SurfaceMaps):
     cropped: bool
     _image_shape: tuple[int, int]
     _native: _rgbd_rs._SplineFit | None
+    # A fit is compared as itself (its maps are computed lazily, its native fit is opaque), not
+    # by the maps of the dataclass it extends.
+    __eq__ = object.__eq__
+    __hash__ = object.__hash__
     _points: F32 | None
     _mask: npt.NDArray[np.bool_] | None
     _cache: dict[str, F32] | None

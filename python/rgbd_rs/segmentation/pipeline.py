@@ -114,9 +114,9 @@ class Segmentation:
     features: Features
     #: The seam-test fits of the final segments (with the surface fits only when the ConvNet ran:
     #: for fitting error and curvature maps build ``SegmentFits(features.points, labels)``).
-    fits: SegmentFits
-    #: Seconds spent in each stage, in order.
-    seconds: dict[str, float] = field(default_factory=dict)
+    fits: SegmentFits = field(compare=False)  # compared through the labels
+    #: Seconds spent in each stage, in order (not compared: two equal runs differ in time).
+    seconds: dict[str, float] = field(default_factory=dict, compare=False)
     #: ``H x W x C`` class PDFs the merging used (the ConvNet's or the caller's), else None.
     pdfs: np.ndarray | None = None
     #: ``H x W`` int32 class of each final segment (§4.7 refinement with :attr:`pooling`), -1

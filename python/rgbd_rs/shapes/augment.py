@@ -186,8 +186,9 @@ class MixedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
     [1/2, 1] (so item ``i``'s own class keeps the larger weight), its label the same mix of the
     two one-hot targets (a float vector of ``classes`` entries, which
     :func:`~rgbd_rs.shapes.train.cross_entropy` and :func:`~rgbd_rs.shapes.train.accuracy`
-    take). Every input is standardised by an affine map, so a mix of packed inputs is the packed
-    mix. The draws come from torch's global generator (seeded by the trainer: deterministic)."""
+    take). The mix is of the cached, normalised inputs (as image mixup mixes normalised
+    images; a mix of two shapes' raw maps, normalised, would differ). The draws come from
+    torch's global generator (seeded by the trainer: deterministic)."""
 
     def __init__(self, dataset: Any, classes: int, alpha: float) -> None:
         self.dataset = dataset
