@@ -267,8 +267,15 @@ _OFF_KEYWORD = re.compile(r"(ST)?(C)?(N)?(4)?(n)?OFF(.*)")
 def _read_off(path: Path) -> Mesh:
     """An ASCII OFF file (:func:`_parse_off`) as a Mesh; :class:`RgbdError` names the file and
     what is wrong with it."""
+    text = path.read_text(errors="replace")
     try:
-        v, tris = _parse_off(path.read_text(errors="replace"))
+        try:
+            v, tris = _parse_off(text)
+        except ValueError as lines_error:  # a free-format file, values wrapped across lines?
+            free = _parse_off_stream(text)
+            if free is None:
+                raise lines_error from None
+            v, tris = free
         if not _fits_float32(v):
             raise ValueError("vertex coordinates beyond float32 range or not finite")
         if not len(tris):
@@ -276,6 +283,36 @@ def _read_off(path: Path) -> Mesh:
     except ValueError as exc:
         raise RgbdError(f"{path}: not a valid OFF mesh ({exc})") from exc
     return Mesh(_near_origin(path, v), tris)
+
+
+def _parse_off_stream(text: str) -> tuple[npt.NDArray[np.float64], U32] | None:
+    """A plain ``OFF`` file read as one stream of values (the format allows line breaks
+    anywhere but inside a face's colour): its vertices and fan-triangulated faces, or None
+    where that reading fails too (then the line-wise reading's error stands). Only for the plain
+    header, whose vertices have exactly three values, and faces without colours."""
+    tokens = " ".join(line.split("#", 1)[0] for line in text.splitlines()).split()
+    if not tokens or not tokens[0].startswith("OFF") or tokens[0][3:4].isalpha():
+        return None
+    rest = ([tokens[0][3:]] if tokens[0][3:] else []) + tokens[1:]
+    try:
+        nv, nf = int(rest[0]), int(rest[1])
+        vals = rest[3:]
+        if nv < 0 or nf < 0 or len(vals) < 3 * nv:
+            return None
+        v = np.asarray(vals[: 3 * nv], np.float64).reshape(nv, 3)
+        pos, tris = 3 * nv, []
+        for _ in range(nf):
+            k = int(vals[pos])
+            idx = [int(x) for x in vals[pos + 1 : pos + 1 + k]]
+            if k < 0 or len(idx) != k or any(not 0 <= i < nv for i in idx):
+                return None
+            tris += [[idx[0], idx[i], idx[i + 1]] for i in range(1, k - 1)]
+            pos += 1 + k
+    except (IndexError, ValueError):
+        return None
+    if pos != len(vals):  # values left over: colours, which only the line-wise reading places
+        return None
+    return v, np.asarray(tris, np.uint32).reshape(-1, 3)
 
 
 def _parse_off(text: str) -> tuple[npt.NDArray[np.float64], U32]:
