@@ -511,6 +511,69 @@ def test_the_band_of_a_rendered_scene_follows_the_tof() -> None:
     assert np.mean(np.abs(out.disparity - gt)[band] > 2) < 0.05
 
 
+@pytest.mark.parametrize("sign", [-1, 1])
+def test_a_tof_dropout_in_the_band_is_bridged_from_the_rows_around_it(sign: int) -> None:
+    """Rows 2-5 of the band (x < 5 for a left reference at 5 px) are a ToF dropout, where LC
+    kept the matcher's forced 0 px at plausibility 1; rows 1 and 6 took the ToF. Column by
+    column the dropout takes the ToF interpolated between them (column 1 ramps 5 -> 7.5) with
+    the smaller end's plausibility, except where the ends step more than 1 px a row (column 3),
+    where the ToF has a value (row 3, column 2) and where the pixel is seen (columns >= 5)."""
+    h, w = 8, 12
+    tof = np.full((h, w), 5.0, np.float32)
+    tof[2:6] = np.nan
+    tof[3, 2] = 5.0
+    tof[6, 1], tof[6, 3] = 7.5, 11.0
+    disp = np.where(np.isfinite(tof), tof, 0.0).astype(np.float32)
+    disp[:, 5:] = 5.0
+    plaus = np.ones((h, w), np.float32)
+    plaus[1, :6], plaus[6, :6] = 0.8, 0.6
+    source = np.full((h, w), FUSE.SOURCE_LC_UNMEASURED, np.uint8)
+    source[:, 5:] = FUSE.SOURCE_LC
+    source[[0, 1, 6, 7], :6] = FUSE.SOURCE_TOF
+    source[3, 2] = FUSE.SOURCE_LC
+    if sign > 0:  # the right reference's band is at the right border
+        tof, disp, plaus, source = (
+            np.ascontiguousarray(a[:, ::-1]) for a in (tof, disp, plaus, source)
+        )
+    before = disp.copy(), plaus.copy(), source.copy()
+    FUSE._bridge_band_across_dropouts(disp, plaus, source, tof, sign)
+    if sign > 0:
+        disp, plaus, source = (a[:, ::-1] for a in (disp, plaus, source))
+        before = tuple(a[:, ::-1] for a in before)
+    bridged = np.zeros((h, w), bool)
+    bridged[2:6, [0, 1, 2, 4]] = True
+    bridged[3, 2] = False
+    np.testing.assert_array_equal(source == FUSE.SOURCE_TOF_CARRIED, bridged)
+    want = np.full((h, w), 5.0, np.float32)
+    want[2:6, 1] = [5.5, 6.0, 6.5, 7.0]
+    np.testing.assert_array_equal(disp[bridged], want[bridged])
+    np.testing.assert_array_equal(plaus[bridged], np.float32(0.6))
+    for after, was in zip((disp, plaus, source), before, strict=True):
+        np.testing.assert_array_equal(after[~bridged], was[~bridged])
+
+
+def test_a_tof_dropout_leaves_no_forced_match_in_the_band_of_a_rendered_scene() -> None:
+    """A 10-row NaN band in a rendered scene's ToF: in the reference rows it left without ToF
+    near the border, LC kept the matcher's forced matches (0-2 px where the truth is ~20 px) at
+    plausibility 1 (49 band pixels more than 5 px off at plausibility > 0.99 beyond the scene's
+    own, before the dropout was bridged from the rows around it)."""
+    from rgbd_rs.data.synth import generate, synth3_rig
+    from rgbd_rs.fusion.evaluate import outside_target_view
+
+    rig = synth3_rig(0.25)
+    s = generate(0, "test", 1, rig)[0]
+    gt = s.gt_disparity
+    band = outside_target_view(gt, 1) & np.isfinite(gt)
+    tof = s.tof_depth.copy()
+    tof[150:160] = np.nan
+    wrong = []
+    for depth in (s.tof_depth, tof):
+        out = fuse(s.left, s.right, depth, s.tof_amplitude, rig)
+        with np.errstate(invalid="ignore"):
+            wrong.append(band & (np.abs(out.disparity - gt) > 5) & (out.plausibility > 0.99))
+    assert (wrong[1] & ~wrong[0]).sum() <= 8
+
+
 def test_a_few_scenes_of_a_split_in_its_order(
     tmp_path: Path, shared_data: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

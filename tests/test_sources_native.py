@@ -20,6 +20,7 @@ from rgbd_rs.fusion.sources import (
     SOURCE_STEREO,
     SOURCE_TOF,
     SOURCE_TOF_CARRIED,
+    _bridge_band_across_dropouts,
     _carry_tof_to_border,
     _extend_tof_into_band,
     _fill_single_source,
@@ -175,6 +176,37 @@ def ref_extend_tof_into_band(
     ref_take(disp, plaus, source, take, tof, tof_confidence, SOURCE_TOF)
 
 
+def ref_bridge_band_across_dropouts(
+    disp: F32, plaus: F32, source: npt.NDArray[np.uint8], tof: F32, sign: int
+) -> None:
+    import itertools
+
+    w = disp.shape[1]
+    took = source == SOURCE_TOF
+    x = np.arange(w, dtype=np.float32)[None, :]
+    with np.errstate(invalid="ignore"):
+        target = x + np.float32(sign) * disp
+        unseen = (target < 0) | (target > w - 1)
+    open_ = ~np.isfinite(tof) & np.isin(source, (SOURCE_LC, SOURCE_LC_UNMEASURED, SOURCE_NONE))
+    for col in np.flatnonzero((took & unseen).sum(axis=0) >= 2):
+        rows = np.flatnonzero(took[:, col])
+        for a, b in itertools.pairwise(rows.tolist()):
+            if b - a < 2 or not (unseen[a, col] and unseen[b, col]):
+                continue
+            da, db = disp[a, col], disp[b, col]
+            if not abs(db - da) <= np.float32(BAND_CHAIN_STEP * (b - a)):
+                continue
+            ys = np.arange(a + 1, b)
+            v = (da + (db - da) * ((ys - a) / (b - a))).astype(np.float32)
+            with np.errstate(invalid="ignore"):
+                t = np.float32(col) + np.float32(sign) * v
+                keep = open_[ys, col] & ((t < 0) | (t > w - 1))
+            ys, v = ys[keep], v[keep]
+            disp[ys, col] = v
+            plaus[ys, col] = min(plaus[a, col], plaus[b, col])
+            source[ys, col] = SOURCE_TOF_CARRIED
+
+
 def _case(seed: int, with_conf: bool):
     rng = np.random.default_rng(seed)
     h, w = int(rng.integers(1, 30)), int(rng.integers(2, 60))  # fuse() needs w >= 2
@@ -238,6 +270,7 @@ def test_native_steps_equal_the_numpy_code(with_conf: bool, sign: int) -> None:
             (_unseen_from_tof, ref_unseen_from_tof, (tof, stereo, ct, sign)),
             (_extend_tof_into_band, ref_extend_tof_into_band, (tof, ct, sign)),
             (_carry_tof_to_border, ref_carry_tof_to_border, (tof, ct, sign)),
+            (_bridge_band_across_dropouts, ref_bridge_band_across_dropouts, (tof, sign)),
         ):
             step(*got, *args)
             ref(*want, *args)
@@ -271,5 +304,23 @@ def test_the_native_steps_refuse_maps_they_would_misread() -> None:
     maps = [np.zeros((2, 3), t) for t in (np.float32, np.float32, np.uint8)]
     with pytest.raises(RgbdError, match=r"tof: got shape \[3, 2\]"):
         _carry_tof_to_border(*maps, tof.reshape(3, 2).copy(), None, 1)
+    with pytest.raises(RgbdError, match=r"tof: got shape \[3, 2\]"):
+        _bridge_band_across_dropouts(*maps, tof.reshape(3, 2).copy(), 1)
     with pytest.raises(RgbdError, match=r"plausibility: got shape \[1, 6\]"):
         _extend_tof_into_band(maps[0], maps[1].reshape(1, 6), maps[2], tof, None, 1)
+
+
+def test_the_cases_reach_the_bridge_across_dropouts() -> None:
+    """The comparison above is not vacuous for the bridge: its cases bridge pixels."""
+    bridged = 0
+    for sign in (1, -1):
+        for seed in range(40):
+            lc, lcp, tof, stereo, ct, cs = _case(seed, False)
+            got = _fill_single_source(lc, lcp, tof, stereo, ct, cs)
+            _unseen_from_tof(*got, tof, stereo, ct, sign)
+            _extend_tof_into_band(*got, tof, ct, sign)
+            _carry_tof_to_border(*got, tof, ct, sign)
+            before = got[2].copy()
+            _bridge_band_across_dropouts(*got, tof, sign)
+            bridged += int((got[2] != before).sum())
+    assert bridged > 100

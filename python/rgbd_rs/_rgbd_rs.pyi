@@ -48,6 +48,7 @@ __all__ = [
     "ShapeMismatchError",
     "UpsampleConfig",
     "agreement",
+    "bridge_band_across_dropouts",
     "carry_tof_to_border",
     "census_sgm",
     "check_metric_depth",
@@ -194,6 +195,14 @@ def carry_tof_to_border(
     tof: _F32Map,
     tof_confidence: _F32Map | None,
     sign: float,
+) -> None: ...
+def bridge_band_across_dropouts(
+    disparity: _F32Map,
+    plausibility: _F32Map,
+    source: npt.NDArray[np.uint8],
+    tof: _F32Map,
+    sign: float,
+    chain_step: float,
 ) -> None: ...
 def clue_warp_maps(
     stereo_disparity: npt.NDArray[np.float32], sign: float

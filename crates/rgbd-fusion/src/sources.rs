@@ -225,3 +225,61 @@ pub fn carry_tof_to_border(
     });
     Ok(())
 }
+
+/// `_bridge_band_across_dropouts`: in each column, between two consecutive pixels that took
+/// the ToF (`SOURCE_TOF`), both unseen by the other camera and stepping by at most
+/// `chain_step` a row, the pixels where the ToF has no value and LC's answer (or nothing)
+/// stands take the value interpolated between the two, where it keeps their target outside the
+/// other image, with the smaller of the two plausibilities (`SOURCE_TOF_CARRIED`). Columns are
+/// independent; the few that hold such pairs are read serially (the band is narrow).
+pub fn bridge_band_across_dropouts(
+    fused: &mut Fused<'_>,
+    tof: &[f32],
+    sign: f32,
+    chain_step: f64,
+) -> Result<()> {
+    fused.check(&[("tof", Some(tof))])?;
+    let (w, h) = (fused.width, fused.height);
+    if w == 0 {
+        return Ok(());
+    }
+    let last = (w - 1) as f32;
+    // numpy's f32 target x + sign * d: NaN compares false, so a NaN value is never unseen
+    let unseen = |x: usize, d: f32| {
+        let t = x as f32 + sign * d;
+        t < 0.0 || t > last
+    };
+    let open = |s: u8| matches!(s, SOURCE_LC | SOURCE_LC_UNMEASURED | SOURCE_NONE);
+    for x in 0..w {
+        let mut prev: Option<usize> = None;
+        for y in 0..h {
+            if fused.source[y * w + x] != SOURCE_TOF {
+                continue;
+            }
+            if let Some(a) = prev.replace(y) {
+                let (ia, ib) = (a * w + x, y * w + x);
+                let (da, db) = (fused.disparity[ia], fused.disparity[ib]);
+                let span = y - a;
+                let limit = (chain_step * span as f64) as f32;
+                if span < 2 || !(unseen(x, da) && unseen(x, db)) || !((db - da).abs() <= limit) {
+                    continue;
+                }
+                let (pa, pb) = (fused.plausibility[ia], fused.plausibility[ib]);
+                let p = if pb < pa { pb } else { pa }; // Python's min(pa, pb)
+                let step = f64::from(db - da);
+                for yy in a + 1..y {
+                    let i = yy * w + x;
+                    let frac = (yy - a) as f64 / span as f64;
+                    let v = (f64::from(da) + step * frac) as f32;
+                    if tof[i].is_finite() || !open(fused.source[i]) || !unseen(x, v) {
+                        continue;
+                    }
+                    fused.disparity[i] = v;
+                    fused.plausibility[i] = p;
+                    fused.source[i] = SOURCE_TOF_CARRIED;
+                }
+            }
+        }
+    }
+    Ok(())
+}

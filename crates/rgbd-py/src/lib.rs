@@ -105,6 +105,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sources::unseen_from_tof, m)?)?;
     m.add_function(wrap_pyfunction!(sources::extend_tof_into_band, m)?)?;
     m.add_function(wrap_pyfunction!(sources::carry_tof_to_border, m)?)?;
+    m.add_function(wrap_pyfunction!(sources::bridge_band_across_dropouts, m)?)?;
     m.add_function(wrap_pyfunction!(clues::clue_maps, m)?)?;
     m.add_function(wrap_pyfunction!(clues::normalise_clues, m)?)?;
     m.add_function(wrap_pyfunction!(fusion::upsample_depth, m)?)?;

@@ -162,3 +162,21 @@ pub fn carry_tof_to_border<'py>(
         sources::carry_tof_to_border(f, t, ct, sign)
     })
 }
+
+/// `_bridge_band_across_dropouts`, in place.
+#[pyfunction]
+pub fn bridge_band_across_dropouts<'py>(
+    py: Python<'py>,
+    disparity: PyReadwriteArray2<'py, f32>,
+    plausibility: PyReadwriteArray2<'py, f32>,
+    source: PyReadwriteArray2<'py, u8>,
+    tof: PyReadonlyArray2<'py, f32>,
+    sign: f32,
+    chain_step: f64,
+) -> PyResult<()> {
+    let shape = fused_shape(&disparity);
+    let t = map("tof", &tof, shape)?;
+    with_fused(py, shape, disparity, plausibility, source, |f| {
+        sources::bridge_band_across_dropouts(f, t, sign, chain_step)
+    })
+}

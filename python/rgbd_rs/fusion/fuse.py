@@ -43,6 +43,7 @@ from rgbd_rs.fusion.sources import (
     SOURCE_STEREO,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_TOF,  # noqa: F401 (re-exported: FusionResult.source)
     SOURCE_TOF_CARRIED,  # noqa: F401 (re-exported: FusionResult.source)
+    _bridge_band_across_dropouts,
     _carry_tof_to_border,
     _extend_tof_into_band,
     _fill_single_source,
@@ -148,8 +149,9 @@ class FusionResult:
     #: ToF says the other camera cannot see the pixel and the matcher has no value or the ToF
     #: continues a surface the fusion confirmed), :data:`SOURCE_TOF_CARRIED` (along the
     #: border the other camera cannot see, before the row's first ToF pixel: that pixel's value
-    #: and confidence), :data:`SOURCE_NONE` (nothing). With ``LcParams(cross_check=True)``
-    #: nothing is filled (LC's unmeasured pixels are still marked).
+    #: and confidence; in that band across a ToF dropout: the ToF's value above and below,
+    #: interpolated, and their smaller confidence), :data:`SOURCE_NONE` (nothing). With
+    #: ``LcParams(cross_check=True)`` nothing is filled (LC's unmeasured pixels are still marked).
     source: npt.NDArray[np.uint8] | None = None
     #: The ToF pose fused with, ToF frame -> the ``reference`` camera's frame: the rig's,
     #: carried to that camera, or the orientation :func:`refine_tof_pose` found when ``fuse``
@@ -458,6 +460,7 @@ def fuse(
         _unseen_from_tof(disp, plaus, source, tof_disp, st_map, ct, sign)
         _extend_tof_into_band(disp, plaus, source, tof_disp, ct, sign)
         _carry_tof_to_border(disp, plaus, source, tof_disp, ct, sign)
+        _bridge_band_across_dropouts(disp, plaus, source, tof_disp, sign)
     depth = disparity_to_depth(disp, r.stereo.baseline, r.stereo.focal)
     return FusionResult(
         disp,
