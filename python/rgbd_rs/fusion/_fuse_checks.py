@@ -17,7 +17,12 @@ from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import ToFStereoRig
 from rgbd_rs.fusion._inputs import F32, U8, disagreement_warning, scale_factor
 from rgbd_rs.fusion._pose_check import pose_warning, turn_warning
-from rgbd_rs.fusion.pose_refine import WIDE_DEGREES, PoseRefinement, _pose_error
+from rgbd_rs.fusion.pose_refine import (
+    MIN_REFINE_WIDTH,
+    WIDE_DEGREES,
+    PoseRefinement,
+    _pose_error,
+)
 from rgbd_rs.fusion.scale_refine import (
     SCALE_GRID,
     ScaleRefinement,
@@ -169,6 +174,7 @@ def check_maps(
     the rig fused on, ``asked`` the rig as given; ``tof_disp`` the ToF's disparities within
     ``dmax``), each finding warned about as fuse() itself would, in fuse()'s order."""
     w = ref_img.shape[1]
+    refine_pose = refine_pose and w >= MIN_REFINE_WIDTH  # see MIN_REFINE_WIDTH
     # Depths in another unit or scale first: the checks below read the ToF's disparities as true.
     off_scale = None
     if not no_tof:

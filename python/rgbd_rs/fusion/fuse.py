@@ -242,8 +242,10 @@ def fuse(
             :func:`~rgbd_rs.fusion.pose_refine.refine_tof_pose` within a degree, a coarse
             probe of larger turns where nothing near fits), fuse with that orientation and
             warn; likewise when its depths fit it clearly better scaled by 1-6 %
-            (:func:`~rgbd_rs.fusion.scale_refine.refine_tof_scale`).
-            ``False`` fuses the pose and the depths as given.
+            (:func:`~rgbd_rs.fusion.scale_refine.refine_tof_scale`). Only on a reference
+            image at least :data:`~rgbd_rs.fusion.pose_refine.MIN_REFINE_WIDTH` (320) px wide:
+            below it the fit turned exact rigs. ``False`` fuses the pose and the depths as
+            given.
 
     A ToF frame without any valid pixel gives the stereo-only LC result with a warning.
     ToF depths that look like millimetres (or kilometres) for the rig are refused
