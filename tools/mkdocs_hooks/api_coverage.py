@@ -2,10 +2,10 @@
 
 After the build, every name in the ``__all__`` of each documented package must have its anchor
 on that package's page (``id="rgbd_rs.fusion.lc_fuse"``, or under a parent package that
-re-exports it: ``rgbd_rs.data.generate_indoor`` for ``rgbd_rs.data.synth_indoor``; a function that shares its name with
-its own submodule, such as ``rgbd_rs.fusion.fuse``, is documented from the submodule:
-``rgbd_rs.fusion.fuse.fuse``). A missing one fails the build, so a new public function cannot
-ship without a reference entry.
+re-exports it: ``rgbd_rs.data.generate_indoor`` for ``rgbd_rs.data.synth_indoor``; a function
+that shares its name with its own submodule, such as ``rgbd_rs.fusion.fuse``, is documented
+from the submodule: ``rgbd_rs.fusion.fuse.fuse``). A missing one fails the build, so a new
+public function cannot ship without a reference entry.
 """
 
 from __future__ import annotations
