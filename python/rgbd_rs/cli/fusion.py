@@ -483,13 +483,13 @@ def run_fuse(args: argparse.Namespace) -> int:
             f"-> {out.reference} camera (metres; fused.npz 'tof_scale', 'tof_pose'):\n"
             + np.array2string(out.tof_pose.as_matrix(), precision=6, suppress_small=True)
         )
-    from rgbd_rs.fusion.stereo import MIN_RANGE_COVERAGE, _range_coverage
+    from rgbd_rs.fusion.stereo import MIN_RANGE_COVERAGE, _range_and_coverage
 
     if args.max_disparity is not None:
         how = "--max-disparity"
     elif not np.isfinite(out.tof.disparity).any():
         how = "no ToF disparity: the largest range the width allows"
-    elif _range_coverage(out.tof.disparity) < MIN_RANGE_COVERAGE:
+    elif _range_and_coverage(out.tof.disparity)[1] < MIN_RANGE_COVERAGE:
         how = "too few ToF disparities: the largest range the width allows"
     else:
         how = "from the ToF disparities"

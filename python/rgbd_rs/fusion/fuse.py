@@ -52,10 +52,9 @@ from rgbd_rs.fusion.sources import (
 from rgbd_rs.fusion.stereo import (
     MIN_RANGE_COVERAGE,
     _predict_search_range,
-    _range_coverage,
+    _range_and_coverage,
     _same_search,
     _whole_steps,
-    search_range,
     sgm,
 )
 from rgbd_rs.fusion.upsample import ToFOnReference, _densify_tof, _reproject_tof
@@ -337,22 +336,22 @@ def fuse(
     early = Ahead(early_match)
     with stopped_on_interrupt(early):
         tof = _densify_tof(sparse, r, ref_img)
-        dmax = search_range(tof.disparity, w) if max_disparity is None else max_disparity
+        dmax, share = (
+            _range_and_coverage(tof.disparity, w) if max_disparity is None else (max_disparity, 1.0)
+        )
         guess, st_map = early.result()
     if not _same_search(guess, dmax):
         st_map = match(lft, rgt, reference=r.reference, max_disparity=dmax)
     no_tof = not np.isfinite(tof.disparity).any()
-    if max_disparity is None and not no_tof:
-        share = _range_coverage(tof.disparity)
-        if share < MIN_RANGE_COVERAGE:
-            warnings.warn(
-                f"tof_depth: valid ToF pixels cover {100 * share:.2g} % of the reference "
-                f"image, too few to bound the stereo search: searched the widest range, {dmax} "
-                "px, as without a ToF (pass max_disparity, rgbd fuse --max-disparity, to "
-                "choose it)",
-                RuntimeWarning,
-                stacklevel=2,
-            )
+    if max_disparity is None and not no_tof and share < MIN_RANGE_COVERAGE:
+        warnings.warn(
+            f"tof_depth: valid ToF pixels cover {100 * share:.2g} % of the reference "
+            f"image, too few to bound the stereo search: searched the widest range, {dmax} "
+            "px, as without a ToF (pass max_disparity, rgbd fuse --max-disparity, to "
+            "choose it)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     if no_tof:
         pose = ""
         with np.errstate(invalid="ignore"):

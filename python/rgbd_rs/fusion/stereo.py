@@ -89,29 +89,26 @@ def search_range(tof_disparity: npt.ArrayLike, width: int | None = None) -> int:
     valid pixel, or with valid pixels on less than ``MIN_RANGE_COVERAGE`` of the map, gives the
     upper clamp. ``width`` defaults to the map's.
     """
+    return _range_and_coverage(tof_disparity, width)[0]
+
+
+def _range_and_coverage(
+    tof_disparity: npt.ArrayLike, width: int | None = None
+) -> tuple[int, float]:
+    """:func:`search_range`, and the share of the map whose ToF disparity it read (the valid
+    pixels after the median filter; compare with ``MIN_RANGE_COVERAGE``), from one filter pass."""
     d = np.asarray(_validate.array("tof_disparity", tof_disparity, shape=(None, None)), np.float32)
     w = d.shape[1] if width is None else _validate.integer("width", width, minimum=2)
     top = _widest_range(w)
-    valid = _range_samples(d)
-    if valid.size < MIN_RANGE_COVERAGE * d.size:
-        return top
-    want = math.ceil(float(np.percentile(valid, RANGE_PERCENTILE)) * RANGE_MARGIN)
-    return int(min(top, max(DISPARITY_STEP, want)))
-
-
-def _range_samples(d: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-    """The ToF disparities :func:`search_range` reads: the valid ones after the median filter."""
     with np.errstate(invalid="ignore"):
         filled = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
     smooth = cv2.medianBlur(filled, RANGE_MEDIAN_WINDOW)
-    return np.asarray(smooth[smooth > 0], np.float32)
-
-
-def _range_coverage(tof_disparity: npt.NDArray[np.float32]) -> float:
-    """The share of the map whose ToF disparity :func:`search_range` reads (see
-    ``MIN_RANGE_COVERAGE``)."""
-    d = np.asarray(tof_disparity, np.float32)
-    return _range_samples(d).size / max(d.size, 1)
+    valid = smooth[smooth > 0]
+    share = valid.size / d.size
+    if valid.size < MIN_RANGE_COVERAGE * d.size:
+        return top, share
+    want = math.ceil(float(np.percentile(valid, RANGE_PERCENTILE)) * RANGE_MARGIN)
+    return int(min(top, max(DISPARITY_STEP, want))), share
 
 
 def _predict_search_range(sparse_disparity: npt.ArrayLike, width: int | None = None) -> int:
