@@ -207,8 +207,6 @@ class MixedShapes(Dataset[tuple[torch.Tensor, torch.Tensor]]):
         return len(self.dataset)
 
     def _onehot(self, y: torch.Tensor) -> torch.Tensor:
-        if y.ndim == 1 and y.shape[0] == self.classes and y.is_floating_point():
-            return y.to(torch.float32)  # already a soft target
         return torch.nn.functional.one_hot(y.reshape(()).long(), self.classes).to(torch.float32)
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor]:
