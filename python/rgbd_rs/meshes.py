@@ -285,6 +285,11 @@ def _read_off(path: Path) -> Mesh:
     return Mesh(_near_origin(path, v), tris)
 
 
+def _fan(idx: list[int]) -> list[list[int]]:
+    """The fan triangles ``(0, k, k + 1)`` of one polygon's vertex indices."""
+    return [[idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1)]
+
+
 def _parse_off_stream(text: str) -> tuple[npt.NDArray[np.float64], U32] | None:
     """A plain ``OFF`` file read as one stream of values (the format allows line breaks
     anywhere but inside a face's colour): its vertices and fan-triangulated faces, or None
@@ -306,7 +311,7 @@ def _parse_off_stream(text: str) -> tuple[npt.NDArray[np.float64], U32] | None:
             idx = [int(x) for x in vals[pos + 1 : pos + 1 + k]]
             if k < 0 or len(idx) != k or any(not 0 <= i < nv for i in idx):
                 return None
-            tris += [[idx[0], idx[i], idx[i + 1]] for i in range(1, k - 1)]
+            tris += _fan(idx)
             pos += 1 + k
     except (IndexError, ValueError):
         return None
@@ -452,7 +457,7 @@ def _off_faces_by_row(rows: list[str], nv: int, last: bool) -> U32:
         bad = [i for i in idx if not 0 <= i < nv]
         if bad:
             raise ValueError(f"face {f} has vertex index {bad[0]}, expected 0..{nv - 1}")
-        tris += [[idx[0], idx[k], idx[k + 1]] for k in range(1, n - 1)]
+        tris += _fan(idx)
     return np.asarray(tris, np.uint32).reshape(-1, 3)
 
 
