@@ -39,6 +39,11 @@ CASES: list[Case] = [
     Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, (1e-50, 1e-50)), ARG, r"^scale", "tiny"),
     Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, (1.0, 1e30)), ARG, r"^scale", "huge"),
     Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, seed=-1), ARG, r"^seed", "seed"),
+    Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, turn=-1.0), ARG, r"^turn: got -1", "t-"),
+    Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, turn=181.0), ARG, r"^turn: .*180", "t+"),
+    Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, jitter=np.nan), ARG, r"^jitter", "jn"),
+    Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, jitter=0.6), ARG, r"^jitter: .*0.5", "j+"),
+    Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, turn="5"), ARG, r"^turn: got '5'", "ts"),  # type: ignore[arg-type]
     Case("ScaledCopies.load", lambda: ScaledCopies(_Src(()), 1).load(0), ARG, r"^index", "empty"),
     Case("ScaledCopies", lambda: ScaledCopies(_Src(("a#1",)), 1), ARG, r"^source: got shape names"),
     Case("ScaledCopies.load", lambda: ScaledCopies(_Src(), 1).load(9), ARG, r"^index"),

@@ -201,6 +201,23 @@ def _cache(commands: Commands) -> None:
         help="seed of the copies' scale factors (0; only with --scale-copies)",
     )
     p.add_argument(
+        "--copy-turn",
+        type=real(0.0, 180.0, low_open=False),
+        default=0.0,
+        metavar="DEG",
+        help="also turn each copy about the up axis z by an angle from U(-DEG, DEG) degrees "
+        "(0, off; only with --scale-copies)",
+    )
+    p.add_argument(
+        "--copy-jitter",
+        type=real(0.0, 0.5, low_open=False),
+        default=0.0,
+        metavar="SIGMA",
+        help="also move each copy's points (a mesh's vertices) by Gaussian noise of SIGMA times "
+        "the shape's radius, clipped at 5 SIGMA (0, off; PointNet's 0.01; only with "
+        "--scale-copies)",
+    )
+    p.add_argument(
         "--shard", type=shard, default=(0, 1), metavar="i/n", help="compute shard i of n (i/n)"
     )
     p.add_argument(
@@ -223,13 +240,25 @@ def run_cache(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(
             f"--scale-range: got {low:g} {high:g} without --scale-copies, expected both or neither"
         )
+    for flag, value in (("--copy-turn", args.copy_turn), ("--copy-jitter", args.copy_jitter)):
+        if value and not args.scale_copies:
+            raise InvalidArgumentError(
+                f"{flag}: got {value:g} without --scale-copies, expected both or neither"
+            )
     if args.scale_copies:
         from rgbd_rs.shapes.scaling import SCALE_RANGE, ScaledCopies
 
         rng = SCALE_RANGE if args.scale_range is None else tuple(args.scale_range)
         src = flagged(
-            {"scale_range": "--scale-range"},
-            lambda: ScaledCopies(src, args.scale_copies, scale_range=rng, seed=args.scale_seed),
+            {"scale_range": "--scale-range", "turn": "--copy-turn", "jitter": "--copy-jitter"},
+            lambda: ScaledCopies(
+                src,
+                args.scale_copies,
+                scale_range=rng,
+                seed=args.scale_seed,
+                turn=args.copy_turn,
+                jitter=args.copy_jitter,
+            ),
         )
     extra = {} if args.representations is None else {"representations": args.representations}
     spec = InputSpec(

@@ -11,7 +11,12 @@ curvature maps change with it: unlike the quarter turns and mirror images of
 leaves a validation shape's copies out and keeps every other copy with its original.
 
 Each copy's three factors come from ``numpy.random.default_rng([seed, copy, shape])``, so a
-sharded cache build computes the same copies in any order.
+sharded cache build computes the same copies in any order. Optionally (``turn``, ``jitter``; off by
+default) each copy is also turned about the up axis z by an angle drawn from U(-turn, turn) degrees
+and its points (a mesh's vertices) moved by Gaussian noise of ``jitter`` times the shape's radius
+(clipped at 5 sigma), the point-cloud classifiers' other augmentations; they come from a second
+stream, ``default_rng([seed, copy, shape, 1])``, so the scale factors stay those of a cache
+without them.
 """
 
 from __future__ import annotations
@@ -37,6 +42,11 @@ COPY_SEP = "#"
 MAX_COPIES = 64
 #: Allowed factors: far beyond them float32 points underflow to 0 or overflow to inf.
 SCALE_LIMITS = (1e-3, 1e3)
+#: Largest turn about z (degrees) and point jitter (a fraction of the shape's radius).
+MAX_TURN = 180.0
+MAX_JITTER = 0.5
+#: Jitter is clipped at this many standard deviations (PointNet's 0.05 for sigma 0.01).
+JITTER_CLIP = 5.0
 
 
 def original_name(name: str) -> str:
@@ -70,6 +80,8 @@ class ScaledCopies(ShapeSource):
         copies: int,
         scale_range: tuple[float, float] = SCALE_RANGE,
         seed: int = 0,
+        turn: float = 0.0,
+        jitter: float = 0.0,
     ) -> None:
         if not isinstance(source, ShapeSource):
             raise InvalidArgumentError(
@@ -85,6 +97,14 @@ class ScaledCopies(ShapeSource):
             )
         self.scale_range = (low, high)
         self.seed = _validate.integer("seed", seed, minimum=0, maximum=2**32 - 1)
+        self.turn = _validate.real("turn", turn, nonnegative=True)
+        if self.turn > MAX_TURN:
+            raise InvalidArgumentError(f"turn: got {turn!r}, expected 0 <= turn <= {MAX_TURN:g}")
+        self.jitter = _validate.real("jitter", jitter, nonnegative=True)
+        if self.jitter > MAX_JITTER:
+            raise InvalidArgumentError(
+                f"jitter: got {jitter!r}, expected 0 <= jitter <= {MAX_JITTER:g}"
+            )
         clash = [n for n in source.names if COPY_SEP in n]
         if clash:
             raise InvalidArgumentError(
@@ -106,12 +126,18 @@ class ScaledCopies(ShapeSource):
     @property
     def augmentation(self) -> dict[str, Any]:
         """What the cache's meta.json records about the copies."""
-        return {
+        record: dict[str, Any] = {
             "scale_copies": self.copies,
             "scale_range": list(self.scale_range),
             "scale_seed": self.seed,
             "originals": len(self.base),
         }
+        # Recorded only when on, so caches built before these options still resume.
+        if self.turn:
+            record["copy_turn"] = self.turn
+        if self.jitter:
+            record["copy_jitter"] = self.jitter
+        return record
 
     def _origin(self, index: int) -> tuple[int, int]:
         """(copy round 1.., original index) of row ``index``; round 0 for an original."""
@@ -129,15 +155,50 @@ class ScaledCopies(ShapeSource):
         low, high = self.scale_range
         return np.random.default_rng([self.seed, c, k]).uniform(low, high, 3)
 
+    def turn_angle(self, index: int) -> float:
+        """The turn about z (degrees) of row ``index`` (0 for an original or with ``turn`` 0)."""
+        c, k = self._origin(self._index(index))
+        if c == 0 or not self.turn:
+            return 0.0
+        return float(self._extra_rng(c, k).uniform(-self.turn, self.turn))
+
+    def _extra_rng(self, c: int, k: int) -> np.random.Generator:
+        """The turn's and the jitter's stream (the angle first, then the noise)."""
+        return np.random.default_rng([self.seed, c, k, 1])
+
+    def _move(self, xyz: npt.NDArray[Any], c: int, k: int) -> npt.NDArray[np.float32]:
+        """Scale, turn and jitter points (N, 3) as copy round ``c`` of original ``k``."""
+        low, high = self.scale_range
+        p = np.asarray(xyz, np.float64) * np.random.default_rng([self.seed, c, k]).uniform(
+            low, high, 3
+        )
+        if self.turn or self.jitter:
+            rng = self._extra_rng(c, k)
+            a = np.deg2rad(rng.uniform(-self.turn, self.turn)) if self.turn else 0.0
+            if a:
+                ca, sa = np.cos(a), np.sin(a)
+                p = p @ np.array([[ca, sa, 0.0], [-sa, ca, 0.0], [0.0, 0.0, 1.0]])
+            if self.jitter and len(p):
+                finite = p[np.isfinite(p).all(axis=1)]
+                radius = (
+                    float(np.linalg.norm(finite - finite.mean(0), axis=1).max())
+                    if len(finite)
+                    else 0.0
+                )
+                sigma = self.jitter * radius
+                noise = np.clip(rng.standard_normal(p.shape), -JITTER_CLIP, JITTER_CLIP)
+                p = p + sigma * noise
+        return p.astype(np.float32)
+
     def load(self, index: int) -> Shape:
         """Row ``index``: an original shape as its source gives it, or a copy of a training shape
-        with its axes multiplied by :meth:`scale` (a Mesh's vertices or a cloud's points)."""
+        with its axes multiplied by :meth:`scale`, turned by :meth:`turn_angle` and jittered (a
+        Mesh's vertices or a cloud's points)."""
         i = self._index(index)
         c, k = self._origin(i)
         shape = self.base.load(k)
         if c == 0:
             return shape
-        s = self.scale(i)
         if isinstance(shape, Mesh):
-            return Mesh((shape.vertices * s).astype(np.float32), shape.triangles)
-        return np.asarray(shape * s, np.float32)
+            return Mesh(self._move(shape.vertices, c, k), shape.triangles)
+        return self._move(shape, c, k)
