@@ -239,7 +239,8 @@ def _resume_differences(
         for key in sorted(set(old) | set(new)):
             if (part == "config" and key in may_change) or _same(old.get(key), new.get(key)):
                 continue
-            shown = "" if part == "normalisation" else f": {old.get(key)!r} -> {new.get(key)!r}"
+            plain = not any(_is_array(v) for v in (old.get(key), new.get(key)))
+            shown = f": {old.get(key)!r} -> {new.get(key)!r}" if plain else ""
             out.append(f"{part}[{key!r}] differs{shown}")
     if ckpt.world_size != world_size:
         out.append(f"{ckpt.world_size} processes in the checkpoint, {world_size} now")
@@ -249,6 +250,15 @@ def _resume_differences(
     elif not isinstance(states, list) or len(states) != ckpt.world_size:
         out.append("its RNG states do not match its number of processes")
     return out
+
+
+def _is_array(value: object) -> bool:
+    """Whether ``value`` is or holds an array or tensor (too long to show in a message)."""
+    if isinstance(value, Mapping):
+        return any(_is_array(v) for v in value.values())
+    if isinstance(value, (list, tuple)):
+        return len(value) > 16 or any(_is_array(v) for v in value)
+    return hasattr(value, "shape")
 
 
 def _to_file(ckpt: Checkpoint) -> dict[str, Any]:

@@ -266,14 +266,29 @@ def train_shapes(
         out,
         arch=ARCH,
         arch_config=model.arch_config(),
-        # exclude is recorded (when used), so a resume with another list is refused
-        normalisation=normalisation_of(c, reps)
-        | ({"exclude": list(r.exclude)} if r.exclude else {}),
+        # what shapes training but not the network is recorded (when not the default), so a
+        # resume with another exclude list, split, augmentation or loss is refused
+        normalisation=normalisation_of(c, reps) | _recorded(r),
         quiet=quiet,
         resume=resume,
         metric_fn=accuracy,
     )
     return Path(result.best_checkpoint or result.last_checkpoint)
+
+
+#: The recipe's fields that shape training but not the network (a resume must repeat them).
+_TRAINING_FIELDS = ("val_fraction", "split_seed", "rotate", "mirror", "label_smoothing", "mixup")
+
+
+def _recorded(r: ShapeRecipe) -> dict[str, Any]:
+    """What a run's checkpoints record of recipe ``r`` beside the input statistics: ``exclude``
+    and ``recipe`` (the :data:`_TRAINING_FIELDS` not at their defaults), each only when used, so
+    checkpoints of runs that left them at their defaults read as before."""
+    default = ShapeRecipe()
+    changed = {k: getattr(r, k) for k in _TRAINING_FIELDS if getattr(r, k) != getattr(default, k)}
+    return ({"exclude": list(r.exclude)} if r.exclude else {}) | (
+        {"recipe": changed} if changed else {}
+    )
 
 
 #: The architecture settings an init must share with the run, and the flag that sets each
