@@ -48,6 +48,7 @@ CASES: list[Case] = [
     Case("ScaledCopies", lambda: ScaledCopies(_Src(("a#1",)), 1), ARG, r"^source: got shape names"),
     Case("ScaledCopies.load", lambda: ScaledCopies(_Src(), 1).load(9), ARG, r"^index"),
     Case("ScaledCopies.scale", lambda: ScaledCopies(_Src(), 1).scale(-1), ARG, r"^index"),
+    Case("ScaledCopies.turn_angle", lambda: ScaledCopies(_Src(), 1).turn_angle(9), ARG, r"^index"),
 ]
 
 
