@@ -150,7 +150,7 @@ def run_stereo(args: argparse.Namespace) -> int:
     import numpy as np
 
     from rgbd_rs.fusion.census import CensusParams
-    from rgbd_rs.fusion.stereo import BLOCK_SIZE, DISPARITY_STEP, _max_search, sgm
+    from rgbd_rs.fusion.stereo import BLOCK_SIZE, DISPARITY_STEP, _max_search, _sgm
     from rgbd_rs.io import read_png, write_npz, write_png
     from rgbd_rs.viz import colorize_with_bar, save_png
 
@@ -189,7 +189,7 @@ def run_stereo(args: argparse.Namespace) -> int:
             "max_disparity": "--max-disparity",
             "lr_tolerance": "--lr-tolerance",
         },
-        lambda: sgm(
+        lambda: _sgm(
             left,
             right,
             reference=args.reference,
@@ -213,6 +213,7 @@ def run_stereo(args: argparse.Namespace) -> int:
     )
     save_png(out / "preview.png", colorize_with_bar(disp, lo, max(hi, lo + 1.0), "px", title=title))
     _warn_if_swapped(left, right, args.reference, dmax, args.method, disp)
+    _warn_if_cut(args, disp, dmax)
     cover = float(np.isfinite(disp).mean())
     checked = args.method == "opencv" or args.lr_tolerance is not None
     note = (
@@ -225,6 +226,25 @@ def run_stereo(args: argparse.Namespace) -> int:
     )
     print(f"wrote {out}/disparity.npz, disparity.png, preview.png")
     return 0
+
+
+def _warn_if_cut(args: argparse.Namespace, disp: Any, dmax: int) -> None:
+    """Warn when the matches pile up at the top of the search range (it ends before the nearest
+    surface; :mod:`rgbd_rs.fusion._range_cut`), naming the flag that set it."""
+    import warnings
+
+    from rgbd_rs.fusion._range_cut import range_cut_note
+
+    if args.max_disparity is not None:
+        flag, advice = "--max-disparity", "give a larger --max-disparity"
+    else:
+        depth = DEFAULT_MIN_DEPTH if args.min_depth is None else args.min_depth
+        default = " (the default)" if args.min_depth is None else ""
+        flag = f"--min-depth {depth:g} m{default}"
+        advice = "give a smaller --min-depth (the nearest depth in the scene)"
+    note = range_cut_note(disp, dmax, flag, advice)
+    if note is not None:
+        warnings.warn(note, RuntimeWarning, 2)
 
 
 def _warn_if_swapped(

@@ -26,7 +26,7 @@ from rgbd_rs.data.stereo_scenes import StereoScene
 from rgbd_rs.fusion._inputs import F32
 from rgbd_rs.fusion.census import CensusParams, census_match
 from rgbd_rs.fusion.evaluate import non_occluded
-from rgbd_rs.fusion.stereo import _max_search, _sgbm_disparity, sgm
+from rgbd_rs.fusion.stereo import _max_search, _sgbm_disparity, _sgm
 
 #: A ground-truth disparity step above this many pixels between 4-neighbours is a depth edge.
 EDGE_JUMP = 2.0
@@ -109,7 +109,7 @@ def opencv_matcher(block_size: int, mode: str = "hh") -> Matcher:
 
         def run(scene: StereoScene, dmax: int) -> F32:
             top = _max_search(scene.left.shape[1], 0, block_size)
-            return sgm(
+            return _sgm(
                 scene.left,
                 scene.right,
                 reference="left",

@@ -54,8 +54,8 @@ from rgbd_rs.fusion.stereo import (
     _predict_search_range,
     _range_and_coverage,
     _same_search,
+    _sgm,
     _whole_steps,
-    sgm,
 )
 from rgbd_rs.fusion.upsample import ToFOnReference, _densify_tof, _reproject_tof
 from rgbd_rs.geometry import depth_to_disparity, disparity_to_depth
@@ -186,7 +186,7 @@ def _match(
     if matcher == "census":
         top = min(_whole_steps(max_disparity), width - 1)
         params = FUSION_CENSUS if align_rows else FUSION_CENSUS.replace(align_rows=False)
-        return sgm(
+        return _sgm(
             left,
             right,
             reference=reference,
@@ -194,7 +194,7 @@ def _match(
             method="census",
             params=params,
         )
-    return sgm(left, right, reference=reference, max_disparity=max_disparity)
+    return _sgm(left, right, reference=reference, max_disparity=max_disparity)
 
 
 def fuse(

@@ -13,6 +13,7 @@ ignored), so one wrong ToF sample cannot blind most of the image.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Iterator
 from typing import Literal, cast
 
@@ -23,6 +24,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._inputs import F32, rgb8
+from rgbd_rs.fusion._range_cut import range_cut_note
 from rgbd_rs.fusion.census import CensusParams, census_match
 
 #: SGBM block size (thesis §3.7) and smoothness penalties (OpenCV's documented 8/32 x 3 x n^2).
@@ -180,7 +182,39 @@ def sgm(
         block_size: OpenCV's odd matching window (7 as in the thesis).
         method: ``"opencv"`` or ``"census"``.
         params: :class:`~rgbd_rs.fusion.census.CensusParams` (``method="census"`` only).
+
+    Warns (RuntimeWarning) when over 1 % of the matched pixels lie in the range's top pixel:
+    the range likely ends before the nearest surface (:mod:`rgbd_rs.fusion._range_cut`).
     """
+    disparity = _sgm(
+        left,
+        right,
+        reference=reference,
+        max_disparity=max_disparity,
+        min_disparity=min_disparity,
+        block_size=block_size,
+        method=method,
+        params=params,
+    )
+    note = range_cut_note(disparity, int(max_disparity), "max_disparity")
+    if note is not None:
+        warnings.warn(note, RuntimeWarning, stacklevel=2)
+    return disparity
+
+
+def _sgm(
+    left: npt.ArrayLike,
+    right: npt.ArrayLike,
+    *,
+    reference: str = "right",
+    max_disparity: int = 128,
+    min_disparity: int = 0,
+    block_size: int = BLOCK_SIZE,
+    method: str = "opencv",
+    params: CensusParams | None = None,
+) -> F32:
+    """:func:`sgm` without its range check (``fuse`` and the evaluations set their own ranges;
+    ``rgbd stereo`` words the check for its flags)."""
     kind = _validate.choice("method", method, METHODS)
     if kind == "census":
         if block_size != BLOCK_SIZE:
