@@ -87,6 +87,20 @@ CASES: list[Case] = [
         r"^raw_depth: got dtype bool",
         "bool raw",
     ),
+    Case(
+        "hha_details",
+        lambda: H.hha_details(D, CAM, raw_depth=np.zeros_like(D)),
+        ARG,
+        r"^raw_depth: got no valid depth",
+        "raw all holes",
+    ),
+    Case(
+        "square_normals",
+        lambda: H.square_normals(D, CAM, raw_depth=np.full_like(D, np.nan)),
+        ARG,
+        r"^raw_depth: got no valid depth",
+        "raw all NaN",
+    ),
     Case("square_normals", lambda: H.square_normals(D, CAM, radius=0), ARG, r"^radius: got 0"),
     Case(
         "square_normals",

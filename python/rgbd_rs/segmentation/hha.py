@@ -129,6 +129,12 @@ def _raw(raw_depth: object, depth: np.ndarray) -> np.ndarray | None:
         raise ShapeMismatchError(
             f"raw_depth: got shape {r.shape}, expected {depth.shape} (the depth's)"
         )
+    with np.errstate(invalid="ignore"):
+        if not (np.isfinite(r) & (r > 0)).any():
+            raise InvalidArgumentError(
+                "raw_depth: got no valid depth (every pixel 0, negative, NaN or inf), expected "
+                "the unfilled depth with some measured pixels (or None: depth's own holes)"
+            )
     return r
 
 
