@@ -354,6 +354,27 @@ CASES: list[Case] = [
     ),
     Case(
         "tof_to_reference",
+        lambda: F.tof_to_reference(TOF * 1000, TOF, RIG, LEFT),
+        ARG,
+        r"^tof_depth: the ToF depths look like millimetres",
+        "mm",
+    ),
+    Case(
+        "refine_tof_pose",
+        lambda: F.refine_tof_pose(TOF * 1000, RIG, np.zeros((135, 240), np.float32)),
+        ARG,
+        r"^tof_depth: the ToF depths look like millimetres",
+        "mm",
+    ),
+    Case(
+        "refine_tof_scale",
+        lambda: F.refine_tof_scale(TOF * 1000, RIG, np.zeros((135, 240), np.float32)),
+        ARG,
+        r"^tof_depth: the ToF depths look like millimetres",
+        "mm",
+    ),
+    Case(
+        "tof_to_reference",
         lambda: F.tof_to_reference(TOF[:-1], TOF, RIG, LEFT),
         SHAPE,
         r"^tof_depth: got shape \(423, 512\)",

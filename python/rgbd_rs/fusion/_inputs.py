@@ -166,6 +166,14 @@ IMPLAUSIBLE_SHARE = 0.99
 UNIT_MAJORITY = 0.5
 
 
+def check_tof_unit(depth: F32, rig: ToFStereoRig) -> None:
+    """Refuse ToF depths that look like millimetres (or kilometres) for ``rig``
+    (:func:`tof_depth_warning`'s unit case): every stage that takes ``tof_depth`` calls it."""
+    implausible = tof_depth_warning(depth, rig)
+    if implausible is not None and implausible[1]:
+        raise InvalidArgumentError(implausible[0])
+
+
 def tof_depth_warning(depth: F32, rig: ToFStereoRig) -> tuple[str, bool] | None:
     """What is implausible about the ToF depths (metres) for ``rig`` and whether it is their
     unit (then ``fuse`` refuses them), or None.

@@ -28,7 +28,7 @@ import numpy.typing as npt
 from rgbd_rs import _validate
 from rgbd_rs.camera import Pose, ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError, RgbdError
-from rgbd_rs.fusion._inputs import agree_tol, map2d, rig_arg
+from rgbd_rs.fusion._inputs import agree_tol, check_tof_unit, map2d, rig_arg
 from rgbd_rs.fusion._tof_points import (
     paired_disparities,
     paired_many,
@@ -261,6 +261,7 @@ def refine_tof_pose(
     """
     r = rig_arg(rig)
     depth = map2d("tof_depth", tof_depth, (r.tof.height, r.tof.width))
+    check_tof_unit(depth, r)
     cam = r.reference_camera
     stereo = map2d("stereo_disparity", stereo_disparity, (cam.height, cam.width))
     span = _validate.real("max_degrees", max_degrees, positive=True)

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rgbd_rs.camera import ToFStereoRig
-from rgbd_rs.fusion._inputs import map2d, rig_arg
+from rgbd_rs.fusion._inputs import check_tof_unit, map2d, rig_arg
 from rgbd_rs.fusion._tof_points import paired_disparities
 from rgbd_rs.fusion.pose_refine import (
     MIN_DROP,
@@ -92,6 +92,7 @@ def refine_tof_scale(
     """
     r = rig_arg(rig)
     depth = map2d("tof_depth", tof_depth, (r.tof.height, r.tof.width))
+    check_tof_unit(depth, r)
     cam = r.reference_camera
     stereo = map2d("stereo_disparity", stereo_disparity, (cam.height, cam.width))
     found = _refine_scale(depth, r, stereo)

@@ -21,7 +21,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion._inputs import F32, map2d, rgb8, rig_arg
+from rgbd_rs.fusion._inputs import F32, check_tof_unit, map2d, rgb8, rig_arg
 from rgbd_rs.geometry import depth_to_disparity, reproject_depth
 
 #: Mean-shift bandwidths (spatial px, colour levels) at 960 px width, and the colour tolerance
@@ -250,6 +250,7 @@ def _reproject_tof(
             f"tof_depth: got depths down to {float(z[valid].min()):.3g} m, expected depths >= "
             f"{floor:.3g} m (smaller ones give disparities beyond float32's range)"
         )
+    check_tof_unit(z, r)
     if not valid.any():
         warnings.warn(
             "tof_depth: no valid pixel; the ToF maps on the reference camera are all NaN",
