@@ -16,6 +16,7 @@ ARG = InvalidArgumentError
 P = np.zeros((4, 3))
 #: A tetrahedron 2e30 across, just over the shape kernels' largest extent.
 HUGE = 2e30 * np.eye(4, 3)
+FLAT = Mesh(np.eye(4, 3, dtype=np.float32), np.array([[0, 0, 0], [1, 1, 1]], np.uint32))
 
 
 def test_a_shape_up_to_the_largest_extent_is_accepted() -> None:
@@ -44,6 +45,13 @@ CASES: list[Case] = [
         r"^shape: got a mesh with no triangles",
         "empty-mesh",
     ),
+    # Triangles that all have zero area: empty views, and yet a class (issue of a fuzz round).
+    Case(
+        "voxelize", lambda: S.voxelize(FLAT), ARG, r"^shape: got a mesh whose 2 .*zero area", "0a"
+    ),
+    Case("depth_views", lambda: S.depth_views(FLAT), ARG, r"^shape: .*zero area", "zero-area"),
+    Case("classify", lambda: S.classify(FLAT), ARG, r"^shape: .*zero area", "zero-area"),
+    Case("sample_surface", lambda: S.sample_surface(FLAT), ARG, r"^mesh: .*zero area", "zero-area"),
     Case(
         "voxelize",
         lambda: S.voxelize(np.array([[0.0, 0, 0], [3e38, 0, 0]])),

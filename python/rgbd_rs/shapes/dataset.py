@@ -30,7 +30,6 @@ import dataclasses
 import functools
 import io
 import json
-import math
 import os
 import re
 import warnings
@@ -58,7 +57,7 @@ from rgbd_rs.nn.shapes import (
     _input_shapes,
     _parse_representations,
 )
-from rgbd_rs.shapes._cloud import centred_cloud, check_extent, cloud, far_from_origin
+from rgbd_rs.shapes._cloud import centred_cloud, check_mesh, cloud, far_from_origin
 
 from .._reasons import reason
 
@@ -393,14 +392,11 @@ def sample_surface(mesh: Mesh, n: int = MODELNET_POINTS, seed: int = 0) -> npt.N
         raise InvalidArgumentError(f"mesh: got {type(mesh).__name__}, expected a Mesh")
     n = _validate.integer("n", n, minimum=1, maximum=100_000_000)
     seed = _validate.integer("seed", seed, maximum=2**32 - 1)
-    if mesh.triangles.size == 0:
-        raise InvalidArgumentError("mesh: got a mesh with no triangles, expected at least one")
+    check_mesh("mesh", mesh)
     v = mesh.vertices.astype(np.float64)[mesh.triangles.astype(np.int64)]  # M x 3 x 3
     area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
     total = float(area.sum())
     rng = np.random.default_rng(seed)
-    if not (total > 0 and math.isfinite(total)):  # all triangles degenerate: use the vertices
-        return mesh.vertices[rng.integers(0, len(mesh.vertices), n)].astype(np.float32)
     tri = rng.choice(len(area), size=n, p=area / total)
     r1, r2 = rng.random(n), rng.random(n)
     s = np.sqrt(r1)
@@ -731,11 +727,7 @@ def _shape_arg(name: str, shape: object, *, centre: bool = True) -> Shape:
     is) a cloud far from the origin comes back moved there, in float64 before float32 blurs
     it."""
     if isinstance(shape, Mesh):
-        if shape.triangles.size == 0:
-            raise InvalidArgumentError(
-                f"{name}: got a mesh with no triangles, expected at least one"
-            )
-        check_extent(name, shape.vertices, "a mesh")
+        check_mesh(name, shape)
         return shape
     return _points(name, shape, centre=centre)
 

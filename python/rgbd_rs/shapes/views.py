@@ -72,7 +72,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh
-from rgbd_rs.shapes._cloud import centred_cloud, check_extent
+from rgbd_rs.shapes._cloud import centred_cloud, check_mesh
 
 __all__ = [
     "BACKGROUND",
@@ -178,9 +178,7 @@ def splat_radii(points: npt.ArrayLike, resolution: int = DEFAULT_RESOLUTION) -> 
 
 
 def _mesh(name: str, shape: Mesh) -> tuple[np.ndarray, np.ndarray]:
-    if shape.triangles.size == 0:
-        raise InvalidArgumentError(f"{name}: got a mesh with no triangles, expected at least one")
-    check_extent(name, shape.vertices, "a mesh")
+    check_mesh(name, shape)
     return shape.vertices, shape.triangles
 
 

@@ -19,7 +19,7 @@ from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.meshes import Mesh
-from rgbd_rs.shapes._cloud import centred_cloud, check_extent
+from rgbd_rs.shapes._cloud import centred_cloud, check_mesh
 
 __all__ = ["DEFAULT_RESOLUTION", "VoxelGrid", "density_profiles", "voxelize"]
 
@@ -60,9 +60,7 @@ def voxelize(
     if isinstance(shape, Mesh):
         if d:
             raise InvalidArgumentError(f"dilate: got {dilate}, expected 0 for a mesh")
-        if shape.triangles.size == 0:
-            raise InvalidArgumentError("shape: got a mesh with no triangles, expected at least one")
-        check_extent("shape", shape.vertices, "a mesh")
+        check_mesh("shape", shape)
         filled, origin, size = _rgbd_rs.voxelize_mesh(
             shape.vertices, shape.triangles, r, mode == "solid"
         )
