@@ -285,10 +285,32 @@ def _restore_fit(
 MAX_LAMBDA = 1e12
 
 
-def _params(spacing: float, degree: int, lam: float) -> tuple[float, int, float]:
-    s = _validate.real("spacing", spacing, positive=True)
+#: The largest knot spacing, as a multiple of the grid's larger side (or :data:`DEFAULT_SPACING`
+#: on smaller grids): one span then covers the whole grid, and wider ones only lose precision
+#: (a quadratic surface 48 px wide: curvature 0.2 % off at 2x, 6 % at 4x, 27 % at 20x).
+MAX_SPACING_SIDES = 2.0
+
+
+def _spacing(name: str, spacing: float, shape: tuple[int, ...]) -> float:
+    """A knot spacing of at least 1 px and at most :data:`MAX_SPACING_SIDES` times the larger
+    side of a grid of ``shape`` (or :data:`DEFAULT_SPACING`)."""
+    s = _validate.real(name, spacing, positive=True)
     if s < 1.0:
-        raise InvalidArgumentError(f"spacing: got {s}, expected a knot spacing >= 1 pixel")
+        raise InvalidArgumentError(f"{name}: got {s}, expected a knot spacing >= 1 pixel")
+    side = max(shape[:2], default=0)
+    cap = max(MAX_SPACING_SIDES * side, DEFAULT_SPACING)
+    if s > cap:
+        raise InvalidArgumentError(
+            f"{name}: got {s:g}, expected at most {cap:g} px ({MAX_SPACING_SIDES:g} times the "
+            f"grid's larger side, {side} px: one knot span already covers it)"
+        )
+    return s
+
+
+def _params(
+    spacing: float, degree: int, lam: float, shape: tuple[int, ...]
+) -> tuple[float, int, float]:
+    s = _spacing("spacing", spacing, shape)
     d = _validate.integer("degree", degree, minimum=1, maximum=MAX_DEGREE)
     return s, d, _validate.within("lam", lam, (0.0, MAX_LAMBDA), "a smoothing weight")
 
@@ -328,7 +350,7 @@ def fit_mask(
         m = _validate.array(
             "mask", raw_mask.view(np.uint8), shape=(p.shape[0], p.shape[1]), dtype=np.uint8
         ).view(np.bool_)
-    s, d, lam_ = _params(spacing, degree, lam)
+    s, d, lam_ = _params(spacing, degree, lam, p.shape)
     if not isinstance(crop, (bool, np.bool_)):
         raise InvalidArgumentError(f"crop: got {crop!r}, expected True or False")
     if m is not None and not m.any():
@@ -458,12 +480,8 @@ class SegmentFits:
         if lab.size and lab.max() > np.iinfo(np.int32).max:
             raise InvalidArgumentError(f"labels: got a label {lab.max()}, expected < 2**31")
         crit = _validate.choice("criterion", criterion, ("seam", "gcv", "mse"))
-        s, d, lam_ = _params(spacing, degree, lam)
-        ts = _validate.real("test_spacing", test_spacing, positive=True)
-        if ts < 1.0:
-            raise InvalidArgumentError(
-                f"test_spacing: got {ts}, expected a knot spacing >= 1 pixel"
-            )
+        s, d, lam_ = _params(spacing, degree, lam, p.shape)
+        ts = _spacing("test_spacing", test_spacing, p.shape)
         ns = _validate.real("noise_scale", noise_scale, positive=True)
         npow = _validate.real("noise_power", noise_power)
         tol = _validate.real("tolerance", tolerance, nonnegative=True)
