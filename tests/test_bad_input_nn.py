@@ -128,6 +128,20 @@ CASES: list[Case] = [
     Case("compute_clues", lambda: compute_clues(IMG, IMG[:4], D, D, D), SHAPE, r"^target_image"),
     Case(
         "compute_clues",
+        lambda: compute_clues(IMG, IMG, np.where(D > 0, np.inf, D), D, D),
+        ARG,
+        r"^tof_disparity: got \d+ value\(s\) as large as inf px, expected disparities within",
+        "inf tof",
+    ),
+    Case(
+        "compute_clues",
+        lambda: compute_clues(IMG, IMG, D, D, np.full_like(D, 1e30)),
+        ARG,
+        r"^stereo_disparity: got \d+ value\(s\) as large as 1e\+30 px",
+        "huge stereo",
+    ),
+    Case(
+        "compute_clues",
         lambda: compute_clues(IMG, IMG, D, D, D, reference="up"),  # type: ignore[arg-type]
         ARG,
         r"^reference: got 'up'",

@@ -68,6 +68,21 @@ def map2d(name: str, value: object, shape: tuple[int, int]) -> F32:
     return np.asarray(_validate.array(name, value, shape=shape), dtype=np.float32)
 
 
+def disparity_map(name: str, value: object, shape: tuple[int, int]) -> F32:
+    """:func:`map2d` of disparities: NaN = none, others within +-``MAX_SIDE`` px (no image is
+    wider; an inf or a 1e30 would reach the ConvNet's clues or overflow the fusion's bins)."""
+    d = map2d(name, value, shape)
+    with np.errstate(invalid="ignore"):
+        far = np.abs(d) > _validate.MAX_SIDE
+    if far.any():
+        worst = float(np.abs(d[far]).max())
+        raise InvalidArgumentError(
+            f"{name}: got {int(far.sum())} value(s) as large as {worst:.3g} px, expected "
+            f"disparities within +-{_validate.MAX_SIDE} px (no image is wider), or NaN for none"
+        )
+    return d
+
+
 def unit_map(name: str, value: object, shape: tuple[int, int]) -> F32:
     """An ``H x W`` float32 map of ``shape`` with values in [0, 1] (NaN allowed: no weight)."""
     m = map2d(name, value, shape)

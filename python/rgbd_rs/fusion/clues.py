@@ -30,7 +30,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion._inputs import F32, map2d, rgb8
+from rgbd_rs.fusion._inputs import F32, disparity_map, map2d, rgb8
 
 #: Clue names, in channel order.
 NAMES = ("delta_lr", "tof_disparity", "stereo_disparity", "tof_amplitude")
@@ -73,9 +73,9 @@ def compute_clues(
     ref = rgb8("reference_image", reference_image)
     h, w = ref.shape[:2]
     tgt = rgb8("target_image", target_image, (w, h))
-    d_t = map2d("tof_disparity", tof_disparity, (h, w))
+    d_t = disparity_map("tof_disparity", tof_disparity, (h, w))
     a_t = map2d("tof_amplitude", tof_amplitude, (h, w))
-    d_s = map2d("stereo_disparity", stereo_disparity, (h, w))
+    d_s = disparity_map("stereo_disparity", stereo_disparity, (h, w))
     side = _validate.choice("reference", reference, ("left", "right"))
     g_r, g_t = _grey(ref), _grey(tgt)
     # Reference pixel x sees the target at x + d (reference right) or x - d (reference left);

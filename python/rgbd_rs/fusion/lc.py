@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion._inputs import F32, map2d, rgb8, unit_map, views
+from rgbd_rs.fusion._inputs import F32, disparity_map, map2d, rgb8, unit_map, views
 from rgbd_rs.fusion.crosscheck import _consistent, _warp_to_target
 
 #: The defaults and limits live in crates/rgbd-fusion (``LcParams::for_width``, ``MAX_RADIUS``);
@@ -171,16 +171,10 @@ def lc_refine(
     ref_name = _validate.choice("reference", reference, ("left", "right"))
     lft = rgb8("left", left)
     rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
-    d = map2d("disparity", disparity, (lft.shape[0], lft.shape[1]))
+    d = disparity_map("disparity", disparity, (lft.shape[0], lft.shape[1]))
     if not np.isfinite(d).any():
         raise InvalidArgumentError(
             "disparity: got only NaN, expected at least one valid disparity to refine"
-        )
-    largest = float(np.nanmax(np.abs(d)))
-    if largest > _validate.MAX_SIDE:
-        raise InvalidArgumentError(
-            f"disparity: got values up to {largest:.3g} px, expected disparities within "
-            f"+-{_validate.MAX_SIDE} px (no image is wider), or NaN"
         )
     ref, tgt, sign = views(lft, rgt, ref_name)
     p = LcParams(bin_width=REFINE_BIN_WIDTH) if params is None else params
