@@ -29,6 +29,18 @@ CASES: list[Case] = [
     Case("adjacency", lambda: M.adjacency(L[0]), SHAPE, r"^labels: got shape", "1-D"),
     Case("adjacency", lambda: M.adjacency(-np.ones((4, 4), int)), ARG, r"^labels: got no", "none"),
     Case("adjacency", lambda: M.adjacency(L, points=P[:3]), SHAPE, r"^points: got shape", "pts"),
+    # Millimetres where the metric defaults expect metres; no depth at all (a fuzz round).
+    Case(
+        "adjacency", lambda: M.adjacency(L, points=P * 1000), ARG, r"^points: .*millimetres", "mm"
+    ),
+    Case(
+        "merge_regions", lambda: M.merge_regions(L, P * 1000), ARG, r"^points: .*millimetres", "mm"
+    ),
+    Case(
+        "merge_regions", lambda: M.merge_regions(L, P * np.nan), ARG, r"^points: got no point", "0"
+    ),
+    Case("SegmentFits", lambda: SegmentFits(P * 1000, L), ARG, r"^points: .*millimetres", "mm"),
+    Case("SegmentFits", lambda: SegmentFits(P * np.nan, L), ARG, r"^points: got no point", "none"),
     Case("adjacency", lambda: M.adjacency(L, lab=P[..., :2]), SHAPE, r"^lab: got shape", "lab"),
     Case(
         "adjacency",
@@ -106,6 +118,21 @@ CASES: list[Case] = [
     Case("segment", lambda: segment(RGB, DEPTH, "cam"), ARG, r"^camera: got str"),  # type: ignore[arg-type]
     Case("segment", lambda: segment(RGB, DEPTH, CAM, n_segments=1), ARG, r"^n_segments", "k"),
     Case("segment", lambda: segment(RGB[:, :-1], DEPTH, CAM), SHAPE, r"rgb|depth", "size"),
+    # segment() names its own arguments for frames too small for a stage (a fuzz round)
+    Case(
+        "segment",
+        lambda: segment(RGB[:2, :2], DEPTH[:2, :2], CAM.scaled(2 / 32, 2 / 24), labeler=None),
+        SHAPE,
+        r"^depth: got a 2x2 frame, expected at least 3 px",
+        "tiny",
+    ),
+    Case(
+        "segment",
+        lambda: segment(RGB, DEPTH, CAM),
+        SHAPE,
+        r"^rgb: got a 32x24 frame, smaller than the labeling network's .*labeler=None",
+        "below the network",
+    ),
     Case(
         "segment",
         lambda: segment(RGB, DEPTH[::2, ::2], CAM),

@@ -324,6 +324,27 @@ def device(name: str, value: object, *, auto: bool = False, available: bool = Tr
     return value
 
 
+def metric_points(name: str, points: np.ndarray, uses: str | None) -> None:
+    """Refuse ``H x W x 3`` points (z = depth) with no finite point, or (unless ``uses`` is None)
+    whose median positive z is beyond ``HHA_MAX_MEDIAN_DEPTH_M`` (50 m: millimetres; the limit
+    ``segment()`` applies): ``uses`` names the metric constants that would misread them."""
+    z = points[..., 2]
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(points).all(axis=-1) & (z > 0)
+    if not valid.any():
+        raise InvalidArgumentError(
+            f"{name}: got no point with finite coordinates and a positive depth (z), expected "
+            "at least one (NaN marks a pixel without depth)"
+        )
+    med = float(np.median(z[valid]))
+    if uses is not None and med > _rgbd_rs.HHA_MAX_MEDIAN_DEPTH_M:
+        raise InvalidArgumentError(
+            f"{name}: got a median depth (z) of {med:.4g}, expected metres (at most "
+            f"{_rgbd_rs.HHA_MAX_MEDIAN_DEPTH_M:g} for a Kinect-class scene): the points look like "
+            f"millimetres (divide by 1000); {uses} in metres"
+        )
+
+
 def metric_depth(name: str, value: object) -> None:
     """Refuse an integer (or boolean) depth array: a raw depth image holds millimetres (or
     another sensor unit), and read as metres it would be silently 1000x too far."""

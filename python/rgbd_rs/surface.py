@@ -483,6 +483,8 @@ class SegmentFits:
         s, d, lam_ = _params(spacing, degree, lam, p.shape)
         ts = _spacing("test_spacing", test_spacing, p.shape)
         ns = _validate.real("noise_scale", noise_scale, positive=True)
+        if ns == KINECT_V1_NOISE_SCALE:  # the default law is in metres; a caller's in its unit
+            _validate.metric_points("points", p, "noise_scale's default (Kinect v1) is")
         npow = _validate.real("noise_power", noise_power)
         tol = _validate.real("tolerance", tolerance, nonnegative=True)
         lab32 = np.ascontiguousarray(np.maximum(lab, -1), dtype=np.int32)

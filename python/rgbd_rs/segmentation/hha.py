@@ -130,7 +130,8 @@ def _raw(raw_depth: object, depth: np.ndarray) -> np.ndarray | None:
             f"raw_depth: got shape {r.shape}, expected {depth.shape} (the depth's)"
         )
     with np.errstate(invalid="ignore"):
-        if not (np.isfinite(r) & (r > 0)).any():
+        # (a depth without a valid pixel is refused as such, by the native check)
+        if not (np.isfinite(r) & (r > 0)).any() and (np.isfinite(depth) & (depth > 0)).any():
             raise InvalidArgumentError(
                 "raw_depth: got no valid depth (every pixel 0, negative, NaN or inf), expected "
                 "the unfilled depth with some measured pixels (or None: depth's own holes)"

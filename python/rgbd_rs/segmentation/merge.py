@@ -168,9 +168,10 @@ def _adjacency(
     shape = (lab32.shape[0], lab32.shape[1])
     depth = None
     if points is not None:
-        depth = np.ascontiguousarray(
-            _validate.array("points", points, shape=(*shape, 3))[..., 2], dtype=np.float32
-        )
+        pts = _validate.array("points", points, shape=(*shape, 3))
+        if max_depth_step == T_D:  # the default step is metres; a caller's is in its own unit
+            _validate.metric_points("points", pts, f"max_depth_step's default ({T_D:g}) is")
+        depth = np.ascontiguousarray(pts[..., 2], dtype=np.float32)
     c, n = _cue("lab", lab, shape), _cue("normals", normals, shape)
     for name, v, hi in (
         ("max_depth_step", max_depth_step, np.inf),
@@ -264,6 +265,16 @@ def merge_regions(
     lab32 = _labels(labels)
     shape = (lab32.shape[0], lab32.shape[1])
     pts = _validate.array("points", points, shape=(*shape, 3))
+    metric = [
+        *(["the seam test's default Kinect noise law"] if fits is None else []),
+        *(
+            [f"max_depth_step's default ({T_D:g})"]
+            if max_depth_step == T_D and not touching
+            else []
+        ),
+    ]
+    verb = " are" if len(metric) > 1 else " is"
+    _validate.metric_points("points", pts, " and ".join(metric) + verb if metric else None)
     p = None if pdfs is None else _pdfs(pdfs, shape)
     t = _validate.real("t_sim", t_sim, nonnegative=True)
     pool = _validate.choice("pooling", pooling, POOLINGS)

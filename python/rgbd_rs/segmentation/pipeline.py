@@ -21,8 +21,9 @@ from rgbd_rs._array_eq import array_eq
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.holes import DEFAULT_FILL_RADIUS, SPARSE_SHARE, _isolated_share, fill_depth_holes
-from rgbd_rs.segmentation.features import Features, features
+from rgbd_rs.segmentation.features import NORMAL_RADIUS, Features, features
 from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
+from rgbd_rs.segmentation.labeling import SemanticLabeler
 from rgbd_rs.segmentation.merge import MergeResult, merge_regions
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
 from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS
@@ -142,6 +143,25 @@ class Segmentation:
         return np.where(sem >= 0, sem, net).astype(np.int32)
 
 
+def _frame_size(shape: tuple[int, ...], net: SemanticLabeler | None) -> None:
+    """Refuse, in ``segment()``'s words, a frame smaller than its normals' window or (with a
+    ConvNet) than the network's input (the stages would name their own arguments)."""
+    h, w = int(shape[0]), int(shape[1])
+    if max(h, w) < NORMAL_RADIUS:
+        raise ShapeMismatchError(
+            f"depth: got a {w}x{h} frame, expected at least {NORMAL_RADIUS} px on its longer "
+            "side (the normals' window)"
+        )
+    if net is not None:
+        nw, nh = net.input_size
+        if w < nw or h < nh:
+            raise ShapeMismatchError(
+                f"rgb: got a {w}x{h} frame, smaller than the labeling network's {nw}x{nh} input; "
+                f"expected a frame at least {nw}x{nh}, or labeler=None (merging by surface fits "
+                "only)"
+            )
+
+
 def segment(
     rgb: npt.ArrayLike,
     depth: npt.ArrayLike,
@@ -208,6 +228,7 @@ def segment(
             f"{colour.shape[1]}x{colour.shape[0]}: register the depth to the colour camera first "
             "(rgbd_rs.reproject_depth, or `rgbd reproject` for an Azure Kinect recording)"
         )
+    _frame_size(depth.shape, None)
     # With the ConvNet, HHA is a cue, on the depth with every hole filled (as Gupta et al. and
     # the network's NYUv2 training frames) and the remaining holes left out of its 7x7 normals,
     # which are the features' normals too (computed once).
@@ -235,6 +256,7 @@ def segment(
             f"fill_radius), expected at least n_segments={n} (the over-segmentation's clusters):"
             " give denser depth, or fewer n_segments"
         )
+    _frame_size(depth.shape, net)  # after the depth's own checks, before the long stages
     over = oversegment(f.vectors, n, seed=seed, quiet=quiet)
     lap("oversegment")
     # The ConvNet's cues need the surface fits; the merging alone needs only the seam test.
