@@ -268,6 +268,13 @@ CASES: list[Case] = [
     # -- geometry -------------------------------------------------------------------------------
     Case(
         "depth_to_disparity",
+        lambda: depth_to_disparity(DEPTH, 1e300, 30.0),
+        ARG,
+        r"^baseline: got 1e\+300 with focal 30: baseline x focal",
+        "huge baseline",
+    ),
+    Case(
+        "depth_to_disparity",
         lambda: depth_to_disparity(np.zeros(3, np.complex64), 0.1, 100.0),
         ARG,
         r"^depth: got dtype complex64",

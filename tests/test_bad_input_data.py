@@ -565,8 +565,15 @@ CASES: list[Case] = [
         "rms_error",
         lambda: rms_error(D, np.full_like(D, np.nan)),
         ARG,
-        r"^mask: got no pixel",
+        r"^estimate: got no pixel where it and truth are both finite",
         "nothing to compare",
+    ),
+    Case(
+        "rms_error",
+        lambda: rms_error(D, D, np.zeros(D.shape, bool)),
+        ARG,
+        r"^mask: got no pixel",
+        "empty mask",
     ),
     Case(
         "rms_error",

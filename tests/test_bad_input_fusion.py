@@ -30,6 +30,14 @@ def _overflowing() -> np.ndarray:
 
 
 CASES: list[Case] = [
+    Case("lc_fuse", lambda: F.lc_fuse(I4, I4, [D4] * 9), ARG, r"^disparities: got 9 maps", "9"),
+    Case(
+        "lc_fuse",
+        lambda: F.lc_fuse(I4[:2], I4, [D4]),
+        SHAPE,
+        r"^target_image: got 4x4 pixels, expected 4x2 \(reference_image's size\)",
+        "pair size",
+    ),
     Case(
         "fuse",
         lambda: F.fuse(LEFT.astype(np.float32), LEFT, TOF, TOF, RIG),

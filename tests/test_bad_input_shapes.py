@@ -51,6 +51,7 @@ CASES: list[Case] = [
     ),
     Case("depth_views", lambda: S.depth_views(FLAT), ARG, r"^shape: .*zero area", "zero-area"),
     Case("classify", lambda: S.classify(FLAT), ARG, r"^shape: .*zero area", "zero-area"),
+    Case("classify", lambda: S.classify("no_such.off"), ARG, r"^shape: got no_such\.off", "path"),
     Case("sample_surface", lambda: S.sample_surface(FLAT), ARG, r"^mesh: .*zero area", "zero-area"),
     Case(
         "voxelize",

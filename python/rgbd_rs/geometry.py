@@ -63,8 +63,10 @@ def _reciprocal(name: str, values: npt.ArrayLike, baseline: float, focal: float,
     d = _as_map(name, values)
     b, f = _validate.real("baseline", baseline), _validate.real("focal", focal)
     if abs(b * f) > _validate.F32_MAX:
+        # name the factor out of proportion (a focal of 1e300 px, or a baseline of 1e300 m)
+        (big, x), (small, y) = sorted((("focal", f), ("baseline", b)), key=lambda a: -abs(a[1]))
         raise InvalidArgumentError(
-            f"focal: got {f:.3g} with baseline {b:.3g}: baseline x focal = {b * f:.3g} is "
+            f"{big}: got {x:.3g} with {small} {y:.3g}: baseline x focal = {b * f:.3g} is "
             f"beyond float32's range; expected a product <= {_validate.F32_MAX:.3g}"
         )
     result: F32 = _rgbd_rs.depth_disparity(d, b, f)

@@ -35,6 +35,16 @@ __all__ = [
 DEPTH_EDGE_REL_STEP = 0.05
 
 
+def _nothing_to_compare(masked: bool) -> str:
+    """The message for no pixel to compare, naming the mask only when one was given."""
+    if masked:
+        return "mask: got no pixel where estimate and truth are both finite, expected at least one"
+    return (
+        "estimate: got no pixel where it and truth are both finite, expected at least one "
+        "(NaN / inf mark missing values)"
+    )
+
+
 def rms_error(
     estimate: npt.ArrayLike, truth: npt.ArrayLike, mask: npt.ArrayLike | None = None
 ) -> float:
@@ -60,9 +70,7 @@ def rms_error(
             raise ShapeMismatchError(f"mask: got shape {m.shape}, expected {e.shape}")
         keep &= m
     if not keep.any():
-        raise InvalidArgumentError(
-            "mask: got no pixel where estimate and truth are both finite, expected at least one"
-        )
+        raise InvalidArgumentError(_nothing_to_compare(mask is not None))
     diff = e[keep] - t[keep]
     with np.errstate(over="ignore"):
         rms = float(np.sqrt(np.mean(diff**2)))
@@ -93,9 +101,7 @@ def bad_pixel_rate(
             )
         keep &= m
     if not keep.any():
-        raise InvalidArgumentError(
-            "mask: got no pixel where estimate and truth are both finite, expected at least one"
-        )
+        raise InvalidArgumentError(_nothing_to_compare(mask is not None))
     with np.errstate(over="ignore"):  # two values near float64's limit: an infinite error
         return float(np.mean(np.abs(e[keep] - g[keep]) > t))
 

@@ -50,15 +50,20 @@ def pair8(left: object, right: object) -> tuple[U8, U8]:
     return lft, rgt
 
 
-def rgb8(name: str, value: object, size: tuple[int, int] | None = None) -> U8:
-    """An ``H x W x 3`` uint8 image (grey ``H x W`` is replicated); ``size`` = ``(W, H)``."""
+def rgb8(
+    name: str,
+    value: object,
+    size: tuple[int, int] | None = None,
+    of: str = "the calibration's image size",
+) -> U8:
+    """An ``H x W x 3`` uint8 image (grey ``H x W`` is replicated); ``size`` = ``(W, H)``,
+    ``of`` says whose size it is (the message's words)."""
     arr = image8(name, value)
     if arr.ndim == 2:
         arr = np.repeat(arr[:, :, None], 3, axis=2)
     if size is not None and (arr.shape[1], arr.shape[0]) != size:
         raise ShapeMismatchError(
-            f"{name}: got {arr.shape[1]}x{arr.shape[0]} pixels, expected {size[0]}x{size[1]} "
-            "(the calibration's image size)"
+            f"{name}: got {arr.shape[1]}x{arr.shape[0]} pixels, expected {size[0]}x{size[1]} ({of})"
         )
     return np.ascontiguousarray(arr)
 

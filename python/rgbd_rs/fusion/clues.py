@@ -72,7 +72,7 @@ def compute_clues(
     """
     ref = rgb8("reference_image", reference_image)
     h, w = ref.shape[:2]
-    tgt = rgb8("target_image", target_image, (w, h))
+    tgt = rgb8("target_image", target_image, (w, h), of="reference_image's size")
     d_t = disparity_map("tof_disparity", tof_disparity, (h, w))
     a_t = map2d("tof_amplitude", tof_amplitude, (h, w))
     d_s = disparity_map("stereo_disparity", stereo_disparity, (h, w))

@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError
-from rgbd_rs.fusion._inputs import F32, disparity_map, map2d, rgb8, unit_map, views
+from rgbd_rs.fusion._inputs import F32, disparity_map, rgb8, unit_map, views
 from rgbd_rs.fusion.crosscheck import _consistent, _warp_to_target
 
 #: The defaults and limits live in crates/rgbd-fusion (``LcParams::for_width``, ``MAX_RADIUS``);
@@ -22,6 +22,9 @@ MAX_RADIUS: int = _rgbd_rs.MAX_RADIUS
 #: sources on validation scenes; refining one map keeps the literature's finer quarter-pixel bins
 #: (a one-pixel bin averages near outliers into the result: tests/test_fusion.py).
 REFINE_BIN_WIDTH = 0.25
+
+#: Most disparity maps :func:`lc_fuse` takes (the native fusion's limit).
+MAX_SOURCES = 8
 
 
 @dataclass(frozen=True)
@@ -108,12 +111,17 @@ def lc_fuse(
     """
     ref = rgb8("reference_image", reference_image)
     h, w = ref.shape[:2]
-    tgt = rgb8("target_image", target_image, (w, h))
+    tgt = rgb8("target_image", target_image, (w, h), of="reference_image's size")
     if not isinstance(disparities, (list, tuple)) or not disparities:
         raise InvalidArgumentError(
             f"disparities: got {type(disparities).__name__}, expected a non-empty list of maps"
         )
-    ds = [map2d(f"disparities[{i}]", d, (h, w)) for i, d in enumerate(disparities)]
+    if len(disparities) > MAX_SOURCES:
+        raise InvalidArgumentError(
+            f"disparities: got {len(disparities)} maps, expected 1 to {MAX_SOURCES} (LC fuses "
+            f"at most {MAX_SOURCES} sources)"
+        )
+    ds = [disparity_map(f"disparities[{i}]", d, (h, w)) for i, d in enumerate(disparities)]
     if confidences is not None and not isinstance(confidences, (list, tuple)):
         raise InvalidArgumentError(
             f"confidences: got {type(confidences).__name__}, expected a list of maps or None"
@@ -170,7 +178,7 @@ def lc_refine(
     """
     ref_name = _validate.choice("reference", reference, ("left", "right"))
     lft = rgb8("left", left)
-    rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
+    rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]), of="left's size")
     d = disparity_map("disparity", disparity, (lft.shape[0], lft.shape[1]))
     if not np.isfinite(d).any():
         raise InvalidArgumentError(

@@ -237,7 +237,7 @@ def _sgm(
             "block_size)"
         )
     lft = rgb8("left", left)
-    rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]))
+    rgt = rgb8("right", right, (lft.shape[1], lft.shape[0]), of="left's size")
     ref = _validate.choice("reference", reference, ("left", "right"))
     lo = _validate.integer(
         "min_disparity", min_disparity, minimum=0, maximum=max(0, lft.shape[1] - 2)
@@ -345,7 +345,9 @@ def cost_curve_stats(
     volume; equal bit for bit to the numpy/OpenCV formulation ``_cost_curve_stats_numpy``.
     """
     ref = rgb8("reference_image", reference_image)
-    tgt = rgb8("target_image", target_image, (ref.shape[1], ref.shape[0]))
+    tgt = rgb8(
+        "target_image", target_image, (ref.shape[1], ref.shape[0]), of="reference_image's size"
+    )
     h, w = ref.shape[:2]
     disp = np.asarray(_validate.array("disparity", disparity, shape=(h, w)), np.float32)
     target_sign = _validate.sign("target_sign", target_sign)

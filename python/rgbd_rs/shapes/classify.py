@@ -82,6 +82,17 @@ def to_z_up(shape: Mesh | npt.ArrayLike, up: str) -> Shape:
     return (np.asarray(x, np.float64) @ r.T).astype(np.float32)
 
 
+def _load_named(name: str, path: str | os.PathLike[str]) -> Shape:
+    """:func:`load_shape` of ``path``, its refusals naming the caller's argument ``name``."""
+    try:
+        return load_shape(path)
+    except InvalidArgumentError as exc:
+        text = str(exc)
+        if text.startswith("path: "):
+            raise InvalidArgumentError(f"{name}: {text[len('path: ') :]}") from None
+        raise
+
+
 def _spread(name: str, points: npt.NDArray[np.float32], what: str) -> None:
     """Refuse a shape whose points lie on one point or one line: its views are empty or a
     stroke, and the network would still name a class with confidence."""
@@ -233,7 +244,7 @@ class ShapeClassifier:
     def _prepare(
         self, shape: Mesh | npt.ArrayLike | str | os.PathLike[str], up: str, name: str = "shape"
     ) -> Shape:
-        x: Any = load_shape(shape) if isinstance(shape, (str, os.PathLike)) else shape
+        x: Any = _load_named(name, shape) if isinstance(shape, (str, os.PathLike)) else shape
         x = to_z_up(_shape_arg(name, x), up)  # validated under the caller's name
         n = self.points_per_shape or 1024
         if isinstance(x, Mesh) and self.kind == "points":
