@@ -35,8 +35,10 @@ its checkpoints: training is deterministic by that seed, also when resumed (on C
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -157,10 +159,21 @@ class FrameFolder(Sequence[LabeledFrame]):
         if not self.folder.is_dir():
             raise RgbdError(f"{self.folder}: not a folder, expected a folder of frames")
         names = []
+        lacking: list[str] = []
         for f in sorted(self.folder.glob("*_rgb.png")):
             stem = f.name[: -len("_rgb.png")]
             if all((self.folder / f"{stem}_{k}.png").is_file() for k in ("depth", "label13")):
                 names.append(stem)
+            else:
+                lacking.append(stem)
+        if lacking and names:
+            shown = ", ".join(lacking[:3]) + (", ..." if len(lacking) > 3 else "")
+            warnings.warn(
+                f"{self.folder}: {len(lacking)} frame(s) without their NAME_depth.png or "
+                f"NAME_label13.png ({shown}) left out",
+                RuntimeWarning,
+                stacklevel=2,
+            )
         if not names:
             raise RgbdError(
                 f"{self.folder}: no NAME_{{rgb,depth,label13}}.png frame, expected a folder of "
@@ -517,6 +530,9 @@ def build_semantic_cache(
         "labels": LABEL_REDUCTION,
         "dtype": "float16",
     }
+    digest = _frames_fingerprint(frames, names)
+    if digest is not None:
+        meta["fingerprint"] = digest
     if (root / "meta.json").is_file():
         _check_meta(root, meta, names)
     _create_once(root / "names.json", _bytes_writer(json.dumps(names).encode()))
@@ -564,15 +580,41 @@ def build_semantic_cache(
     return SemanticCache(root)
 
 
+def _frames_fingerprint(frames: Any, names: list[str]) -> str | None:
+    """A digest of the files behind ``frames`` when they come from a folder (each file whose
+    name holds a frame's name, by name and size: reading them all would take minutes), so a
+    cache refuses to be resumed from another folder of the same name and frame names (two
+    `rgbd synth-indoor` seeds); None for frames not read from a folder."""
+    folder = getattr(frames, "folder", None)
+    if folder is None and isinstance(frames, NyuFrames):
+        from rgbd_rs.data.nyuv2 import _folder as nyu_folder
+
+        folder = nyu_folder(None)
+    if folder is None or not Path(folder).is_dir():
+        return None
+    wanted = set(names)
+    h = hashlib.sha256(json.dumps(names).encode())
+    for f in sorted(Path(folder).iterdir()):
+        if f.is_file() and wanted & set(re.split(r"[_.]", f.name)):
+            h.update(f"{f.name}:{f.stat().st_size};".encode())
+    return h.hexdigest()[:16]
+
+
 def _check_meta(root: Path, meta: dict[str, Any], names: list[str]) -> None:
     cache = SemanticCache(root)
+    if "fingerprint" not in cache.meta:  # a cache made before frames were fingerprinted
+        meta = {k: v for k, v in meta.items() if k != "fingerprint"}
     if cache.meta != meta or list(cache.names) != names:
         diff = sorted(k for k in set(meta) | set(cache.meta) if meta.get(k) != cache.meta.get(k))
         if list(cache.names) != names:
             diff.append("names")
+        why = " (the frames' files differ: another folder of the same name?)" * (
+            diff == ["fingerprint"]
+        )
         raise RgbdError(
             f"{root}: a cache of other frames or settings (differs in {diff}: "
-            f"{ {k: cache.meta.get(k) for k in diff if k != 'names'} }); choose another folder"
+            f"{ {k: cache.meta.get(k) for k in diff if k != 'names'} }){why}; repeat the first "
+            "run's frames and settings or choose another folder"
         )
 
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import functools
+import hashlib
 import io
 import json
 import os
@@ -431,6 +432,20 @@ class ShapeSource:
             raise InvalidArgumentError(f"index: got {index!r}, but the source holds no shapes")
         return _validate.integer("index", index, maximum=len(self) - 1)
 
+    def _fingerprint(self) -> str:
+        """A digest of what the source holds (classes, names, labels, splits, and where the
+        subclass can say it cheaply, the shapes themselves): a cache started from one source
+        refuses to be resumed from another of the same file name."""
+        h = hashlib.sha256()
+        h.update(json.dumps([list(self.classes), list(self.names)]).encode())
+        h.update(np.ascontiguousarray(self.labels, np.int64).tobytes())
+        h.update(np.ascontiguousarray(self.splits, np.uint8).tobytes())
+        self._content_digest(h)
+        return h.hexdigest()[:16]
+
+    def _content_digest(self, h: Any) -> None:
+        """Feed the shapes' content to ``h`` (default: nothing; names and labels only)."""
+
 
 def _labels_and_splits(
     where: object, labels: np.ndarray, splits: np.ndarray, n_classes: int
@@ -480,6 +495,9 @@ class PointCloudSet(ShapeSource):
     def load(self, index: int) -> npt.NDArray[np.float32]:
         return np.asarray(self.points[self._index(index)], np.float32)
 
+    def _content_digest(self, h: Any) -> None:
+        h.update(np.ascontiguousarray(self.points).tobytes())
+
 
 class OffTree(ShapeSource):
     """The Princeton ModelNet directory tree ``ROOT/<class>/{train,test}/*.off`` (classes are the
@@ -523,6 +541,10 @@ class OffTree(ShapeSource):
 
         path = self.files[self._index(index)]
         return load_mesh(path)  # a face-less mesh is refused there
+
+    def _content_digest(self, h: Any) -> None:
+        for f in self.files:  # file sizes: reading every mesh would take minutes
+            h.update(f"{f.relative_to(self.path)}:{f.stat().st_size};".encode())
 
 
 def open_shapes(data: str | os.PathLike[str]) -> ShapeSource:
@@ -883,6 +905,7 @@ def build_cache(
     augmentation = getattr(src, "augmentation", None)
     if augmentation is not None:
         meta["augmentation"] = augmentation
+    meta["fingerprint"] = src._fingerprint()
     if (root / "meta.json").is_file():
         _check_meta(root, meta)
     _create_once(root / "labels.npy", _bytes_writer(_npy_bytes(src.labels.astype(np.int16))))
@@ -936,12 +959,20 @@ def build_cache(
 
 def _check_meta(root: Path, meta: dict[str, Any]) -> None:
     cache = ShapeCache(root)
+    if "fingerprint" not in cache.meta:  # a cache made before sources were fingerprinted
+        meta = {k: v for k, v in meta.items() if k != "fingerprint"}
     if cache.meta != meta or len(cache) != meta["count"]:
         keys = sorted(k for k in set(meta) | set(cache.meta) if meta.get(k) != cache.meta.get(k))
         differ = ", ".join(f"{k}: {cache.meta.get(k)!r} there, {meta.get(k)!r} now" for k in keys)
+        why = (
+            " (the source's shapes, names or labels differ: another file or folder of the same "
+            "name?)"
+            if keys == ["fingerprint"]
+            else ""
+        )
         raise RgbdError(
-            f"{root}: a cache of other data or settings ({differ or 'its row count differs'}); "
-            "repeat the first run's settings or choose another output folder"
+            f"{root}: a cache of other data or settings ({differ or 'its row count differs'})"
+            f"{why}; repeat the first run's settings and data or choose another output folder"
         )
 
 

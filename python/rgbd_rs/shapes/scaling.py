@@ -139,6 +139,9 @@ class ScaledCopies(ShapeSource):
             record["copy_jitter"] = self.jitter
         return record
 
+    def _content_digest(self, h: Any) -> None:
+        self.base._content_digest(h)  # the copies follow from it and the augmentation record
+
     def _origin(self, index: int) -> tuple[int, int]:
         """(copy round 1.., original index) of row ``index``; round 0 for an original."""
         n = len(self.base)
