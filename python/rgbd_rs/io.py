@@ -6,10 +6,12 @@ wrong kind or lacks a key. :mod:`rgbd_rs.viz` and :mod:`rgbd_rs.data` both write
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import io
 import json
 import os
+import shutil
 import stat
 import sys
 import tempfile
@@ -405,8 +407,36 @@ def _npy_writer(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path]
         arr = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
         arr.flush()
         del arr
+        _reserve(tmp)
 
     return write
+
+
+#: posix_fallocate errors that mean "this filesystem cannot reserve", not "no room".
+_NO_RESERVE = {errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL}
+
+
+def _reserve(tmp: Path) -> None:
+    """Allocate the disk blocks of the (sparse) file ``tmp`` now: a memory-mapped write to a
+    block the full disk cannot give kills the process with SIGBUS, with no message; this raises
+    :class:`RgbdError` up front instead (where the OS can reserve blocks)."""
+    if not hasattr(os, "posix_fallocate"):
+        return
+    size = tmp.stat().st_size
+    fd = os.open(tmp, os.O_RDWR)
+    try:
+        os.posix_fallocate(fd, 0, size)
+    except OSError as exc:
+        if exc.errno in _NO_RESERVE:
+            return
+        final = tmp.parent / tmp.name[1:-4].rsplit(".", 1)[0]  # _create_once's temporary name
+        free = shutil.disk_usage(tmp.parent).free
+        raise RgbdError(
+            f"{final}: could not reserve {size / 1e6:.1f} MB on disk ({exc.strerror}; "
+            f"{free / 1e6:.1f} MB free): free some room or choose another output folder"
+        ) from None
+    finally:
+        os.close(fd)
 
 
 def _bytes_writer(data: bytes) -> Callable[[Path], None]:
