@@ -14,11 +14,13 @@ and bad values (:class:`~rgbd_rs.RgbdError`), unreadable or unwritable paths (``
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from rgbd_rs import __version__
 from rgbd_rs.cli import (
@@ -87,6 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if run is None:
         parser.print_help()
         return 2
+    previous = _on_sigterm()
     try:
         out = getattr(args, "out", None)
         if isinstance(out, Path):
@@ -100,10 +103,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         return fail(os_message(exc))
     except MemoryError:
         return fail("out of memory (try smaller images or fewer scenes)")
+    except _Terminated:
+        print("rgbd: terminated (SIGTERM); what was written is kept", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         print("rgbd: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return status
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (a scheduler stopping the job), raised where the program is, as Ctrl-C's
+    KeyboardInterrupt is: the same clean-up runs (temporary files removed, checkpoints kept)."""
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise _Terminated()
+
+
+def _on_sigterm() -> Any:
+    """Turn SIGTERM into :class:`_Terminated` while a command runs (main thread only); returns the
+    handler to restore, or None when none was installed."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _raise_terminated)
 
 
 if __name__ == "__main__":

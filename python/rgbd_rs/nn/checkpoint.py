@@ -307,6 +307,17 @@ def save_checkpoint(checkpoint: Checkpoint, path: str | os.PathLike[str]) -> Pat
             os.fsync(f.fileno())
         os.chmod(tmp, 0o644)  # mkstemp makes it private; a checkpoint is an ordinary file
         os.replace(tmp, path)
+    except RuntimeError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        # torch's zip writer reports a failed write (a full disk) as a RuntimeError raised
+        # while handling the OSError: say it in the OSError's words, naming the file.
+        cause = exc.__context__
+        if isinstance(cause, OSError):
+            raise RgbdError(
+                f"{path}: could not be written ({cause.strerror or cause}); the previous "
+                "checkpoint there, if any, is intact"
+            ) from None
+        raise
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
