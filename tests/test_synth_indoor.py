@@ -86,7 +86,9 @@ def test_resume_skips_complete_frames_and_refuses_another_seed(tmp_path: Path) -
     assert redo.read_bytes() == good
     from rgbd_rs import InvalidArgumentError
 
-    with pytest.raises(InvalidArgumentError, match=r"^out: got a folder holding"):
+    with pytest.raises(
+        InvalidArgumentError, match=r"^out: got a folder holding .*\(seed: 0 there, 1 now\)"
+    ):
         generate_indoor(tmp_path, 3, seed=1, width=32, height=24, quiet=True)
     # Shards of two seeds never mix: the first shard to run writes the manifest, whichever.
     mixed = tmp_path / "mixed"

@@ -324,6 +324,15 @@ def device(name: str, value: object, *, auto: bool = False, available: bool = Tr
     return value
 
 
+def differences(there: object, now: object) -> str:
+    """The keys two settings dicts disagree on, with both values (``"scale: 0.25 there, 0.3
+    now"``), in sorted key order: what a refusal to mix two runs' outputs names."""
+    a = there if isinstance(there, dict) else {}
+    b = now if isinstance(now, dict) else {}
+    keys = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+    return "; ".join(f"{k}: {a.get(k)!r} there, {b.get(k)!r} now" for k in keys)
+
+
 def metric_points(name: str, points: np.ndarray, uses: str | None) -> None:
     """Refuse ``H x W x 3`` points (z = depth) with no finite point, or (unless ``uses`` is None)
     whose median positive z is beyond ``HHA_MAX_MEDIAN_DEPTH_M`` (50 m: millimetres; the limit

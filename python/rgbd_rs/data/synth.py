@@ -263,8 +263,9 @@ def write_dataset(
         old = read_manifest(manifest_path)
         if old["params"] != params:
             raise RgbdError(
-                f"{out}: holds a dataset made with {old.get('params')}, not {params}; "
-                "use another --out or delete it"
+                f"{out}: holds a dataset made with other settings "
+                f"({_validate.differences(old.get('params'), params)}); use another --out or "
+                "delete it"
             )
         manifest["scenes"] = old["scenes"]
     out.mkdir(parents=True, exist_ok=True)
@@ -336,7 +337,7 @@ class SynthDataset:
             raise RgbdError(
                 f"{self.root}: incomplete dataset ({len(manifest['scenes'])} of "
                 f"{p['train'] + p['test']} scenes); re-run `rgbd synth` with the same arguments "
-                "to resume, or pass allow_partial=True"
+                "to finish it (from Python, allow_partial=True reads the scenes done)"
             )
         if manifest.get("complete") and len(self.keys) != expected:
             raise RgbdError(

@@ -194,8 +194,8 @@ def _check_manifest(out: Path, seed: int, width: int, height: int) -> None:
     have = read_json(path)
     if have != want:
         raise InvalidArgumentError(
-            f"out: got a folder holding frames made with {have}, expected {want} "
-            "(use another folder)"
+            f"out: got a folder holding frames made with other settings "
+            f"({_validate.differences(have, want)}); use another folder"
         )
 
 
