@@ -130,7 +130,7 @@ CASES: list[Case] = [
         "segment",
         lambda: segment(RGB, DEPTH, CAM),
         SHAPE,
-        r"^rgb: got a 32x24 frame, smaller than the labeling network's .*labeler=None",
+        r"^rgb: got a 32x24 frame, smaller than the labeling .*rgbd segment --labeler none",
         "below the network",
     ),
     Case(

@@ -266,7 +266,9 @@ def test_lc_fuse_bad_input() -> None:
     with pytest.raises(InvalidArgumentError, match="bin_width"):
         lc_fuse(img, img, [d2], params=LcParams(bin_width=1e-30))
     d2[0, 0] = -1e19
-    with pytest.raises(InvalidArgumentError, match=r"disparities: got -10{19} in map 0"):
+    with pytest.raises(
+        InvalidArgumentError, match=r"^disparities\[0\]: got 1 value\(s\) as large as 1e\+19"
+    ):
         lc_fuse(img, img, [d2])
     with pytest.raises(InvalidArgumentError, match="baseline"):
         StereoRig(RIG.stereo.left, RIG.stereo.right, 0.0)

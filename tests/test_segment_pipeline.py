@@ -126,7 +126,8 @@ def test_cli_a_frame_too_small_for_the_labeler_names_the_inputs(
     argv += ["--calib", str(tmp_path / "cam.json"), "--out", str(tmp_path / "o"), "--quiet"]
     assert main([*argv, "--segments", "10"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("rgbd: error: --rgb/--depth: got a 64x48 frame, smaller than the "), err
+    assert err.startswith("rgbd: error: --rgb: got a 64x48 frame, smaller than the "), err
+    assert "--labeler none" in err
     # A grey image for --rgb, and a depth on its own (smaller) lattice, each named with a way out.
     cv2.imwrite(str(tmp_path / "grey.png"), np.full((48, 64), 90, np.uint8))
     grey = [*argv]

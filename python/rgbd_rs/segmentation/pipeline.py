@@ -174,8 +174,8 @@ def _frame_size(shape: tuple[int, ...], net: SemanticLabeler | None) -> None:
         if w < nw or h < nh:
             raise ShapeMismatchError(
                 f"rgb: got a {w}x{h} frame, smaller than the labeling network's {nw}x{nh} input; "
-                f"expected a frame at least {nw}x{nh}, or labeler=None (merging by surface fits "
-                "only)"
+                f"expected a frame at least {nw}x{nh}, or no network (labeler=None; rgbd "
+                "segment --labeler none): merging by surface fits only"
             )
 
 
