@@ -35,7 +35,15 @@ from rgbd_rs.cli import (
     shapes,
     stereo,
 )
-from rgbd_rs.cli._args import Commands, Parser, fail, one_line, os_message, writable_out
+from rgbd_rs.cli._args import (
+    Commands,
+    Parser,
+    fail,
+    finish_outputs,
+    one_line,
+    os_message,
+    writable_out,
+)
 from rgbd_rs.errors import RgbdError
 
 __all__ = ["PIPELINES", "build_parser", "main"]
@@ -90,6 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     previous = _on_sigterm()
+    finished = False
     try:
         out = getattr(args, "out", None)
         if isinstance(out, Path):
@@ -97,6 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
             status: int = run(args)
+        finished = True
     except RgbdError as exc:
         return fail(str(exc))
     except OSError as exc:
@@ -110,6 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("rgbd: interrupted", file=sys.stderr)
         return 130
     finally:
+        finish_outputs(finished)
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
     return status

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import sys
 import tempfile
 import warnings
@@ -220,13 +221,63 @@ def output_folder(
     refuse_overwriting(out, outputs, flag, inputs or {})
     try:  # a file at ``out`` (the ``folder`` type refused one while parsing) fails in mkdir
         out.mkdir(parents=True, exist_ok=True)
-        for pattern in outputs:
-            for old in out.glob(pattern):
-                if old.is_file() or old.is_symlink():
-                    old.unlink()
+        backup = out / PREVIOUS
+        if backup.is_dir():  # a run that died before it finished: the last complete outputs
+            _restore(out, outputs)
+        for old in _outputs(out, outputs):
+            dest = backup / old.relative_to(out)
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(old, dest)
     except OSError as exc:
         raise RgbdError(f"{flag}: {os_message(exc)}") from None
+    _STAGED.append((out, tuple(outputs)))
     return out
+
+
+#: Where :func:`output_folder` keeps a previous run's outputs until the new run has finished.
+PREVIOUS = ".rgbd-previous"
+#: The output folders of the running command (``main`` finishes them).
+_STAGED: list[tuple[Path, tuple[str, ...]]] = []
+
+
+def _outputs(out: Path, outputs: Sequence[str]) -> list[Path]:
+    """The files of ``out`` that match ``outputs`` (never those kept in :data:`PREVIOUS`)."""
+    found = []
+    for pattern in outputs:
+        for p in out.glob(pattern):
+            if (p.is_file() or p.is_symlink()) and PREVIOUS not in p.relative_to(out).parts:
+                found.append(p)
+    return found
+
+
+def _restore(out: Path, outputs: Sequence[str]) -> None:
+    """Put the outputs kept in ``out/PREVIOUS`` back, in place of a run's partial ones."""
+    backup = out / PREVIOUS
+    if not backup.is_dir():
+        return
+    for new in _outputs(out, outputs):
+        new.unlink()
+    for f in sorted(backup.rglob("*")):
+        if f.is_file() or f.is_symlink():
+            dest = out / f.relative_to(backup)
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(f, dest)
+    shutil.rmtree(backup, ignore_errors=True)
+
+
+def finish_outputs(finished: bool) -> None:
+    """End the running command's output folders: a command that finished drops the previous
+    run's outputs it kept; one interrupted or failed puts them back (its partial outputs go),
+    so a re-run into the same ``--out`` never loses the last complete result. Best effort."""
+    while _STAGED:
+        out, outputs = _STAGED.pop()
+        try:
+            if finished:
+                shutil.rmtree(out / PREVIOUS, ignore_errors=True)
+            else:
+                _restore(out, outputs)
+        except OSError:
+            pass
 
 
 def refuse_overwriting(
