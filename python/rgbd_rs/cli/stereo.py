@@ -242,7 +242,9 @@ def _warn_if_cut(args: argparse.Namespace, disp: Any, dmax: int) -> None:
         default = " (the default)" if args.min_depth is None else ""
         flag = f"--min-depth {depth:g} m{default}"
         advice = "give a smaller --min-depth (the nearest depth in the scene)"
-    note = range_cut_note(disp, dmax, flag, advice)
+    from rgbd_rs.fusion.stereo import _searched_top
+
+    note = range_cut_note(disp, _searched_top(args.method, 0, dmax), flag, advice)
     if note is not None:
         warnings.warn(note, RuntimeWarning, 2)
 

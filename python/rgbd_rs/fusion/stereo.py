@@ -196,10 +196,19 @@ def sgm(
         method=method,
         params=params,
     )
-    note = range_cut_note(disparity, int(max_disparity), "max_disparity")
+    top = _searched_top(method, int(min_disparity), int(max_disparity))
+    note = range_cut_note(disparity, top, "max_disparity")
     if note is not None:
         warnings.warn(note, RuntimeWarning, stacklevel=2)
     return disparity
+
+
+def _searched_top(method: str, min_disparity: int, max_disparity: int) -> int:
+    """The largest disparity the matcher can output: ``max_disparity`` for ours, for OpenCV's
+    SGBM the top of its range rounded up to whole steps of :data:`DISPARITY_STEP`."""
+    if method == "opencv":
+        return min_disparity + _num_disparities(min_disparity, max_disparity) - 1
+    return max_disparity
 
 
 def _sgm(
