@@ -77,3 +77,19 @@ def test_cli_names_the_difference(
     assert main([*argv, "--epochs", "2"]) == 2
     err = capsys.readouterr().err
     assert "{'label_smoothing': 0.1} -> None" in err and "--no-resume" in err
+
+
+def test_a_run_from_before_the_record_still_resumes(cache: Path, tmp_path: Path) -> None:
+    """A checkpoint written before recipes were recorded resumes with a warning (its recipe
+    cannot be checked), keeping its old record."""
+    import torch
+
+    recipe = ShapeRecipe(width=2, label_smoothing=0.1)
+    train_shapes(cache, tmp_path, recipe=recipe, config=_cfg(1), quiet=True)
+    raw = torch.load(tmp_path / "last.pt", map_location="cpu", weights_only=False)
+    del raw["normalisation"]["recipe"]
+    torch.save(raw, tmp_path / "last.pt")
+    with pytest.warns(RuntimeWarning, match=r"written before runs recorded their recipe"):
+        train_shapes(cache, tmp_path, recipe=recipe, config=_cfg(2), quiet=True)
+    ckpt = load_checkpoint(tmp_path / "last.pt")
+    assert ckpt.epoch == 2 and "recipe" not in ckpt.normalisation

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import warnings
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -268,7 +269,7 @@ def train_shapes(
         arch_config=model.arch_config(),
         # what shapes training but not the network is recorded (when not the default), so a
         # resume with another exclude list, split, augmentation or loss is refused
-        normalisation=normalisation_of(c, reps) | _recorded(r),
+        normalisation=normalisation_of(c, reps) | _recorded(r, out if resume else None),
         quiet=quiet,
         resume=resume,
         metric_fn=accuracy,
@@ -280,15 +281,38 @@ def train_shapes(
 _TRAINING_FIELDS = ("val_fraction", "split_seed", "rotate", "mirror", "label_smoothing", "mixup")
 
 
-def _recorded(r: ShapeRecipe) -> dict[str, Any]:
+def _recorded(r: ShapeRecipe, resuming: Path | None = None) -> dict[str, Any]:
     """What a run's checkpoints record of recipe ``r`` beside the input statistics: ``exclude``
     and ``recipe`` (the :data:`_TRAINING_FIELDS` not at their defaults), each only when used, so
-    checkpoints of runs that left them at their defaults read as before."""
+    checkpoints of runs that left them at their defaults read as before. A run being resumed
+    from ``resuming/last.pt`` written before ``recipe`` was recorded keeps its record (its
+    recipe cannot be checked; a warning says so)."""
     default = ShapeRecipe()
     changed = {k: getattr(r, k) for k in _TRAINING_FIELDS if getattr(r, k) != getattr(default, k)}
-    return ({"exclude": list(r.exclude)} if r.exclude else {}) | (
+    out = ({"exclude": list(r.exclude)} if r.exclude else {}) | (
         {"recipe": changed} if changed else {}
     )
+    last = None if resuming is None else resuming / "last.pt"
+    if changed and last is not None and last.is_file() and "recipe" not in _stored_norm(last):
+        warnings.warn(
+            f"{last}: written before runs recorded their recipe; resuming it without checking "
+            f"that it was trained with {changed}",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        del out["recipe"]
+    return out
+
+
+def _stored_norm(path: Path) -> dict[str, Any]:
+    """The ``normalisation`` record of checkpoint ``path`` ({} when it cannot be read: the
+    trainer's own reading then says why)."""
+    from rgbd_rs.nn.checkpoint import load_checkpoint
+
+    try:
+        return dict(load_checkpoint(path, map_location="cpu").normalisation)
+    except RgbdError:
+        return {}
 
 
 #: The architecture settings an init must share with the run, and the flag that sets each
