@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from rgbd_rs.cli import _args
-from rgbd_rs.cli._args import PREVIOUS, finish_outputs, output_folder
+from rgbd_rs.cli._args import PREVIOUS, _backup, finish_outputs, output_folder
 
 OUTPUTS = ("a.txt", "b.txt", "merge/*.png")
 
@@ -31,7 +31,7 @@ def test_an_interrupted_rerun_puts_the_previous_outputs_back(tmp_path: Path) -> 
     assert (tmp_path / "a.txt").read_text() == "old a.txt"
     assert (tmp_path / "merge" / "0001.png").read_text() == "old merge/0001.png"
     assert (tmp_path / "notes.md").read_text() == "mine"
-    assert not (tmp_path / PREVIOUS).exists()
+    assert not list(tmp_path.glob(PREVIOUS + "*"))
 
 
 def test_a_finished_rerun_drops_them(tmp_path: Path) -> None:
@@ -41,7 +41,7 @@ def test_a_finished_rerun_drops_them(tmp_path: Path) -> None:
     finish_outputs(True)
     assert (tmp_path / "a.txt").read_text() == "new"
     assert not (tmp_path / "b.txt").exists(), "a stale output of the previous run is gone"
-    assert not (tmp_path / PREVIOUS).exists() and not _args._STAGED
+    assert not list(tmp_path.glob(PREVIOUS + "*")) and not _args._STAGED
 
 
 def test_a_run_killed_outright_is_recovered_by_the_next(tmp_path: Path) -> None:
@@ -81,3 +81,19 @@ def test_cli_rerun_that_fails_keeps_the_outputs(
         "disparity.png",
         "preview.png",
     }
+
+
+def test_two_commands_in_one_folder_keep_their_own(tmp_path: Path) -> None:
+    """A second command writing into the same --out while the first runs does not take the
+    first one's set-aside outputs for a dead run's."""
+    _first_run(tmp_path)
+    other = ("x.md",)
+    (tmp_path / "x.md").write_text("other's old")
+    output_folder(tmp_path, OUTPUTS)  # the first command re-runs...
+    output_folder(tmp_path, other)  # ...while the other one starts
+    assert _backup(tmp_path, OUTPUTS) != _backup(tmp_path, other)
+    (tmp_path / "x.md").write_text("other's new")
+    (tmp_path / "a.txt").write_text("new")
+    finish_outputs(True)
+    assert (tmp_path / "a.txt").read_text() == "new"
+    assert (tmp_path / "x.md").read_text() == "other's new"

@@ -114,7 +114,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except MemoryError:
         return fail("out of memory (try smaller images or fewer scenes)")
     except _Terminated:
-        print("rgbd: terminated (SIGTERM); what was written is kept", file=sys.stderr)
+        print("rgbd: terminated (SIGTERM)", file=sys.stderr)
         return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         print("rgbd: interrupted", file=sys.stderr)

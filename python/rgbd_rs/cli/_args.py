@@ -5,6 +5,7 @@ pipeline adds its commands to, and the wrapper that names the flag when its file
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import re
 import shutil
@@ -212,16 +213,17 @@ def output_folder(
     flag: str = "--out",
     inputs: Mapping[str, Path] | None = None,
 ) -> Path:
-    """Create the output folder ``out`` and delete the files a previous run of the command
-    left there: ``outputs`` are glob patterns (relative to ``out``) of everything the command
-    may write, so a run that writes fewer files (no ``--undistort``, fit-only instead of the
-    ConvNet) does not leave the other run's files beside its own. Other files are kept.
+    """Create the output folder ``out`` and set aside the files a previous run of the command
+    left there (in ``out/.rgbd-previous-<command>``, put back by :func:`finish_outputs` if this
+    run does not finish): ``outputs`` are glob patterns (relative to ``out``) of everything the
+    command may write, so a run that writes fewer files (no ``--undistort``, fit-only instead
+    of the ConvNet) does not leave the other run's files beside its own. Other files are kept.
     ``inputs`` (flag -> path, e.g. :func:`input_paths`) are refused where the command would
     delete or overwrite one of them, before anything is touched."""
     refuse_overwriting(out, outputs, flag, inputs or {})
     try:  # a file at ``out`` (the ``folder`` type refused one while parsing) fails in mkdir
         out.mkdir(parents=True, exist_ok=True)
-        backup = out / PREVIOUS
+        backup = _backup(out, outputs)
         if backup.is_dir():  # a run that died before it finished: the last complete outputs
             _restore(out, outputs)
         for old in _outputs(out, outputs):
@@ -234,8 +236,17 @@ def output_folder(
     return out
 
 
-#: Where :func:`output_folder` keeps a previous run's outputs until the new run has finished.
+#: Where :func:`output_folder` keeps a previous run's outputs until the new run has finished
+#: (one folder per command, named by its outputs: commands sharing an --out never mix them).
 PREVIOUS = ".rgbd-previous"
+
+
+def _backup(out: Path, outputs: Sequence[str]) -> Path:
+    """The folder of ``out`` that keeps the previous outputs of the command writing ``outputs``."""
+    tag = hashlib.sha1("\n".join(outputs).encode()).hexdigest()[:8]
+    return out / f"{PREVIOUS}-{tag}"
+
+
 #: The output folders of the running command (``main`` finishes them).
 _STAGED: list[tuple[Path, tuple[str, ...]]] = []
 
@@ -245,14 +256,15 @@ def _outputs(out: Path, outputs: Sequence[str]) -> list[Path]:
     found = []
     for pattern in outputs:
         for p in out.glob(pattern):
-            if (p.is_file() or p.is_symlink()) and PREVIOUS not in p.relative_to(out).parts:
+            rel = p.relative_to(out).parts
+            if (p.is_file() or p.is_symlink()) and not rel[0].startswith(PREVIOUS):
                 found.append(p)
     return found
 
 
 def _restore(out: Path, outputs: Sequence[str]) -> None:
-    """Put the outputs kept in ``out/PREVIOUS`` back, in place of a run's partial ones."""
-    backup = out / PREVIOUS
+    """Put the outputs kept aside for this command back, in place of a run's partial ones."""
+    backup = _backup(out, outputs)
     if not backup.is_dir():
         return
     for new in _outputs(out, outputs):
@@ -273,7 +285,7 @@ def finish_outputs(finished: bool) -> None:
         out, outputs = _STAGED.pop()
         try:
             if finished:
-                shutil.rmtree(out / PREVIOUS, ignore_errors=True)
+                shutil.rmtree(_backup(out, outputs), ignore_errors=True)
             else:
                 _restore(out, outputs)
         except OSError:
