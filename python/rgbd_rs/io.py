@@ -407,7 +407,6 @@ def _npy_writer(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path]
         arr = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
         arr.flush()
         del arr
-        _reserve(tmp)
 
     return write
 
@@ -416,23 +415,24 @@ def _npy_writer(shape: tuple[int, ...], dtype: npt.DTypeLike) -> Callable[[Path]
 _NO_RESERVE = {errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL}
 
 
-def _reserve(tmp: Path) -> None:
-    """Allocate the disk blocks of the (sparse) file ``tmp`` now: a memory-mapped write to a
-    block the full disk cannot give kills the process with SIGBUS, with no message; this raises
-    :class:`RgbdError` up front instead (where the OS can reserve blocks)."""
+def _reserve(path: Path) -> None:
+    """Allocate the disk blocks of the (sparse) array file ``path`` now: a memory-mapped write
+    to a block the full disk cannot give kills the process with SIGBUS, with no message; this
+    raises :class:`RgbdError` up front instead (where the OS can reserve blocks). Called on the
+    final file, once :func:`_create_once` made it: concurrent shards reserve it once, and again
+    at no cost."""
     if not hasattr(os, "posix_fallocate"):
         return
-    size = tmp.stat().st_size
-    fd = os.open(tmp, os.O_RDWR)
+    size = path.stat().st_size
+    fd = os.open(path, os.O_RDWR)
     try:
         os.posix_fallocate(fd, 0, size)
     except OSError as exc:
         if exc.errno in _NO_RESERVE:
             return
-        final = tmp.parent / tmp.name[1:-4].rsplit(".", 1)[0]  # _create_once's temporary name
-        free = shutil.disk_usage(tmp.parent).free
+        free = shutil.disk_usage(path.parent).free
         raise RgbdError(
-            f"{final}: could not reserve {size / 1e6:.1f} MB on disk ({exc.strerror}; "
+            f"{path}: could not reserve {size / 1e6:.1f} MB on disk ({exc.strerror}; "
             f"{free / 1e6:.1f} MB free): free some room or choose another output folder"
         ) from None
     finally:

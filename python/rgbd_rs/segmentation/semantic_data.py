@@ -509,7 +509,7 @@ def build_semantic_cache(
     src = source if source is not None else type(frames).__name__
     if not isinstance(src, str):
         raise InvalidArgumentError(f"source: got {src!r}, expected a str")
-    from rgbd_rs.io import _bytes_writer, _create_once, _npy_writer
+    from rgbd_rs.io import _bytes_writer, _create_once, _npy_writer, _reserve
 
     root = Path(out)
     if not (root / "meta.json").is_file():
@@ -538,6 +538,8 @@ def build_semantic_cache(
     _create_once(root / "names.json", _bytes_writer(json.dumps(names).encode()))
     _create_once(root / "cues.npy", _npy_writer((n, N_CUES, h, w), np.float16))
     _create_once(root / "labels.npy", _npy_writer((n, h, w), np.uint8))
+    for name in ("cues.npy", "labels.npy"):
+        _reserve(root / name)
     _create_once(root / "done.npy", _npy_writer((n,), np.uint8))
     _create_once(root / "meta.json", _bytes_writer(json.dumps(meta, indent=1).encode()))
     _check_meta(root, meta, names)

@@ -46,7 +46,15 @@ from torch.utils.data import Dataset
 
 from rgbd_rs import _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
-from rgbd_rs.io import _bytes_writer, _create_once, _npy_bytes, _npy_writer, read_npy, read_npz
+from rgbd_rs.io import (
+    _bytes_writer,
+    _create_once,
+    _npy_bytes,
+    _npy_writer,
+    _reserve,
+    read_npy,
+    read_npz,
+)
 from rgbd_rs.meshes import Mesh, _check_ply_vertices
 from rgbd_rs.nn.shapes import (
     DEFAULT_REPRESENTATIONS,
@@ -913,6 +921,7 @@ def build_cache(
     _create_once(root / "names.json", _bytes_writer(json.dumps(list(src.names)).encode()))
     for name, shape in s.shapes.items():
         _create_once(root / f"{name}.npy", _npy_writer((n, *shape), np.float16))
+        _reserve(root / f"{name}.npy")
     _create_once(root / "done.npy", _npy_writer((n,), np.uint8))
     _create_once(root / "meta.json", _bytes_writer(json.dumps(meta, indent=1).encode()))
     _check_meta(root, meta)
