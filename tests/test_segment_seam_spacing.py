@@ -1,5 +1,6 @@
-"""segment()'s seam test scales its knot spacing with the frame's width (16 px at NYUv2's 640),
-so a frame and its half-resolution copy test seams over the same share of a segment."""
+"""segment()'s and merge_regions()'s seam test scales its knot spacing with the frame's larger
+side (16 px at NYUv2's 640), so a frame and its half-resolution copy test seams over the same
+share of a segment."""
 
 from __future__ import annotations
 
@@ -14,13 +15,15 @@ from rgbd_rs.segmentation import segment
 from rgbd_rs.surface import DEFAULT_TEST_SPACING
 
 pipeline = sys.modules["rgbd_rs.segmentation.pipeline"]
+merge = sys.modules["rgbd_rs.segmentation.merge"]
 
 
-def test_spacing_in_proportion_to_the_width() -> None:
-    assert pipeline._seam_spacing(640) == DEFAULT_TEST_SPACING == 16.0
-    assert pipeline._seam_spacing(320) == 8.0
-    assert pipeline._seam_spacing(1280) == 32.0
-    assert pipeline._seam_spacing(8) == 1.0  # never below a pixel
+def test_spacing_in_proportion_to_the_larger_side() -> None:
+    assert merge._seam_spacing((480, 640)) == DEFAULT_TEST_SPACING == 16.0
+    assert merge._seam_spacing((640, 480)) == 16.0  # portrait: the same frame turned
+    assert merge._seam_spacing((240, 320)) == 8.0
+    assert merge._seam_spacing((720, 1280)) == 32.0
+    assert merge._seam_spacing((6, 8)) == 1.0  # never below a pixel
 
 
 @pytest.mark.parametrize("width", [64, 96])
@@ -41,3 +44,19 @@ def test_segment_passes_it_to_the_fits(monkeypatch: pytest.MonkeyPatch, width: i
     cam = PinholeCamera(0.8 * width, 0.8 * width, width / 2, h / 2, width, h)
     segment(rgb, depth, cam, labeler=None, n_segments=12, quiet=True)
     assert seen == [16.0 * width / 640]
+
+
+def test_merge_regions_uses_it_too(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[float] = []
+    real = merge.SegmentFits
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        seen.append(kwargs["test_spacing"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(merge, "SegmentFits", spy)
+    labels = np.repeat(np.arange(4, dtype=np.int32), 16 * 32).reshape(32, 64)
+    yy, xx = np.mgrid[0:32, 0:64].astype(np.float32)
+    pts = np.dstack([xx * 0.01, yy * 0.01, np.full((32, 64), 2.0, np.float32)])
+    merge.merge_regions(labels, pts)
+    assert seen == [16.0 * 64 / 640]

@@ -333,7 +333,7 @@ def differences(there: object, now: object) -> str:
     return "; ".join(f"{k}: {a.get(k)!r} there, {b.get(k)!r} now" for k in keys)
 
 
-def metric_points(name: str, points: np.ndarray, uses: str | None) -> None:
+def metric_points(name: str, points: np.ndarray, uses: str | None, escape: str = "") -> None:
     """Refuse ``H x W x 3`` points (z = depth) with no finite point, or (unless ``uses`` is None)
     whose median positive z is beyond ``HHA_MAX_MEDIAN_DEPTH_M`` (50 m: millimetres; the limit
     ``segment()`` applies): ``uses`` names the metric constants that would misread them."""
@@ -351,6 +351,7 @@ def metric_points(name: str, points: np.ndarray, uses: str | None) -> None:
             f"{name}: got a median depth (z) of {med:.4g}, expected metres (at most "
             f"{_rgbd_rs.HHA_MAX_MEDIAN_DEPTH_M:g} for a Kinect-class scene): the points look like "
             f"millimetres (divide by 1000); {uses} in metres"
+            + (f" (for a scene this far in metres, {escape})" if escape else "")
         )
 
 

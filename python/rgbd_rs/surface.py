@@ -300,10 +300,13 @@ def _spacing(name: str, spacing: float, shape: tuple[int, ...]) -> float:
     side = max(shape[:2], default=0)
     cap = max(MAX_SPACING_SIDES * side, DEFAULT_SPACING)
     if s > cap:
-        raise InvalidArgumentError(
-            f"{name}: got {s:g}, expected at most {cap:g} px ({MAX_SPACING_SIDES:g} times the "
-            f"grid's larger side, {side} px: one knot span already covers it)"
+        why = (
+            f"{MAX_SPACING_SIDES:g} times the grid's larger side, {side} px: one knot span "
+            "already covers it"
+            if cap > DEFAULT_SPACING
+            else f"the default spacing; the grid's larger side is {side} px"
         )
+        raise InvalidArgumentError(f"{name}: got {s:g}, expected at most {cap:g} px ({why})")
     return s
 
 
@@ -484,7 +487,9 @@ class SegmentFits:
         ts = _spacing("test_spacing", test_spacing, p.shape)
         ns = _validate.real("noise_scale", noise_scale, positive=True)
         if ns == KINECT_V1_NOISE_SCALE:  # the default law is in metres; a caller's in its unit
-            _validate.metric_points("points", p, "noise_scale's default (Kinect v1) is")
+            _validate.metric_points(
+                "points", p, "noise_scale's default (Kinect v1) is", "give noise_scale"
+            )
         npow = _validate.real("noise_power", noise_power)
         tol = _validate.real("tolerance", tolerance, nonnegative=True)
         lab32 = np.ascontiguousarray(np.maximum(lab, -1), dtype=np.int32)

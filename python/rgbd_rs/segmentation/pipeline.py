@@ -24,11 +24,11 @@ from rgbd_rs.holes import DEFAULT_FILL_RADIUS, SPARSE_SHARE, _isolated_share, fi
 from rgbd_rs.segmentation.features import NORMAL_RADIUS, Features, features
 from rgbd_rs.segmentation.hha import GRAVITY_RADIUS, hha_details, square_normals
 from rgbd_rs.segmentation.labeling import SemanticLabeler
-from rgbd_rs.segmentation.merge import MergeResult, merge_regions
+from rgbd_rs.segmentation.merge import MergeResult, _seam_spacing, merge_regions
 from rgbd_rs.segmentation.oversegment import DEFAULT_N_SEGMENTS, oversegment
 from rgbd_rs.segmentation.refine import DEFAULT_POOLING, POOLINGS
 from rgbd_rs.segmentation.semantic_stage import AUTO, LabelerArg, _class_pdfs, _resolve_labeler
-from rgbd_rs.surface import DEFAULT_TEST_SPACING, SegmentFits
+from rgbd_rs.surface import SegmentFits
 
 __all__ = ["ADJACENCY_NORMAL_RADIUS", "Segmentation", "segment"]
 
@@ -38,23 +38,6 @@ __all__ = ["ADJACENCY_NORMAL_RADIUS", "Segmentation", "segment"]
 #: (5 NYUv2 train frames, fit-only merging: VoI 1.95 -> 1.45, RI 0.903 -> 0.878, 176 -> 103
 #: segments).
 ADJACENCY_NORMAL_RADIUS = GRAVITY_RADIUS
-#: The image width :data:`~rgbd_rs.surface.DEFAULT_TEST_SPACING` (16 px) was set for (NYUv2's
-#: 640 x 480 Kinect frames): ``segment()`` scales the seam test's knot spacing with the frame's
-#: width, so a segment spans the same number of knots at any resolution. Measured on six NYUv2
-#: train frames merged at half resolution from the same over-segmentation: 16 px kept 27-62 %
-#: more segments than at full resolution (VoI against the full-resolution result 0.96 on
-#: average), 8 px 0.75; neither closer to the ground truth.
-SEAM_SPACING_WIDTH = 640
-
-
-def _seam_spacing(width: int) -> float:
-    """The seam test's knot spacing (pixels) ``segment()`` uses on a frame ``width`` pixels wide:
-    :data:`~rgbd_rs.surface.DEFAULT_TEST_SPACING` at :data:`SEAM_SPACING_WIDTH`, in proportion
-    elsewhere (at least 1 px)."""
-    w = _validate.integer("width", width, minimum=1)
-    return max(1.0, DEFAULT_TEST_SPACING * w / SEAM_SPACING_WIDTH)
-
-
 #: A median valid depth above this (metres) warns that the unit may be off: RGB-D cameras of
 #: the Kinect / ToF class measure up to ~10 m (depth in millimetres, a median above 50, is
 #: refused by the features). It catches 0.1 mm read as millimetres (10x too far) on any scene
@@ -281,7 +264,7 @@ def segment(
         f.points,
         over,
         surfaces=net is not None,
-        test_spacing=_seam_spacing(int(np.shape(depth)[1])),
+        test_spacing=_seam_spacing(np.shape(depth)),
     )
     lap("fits")
     if net is not None and hh is not None:
