@@ -83,3 +83,14 @@ def test_frame_folder_warns_of_incomplete_frames(tmp_path: Path) -> None:
         src = FrameFolder(root)
     assert src.names == ("frame0",)
     assert any("1 frame(s) without their" in str(w.message) for w in caught)
+
+
+def test_frame_files_are_matched_by_their_frame_names() -> None:
+    from rgbd_rs.segmentation.semantic_data import _of_a_frame
+
+    names = {"living_room_0001", "000001", "a.b"}
+    assert _of_a_frame("living_room_0001_rgb.png", names)
+    assert _of_a_frame("camera_000001.json", names) and _of_a_frame("000001_depth.png", names)
+    assert _of_a_frame("a.b_label13.png", names)
+    assert not _of_a_frame("living_room_0002_rgb.png", names)
+    assert not _of_a_frame("README.md", names) and not _of_a_frame("camera.json", names)

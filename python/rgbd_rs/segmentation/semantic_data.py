@@ -38,7 +38,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import re
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -597,9 +596,19 @@ def _frames_fingerprint(frames: Any, names: list[str]) -> str | None:
     wanted = set(names)
     h = hashlib.sha256(json.dumps(names).encode())
     for f in sorted(Path(folder).iterdir()):
-        if f.is_file() and wanted & set(re.split(r"[_.]", f.name)):
+        if f.is_file() and _of_a_frame(f.name, wanted):
             h.update(f"{f.name}:{f.stat().st_size};".encode())
     return h.hexdigest()[:16]
+
+
+def _of_a_frame(file: str, names: set[str]) -> bool:
+    """Whether ``file`` belongs to a frame of ``names``: ``NAME_*`` / ``NAME.*`` (names with
+    ``_`` or ``.`` of their own included) or ``*_NAME.*`` (``camera_NNNNNN.json``)."""
+    for i, ch in enumerate(file):
+        if ch in "_." and file[:i] in names:
+            return True
+    tail = file.partition("_")[2]
+    return bool(tail) and tail.rsplit(".", 1)[0] in names
 
 
 def _check_meta(root: Path, meta: dict[str, Any], names: list[str]) -> None:

@@ -552,7 +552,7 @@ class OffTree(ShapeSource):
 
     def _content_digest(self, h: Any) -> None:
         for f in self.files:  # file sizes: reading every mesh would take minutes
-            h.update(f"{f.relative_to(self.path)}:{f.stat().st_size};".encode())
+            h.update(f"{f.relative_to(self.path).as_posix()}:{f.stat().st_size};".encode())
 
 
 def open_shapes(data: str | os.PathLike[str]) -> ShapeSource:
