@@ -33,6 +33,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _validate
 from rgbd_rs._array_eq import array_eq
+from rgbd_rs._progress import bar_options
 from rgbd_rs.camera import PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.data.calibration import load_rig, save_rig
 from rgbd_rs.data.synth_scene import _random_scene, _shared_meshes
@@ -271,7 +272,7 @@ def write_dataset(
     out.mkdir(parents=True, exist_ok=True)
     save_rig(out / "calibration.json", rig)
     todo = [("train", i) for i in range(n_train)] + [("test", i) for i in range(n_test)]
-    bar = tqdm(todo, desc="rgbd synth", unit="scene", disable=quiet or None)
+    bar = tqdm(todo, desc="rgbd synth", unit="scene", **bar_options(quiet))
     for split, i in bar:
         key = f"{split}/scene_{i:04d}"
         folder = out / key

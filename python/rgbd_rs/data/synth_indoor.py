@@ -35,6 +35,7 @@ import numpy.typing as npt
 
 from rgbd_rs import _validate
 from rgbd_rs._array_eq import array_eq
+from rgbd_rs._progress import bar_options
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.calibration import load_camera, save_camera
 from rgbd_rs.data.nyuv2 import DEPTH_PNG_PER_METRE, LABEL13_NAMES
@@ -235,7 +236,7 @@ def generate_indoor(
         write_json(folder / REQUESTED, {"count": n_frames})
     mine = list(range(i, n_frames, n))
     todo = [k for k in mine if not _complete(folder, k)]
-    for k in tqdm(todo, desc="synth-indoor", unit="frame", disable=True if quiet else None):
+    for k in tqdm(todo, desc="synth-indoor", unit="frame", **bar_options(quiet)):
         _write_frame(folder, _render(s, k, w, h)[0])
     return mine
 

@@ -52,6 +52,7 @@ import numpy.typing as npt
 from tqdm import tqdm
 
 from rgbd_rs import _rgbd_rs, _validate, metrics
+from rgbd_rs._progress import bar_options
 from rgbd_rs.camera import PinholeCamera
 from rgbd_rs.data.nyuv2 import (
     NYUV2_CAMERA,
@@ -495,7 +496,7 @@ def _tune(
     sums = [np.zeros(len(m.grid)) for m in methods]
     makers = [[m.segmenter(p) for p in m.grid] if len(m.grid) > 1 else [] for m in methods]
     if any(makers):
-        for frame in tqdm(frames, desc="tuning", unit="frame", disable=True if quiet else None):
+        for frame in tqdm(frames, desc="tuning", unit="frame", **bar_options(quiet)):
             gt = region_ground_truth(frame.label40)
             for i, runs in enumerate(makers):
                 for j, run in enumerate(runs):
@@ -574,7 +575,7 @@ def evaluate(
     per = np.zeros((len(eval_ids), len(usable), 6))
     match = np.zeros((len(eval_ids), 4))
     for k, index in enumerate(
-        tqdm(eval_ids, desc="evaluating", unit="frame", disable=True if quiet else None)
+        tqdm(eval_ids, desc="evaluating", unit="frame", **bar_options(quiet))
     ):
         frame = load_nyuv2_frame(index)
         gt = region_ground_truth(frame.label40)

@@ -22,6 +22,7 @@ from tqdm import tqdm
 
 from rgbd_rs import _validate
 from rgbd_rs._array_eq import array_eq
+from rgbd_rs._progress import bar_options
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.shapes.augment import _mirror_pair, _quarter_turns
 from rgbd_rs.shapes.classify import ShapeClassifier
@@ -274,7 +275,7 @@ def evaluate(
             raise InvalidArgumentError(f"{name}: got {flag!r}, expected True or False")
     k = _validate.integer("turned", turned, minimum=0, maximum=3)
     shapes = clf.net.shapes
-    bar = tqdm(total=len(data), desc="evaluate", unit="shape", disable=True if quiet else None)
+    bar = tqdm(total=len(data), desc="evaluate", unit="shape", **bar_options(quiet))
     with bar:  # closed on an exception too
         for x, y in loader:
             if k:
