@@ -11,7 +11,7 @@ import pytest
 
 from rgbd_rs.errors import InvalidArgumentError
 from rgbd_rs.segmentation import merge_regions
-from rgbd_rs.segmentation.merge import T_D, _seam_spacing
+from rgbd_rs.segmentation.merge import T_D
 from rgbd_rs.surface import KINECT_V1_NOISE_SCALE, SegmentFits
 
 
@@ -39,7 +39,6 @@ def test_millimetres_with_their_constants_merge_alike(shared_data: Path) -> None
         labels,
         noise_scale=KINECT_V1_NOISE_SCALE / 1000,
         surfaces=False,
-        test_spacing=_seam_spacing(mm.shape),  # as merge_regions' own fits
     )
     same = merge_regions(labels, mm, fits=fits, max_depth_step=T_D * 1000)
     np.testing.assert_array_equal(same.labels, metres.labels)

@@ -1,6 +1,5 @@
-"""segment()'s and merge_regions()'s seam test scales its knot spacing with the frame's larger
-side (16 px at NYUv2's 640), so a frame and its half-resolution copy test seams over the same
-share of a segment."""
+"""segment()'s seam test scales its knot spacing with the frame's larger side (16 px at NYUv2's
+640), so a frame and its half-resolution copy test seams over the same share of a segment."""
 
 from __future__ import annotations
 
@@ -44,19 +43,3 @@ def test_segment_passes_it_to_the_fits(monkeypatch: pytest.MonkeyPatch, width: i
     cam = PinholeCamera(0.8 * width, 0.8 * width, width / 2, h / 2, width, h)
     segment(rgb, depth, cam, labeler=None, n_segments=12, quiet=True)
     assert seen == [16.0 * width / 640]
-
-
-def test_merge_regions_uses_it_too(monkeypatch: pytest.MonkeyPatch) -> None:
-    seen: list[float] = []
-    real = merge.SegmentFits
-
-    def spy(*args: Any, **kwargs: Any) -> Any:
-        seen.append(kwargs["test_spacing"])
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(merge, "SegmentFits", spy)
-    labels = np.repeat(np.arange(4, dtype=np.int32), 16 * 32).reshape(32, 64)
-    yy, xx = np.mgrid[0:32, 0:64].astype(np.float32)
-    pts = np.dstack([xx * 0.01, yy * 0.01, np.full((32, 64), 2.0, np.float32)])
-    merge.merge_regions(labels, pts)
-    assert seen == [16.0 * 64 / 640]

@@ -102,12 +102,12 @@ class MergeResult:
 
 
 #: The image size :data:`~rgbd_rs.surface.DEFAULT_TEST_SPACING` (16 px) was set for: NYUv2's
-#: 640 x 480 Kinect frames, by their larger side. ``segment()`` and :func:`merge_regions` scale
-#: the seam test's knot spacing with the frame's larger side, so a segment spans the same number
-#: of knots at any resolution. Measured on six NYUv2 train frames merged at half resolution from
-#: the same over-segmentation: 16 px kept 27-62 % more segments than at full resolution (VoI
-#: against the full-resolution result 0.96 on average), 8 px 0.75; neither closer to the ground
-#: truth.
+#: 640 x 480 Kinect frames, by their larger side. ``segment()`` scales the seam test's knot
+#: spacing with the frame's larger side, so a segment spans the same number of knots at any
+#: resolution (:func:`merge_regions` called alone keeps 16 px unless given ``fits``). Measured
+#: on six NYUv2 train frames merged at half resolution from the same over-segmentation: 16 px
+#: kept 27-62 % more segments than at full resolution (VoI against the full-resolution result
+#: 0.96 on average), 8 px 0.75; neither closer to the ground truth.
 SEAM_SPACING_SIDE = 640
 
 
@@ -307,7 +307,7 @@ def merge_regions(
         raise InvalidArgumentError(f"t_sim: got {t_sim!r}, expected a similarity in [0, 1]")
     if fits is None:
         # The merging needs the seam test only, not the surface fits (a third of the cost).
-        fits = SegmentFits(pts, lab32, surfaces=False, test_spacing=_seam_spacing(shape))
+        fits = SegmentFits(pts, lab32, surfaces=False)
     elif not isinstance(fits, SegmentFits):
         raise InvalidArgumentError(
             f"fits: got {type(fits).__name__}, expected a rgbd_rs.surface.SegmentFits"
