@@ -231,19 +231,21 @@ def run_cache(args: argparse.Namespace) -> int:
     from rgbd_rs.shapes.dataset import InputSpec, build_cache, open_shapes
 
     src = named("--data", lambda: open_shapes(args.data))
-    if args.scale_seed and not args.scale_copies:
-        raise InvalidArgumentError(
-            f"--scale-seed: got {args.scale_seed} without --scale-copies, expected both or neither"
-        )
-    if args.scale_range is not None and not args.scale_copies:
-        low, high = args.scale_range
-        raise InvalidArgumentError(
-            f"--scale-range: got {low:g} {high:g} without --scale-copies, expected both or neither"
-        )
-    for flag, value in (("--copy-turn", args.copy_turn), ("--copy-jitter", args.copy_jitter)):
-        if value and not args.scale_copies:
+    # The copies' options mean nothing without copies: (flag, given, as typed).
+    copy_options = (
+        ("--scale-seed", bool(args.scale_seed), str(args.scale_seed)),
+        (
+            "--scale-range",
+            args.scale_range is not None,
+            " ".join(f"{v:g}" for v in args.scale_range or ()),
+        ),
+        ("--copy-turn", bool(args.copy_turn), f"{args.copy_turn:g}"),
+        ("--copy-jitter", bool(args.copy_jitter), f"{args.copy_jitter:g}"),
+    )
+    for flag, given, shown in copy_options:
+        if given and not args.scale_copies:
             raise InvalidArgumentError(
-                f"{flag}: got {value:g} without --scale-copies, expected both or neither"
+                f"{flag}: got {shown} without --scale-copies, expected both or neither"
             )
     if args.scale_copies:
         from rgbd_rs.shapes.scaling import SCALE_RANGE, ScaledCopies
