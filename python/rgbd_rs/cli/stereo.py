@@ -214,6 +214,7 @@ def run_stereo(args: argparse.Namespace) -> int:
     save_png(out / "preview.png", colorize_with_bar(disp, lo, max(hi, lo + 1.0), "px", title=title))
     _warn_if_swapped(left, right, args.reference, dmax, args.method, disp)
     _warn_if_cut(args, disp, dmax)
+    _warn_if_blank(left, right)
     cover = float(np.isfinite(disp).mean())
     checked = args.method == "opencv" or args.lr_tolerance is not None
     note = (
@@ -245,6 +246,18 @@ def _warn_if_cut(args: argparse.Namespace, disp: Any, dmax: int) -> None:
     from rgbd_rs.fusion.stereo import _searched_top
 
     note = range_cut_note(disp, _searched_top(args.method, 0, dmax), flag, advice)
+    if note is not None:
+        warnings.warn(note, RuntimeWarning, 2)
+
+
+def _warn_if_blank(left: Any, right: Any) -> None:
+    """Warn when most of a view has no texture to match (:mod:`rgbd_rs.fusion._blank`)."""
+    import warnings
+
+    from rgbd_rs.fusion._blank import blank_note
+    from rgbd_rs.fusion._inputs import grey8
+
+    note = blank_note(grey8("left", left), grey8("right", right))
     if note is not None:
         warnings.warn(note, RuntimeWarning, 2)
 

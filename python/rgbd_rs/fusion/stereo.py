@@ -23,7 +23,8 @@ import numpy.typing as npt
 
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.fusion._inputs import F32, rgb8
+from rgbd_rs.fusion._blank import blank_note
+from rgbd_rs.fusion._inputs import F32, grey8, rgb8
 from rgbd_rs.fusion._range_cut import range_cut_note
 from rgbd_rs.fusion.census import CensusParams, census_match
 
@@ -184,7 +185,9 @@ def sgm(
         params: :class:`~rgbd_rs.fusion.census.CensusParams` (``method="census"`` only).
 
     Warns (RuntimeWarning) when over 1 % of the matched pixels lie in the range's top pixel:
-    the range likely ends before the nearest surface (:mod:`rgbd_rs.fusion._range_cut`).
+    the range likely ends before the nearest surface (:mod:`rgbd_rs.fusion._range_cut`); and
+    when most of a view has no texture to match (blank, saturated or covered:
+    :mod:`rgbd_rs.fusion._blank`).
     """
     disparity = _sgm(
         left,
@@ -200,6 +203,9 @@ def sgm(
     note = range_cut_note(disparity, top, "max_disparity")
     if note is not None:
         warnings.warn(note, RuntimeWarning, stacklevel=2)
+    blank = blank_note(grey8("left", left), grey8("right", right))
+    if blank is not None:
+        warnings.warn(blank, RuntimeWarning, stacklevel=2)
     return disparity
 
 
