@@ -33,6 +33,7 @@ def test_a_log_gets_a_status_line(monkeypatch: pytest.MonkeyPatch) -> None:
         pass
     text = log.getvalue()
     assert "\r" not in text and text.endswith("\n")
+    assert "\n\n" not in text and not text.startswith("\n")  # no empty line, not even the first
     last = text.strip().splitlines()[-1]
     assert last.startswith("rgbd synth: 100%") and "5/5" in last and last.isascii()
     quiet = io.StringIO()

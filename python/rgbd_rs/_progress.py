@@ -17,15 +17,21 @@ LOG_INTERVAL = 30.0
 
 class _Lines:
     """A text stream for tqdm off a terminal: each refresh (tqdm starts it with a carriage
-    return) becomes a line of its own, so a log reads line by line."""
+    return) becomes a line of its own, so a log reads line by line, with no empty line (the
+    first refresh's carriage return starts none)."""
 
     def __init__(self, stream: Any) -> None:
         self.stream = stream
+        self.line_open = False
 
     def write(self, text: str) -> int:
         text = text.replace("\r", "\n")
         while "\n\n" in text:
             text = text.replace("\n\n", "\n")
+        if not self.line_open:
+            text = text.lstrip("\n")
+        if text:
+            self.line_open = not text.endswith("\n")
         return int(self.stream.write(text) or 0)
 
     def flush(self) -> None:
