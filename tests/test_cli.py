@@ -555,8 +555,12 @@ def test_fuse_prints_the_search_range_and_each_inputs_coverage(
 
     assert main(_fuse_argv(fuse_inputs, out=tmp_path / "a")) == 0
     out = capsys.readouterr().out
-    # The wall at 22 px: the range is the smallest SGM step that covers it with a margin.
-    assert "SGM search range: 0-26 px (from the ToF disparities)" in out
+    # The wall at 22 px: the range covers it with a margin (26 px), searched in whole 16-px
+    # steps (a fuzz: it printed 0-26 while the matcher searched 0-31).
+    assert (
+        "SGM search range: 0-31 px (from the ToF disparities: 26 px, searched in whole 16-px steps)"
+        in out
+    )
     cover = re.search(
         r"valid pixels on the right camera: ToF (\S+)%, SGM (\S+)% \(\w+\), either (\S+)%, "
         r"fused (\S+)%",
@@ -575,7 +579,9 @@ def test_fuse_prints_the_search_range_and_each_inputs_coverage(
         assert main([*argv, "--max-disparity", "40"]) == 0
     out, err = capsys.readouterr()
     assert "Fuse on the right camera: reference='right' (rgbd fuse --reference right)" in err
-    assert "SGM search range: 0-40 px (--max-disparity)" in out
+    assert (
+        "SGM search range: 0-47 px (--max-disparity: 40 px, searched in whole 16-px steps)" in out
+    )
     assert "valid pixels on the left camera" in out
 
 
@@ -891,7 +897,7 @@ def test_a_dead_tof_frame_says_where_the_search_range_came_from(
         warnings.simplefilter("always")  # the dead frame's warning, printed by the CLI
         assert main(_fuse_argv(fuse_inputs, tof_depth=dead, out=tmp_path / "o")) == 0
     dead_out = capsys.readouterr().out
-    assert "(no ToF disparity: the largest range the width allows)" in dead_out, dead_out
+    assert "(no ToF disparity: the largest range the width allows" in dead_out, dead_out
     # A handful of valid pixels bound nothing either (one pixel capped the search at its own
     # disparity, and SGM missed every nearer surface): the widest range, a warning, the reason.
     few = np.load(fuse_inputs["--tof-depth"])
@@ -905,7 +911,7 @@ def test_a_dead_tof_frame_says_where_the_search_range_came_from(
     out, err = capsys.readouterr()
     assert "rgbd: warning: --tof-depth: valid ToF pixels cover 0.07" in err, err
     assert "too few to bound the stereo search" in err and "--max-disparity" in err
-    assert "(too few ToF disparities: the largest range the width allows)" in out, out
+    assert "(too few ToF disparities: the largest range the width allows" in out, out
     widest = dead_out.split("SGM search range: ")[1].split(" px")[0]
     assert f"SGM search range: {widest} px (too few" in out
 

@@ -59,3 +59,17 @@ def test_cli_names_the_flag(
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert main([*argv, "--max-disparity", "20", "--out", str(tmp_path / "b")]) == 0
+
+
+def test_cli_prints_the_range_searched(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # OpenCV searches whole 16-px steps from 0: asked 20, it searches 0..31 (the docs fuzz found
+    # 0..64 printed for a search of 0..63); ours searches the range as asked.
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (60, 120, 3)).astype(np.uint8)
+    write_png(tmp_path / "l.png", img)
+    write_png(tmp_path / "r.png", img)
+    argv = ["stereo", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png")]
+    for method, top in (("opencv", 31), ("census", 20)):
+        out = tmp_path / method
+        assert main([*argv, "--max-disparity", "20", "--method", method, "--out", str(out)]) == 0
+        assert f"{method} SGM on the left view, 0..{top} px:" in capsys.readouterr().out

@@ -1,7 +1,13 @@
 """rgbd_rs: classic RGB-D and 3-D scene understanding with a fast Rust core.
 
-Public modules: :mod:`rgbd_rs.camera` (camera models), :mod:`rgbd_rs.geometry` (depth/disparity,
-reprojection, normals), :mod:`rgbd_rs.data` (dataset readers). Errors derive from
+The three systems: :mod:`rgbd_rs.fusion` (ToF-stereo fusion: reprojection, census SGM,
+confidence, LC fusion), :mod:`rgbd_rs.segmentation` (RGB-D over-segmentation, surface fitting,
+semantic labels, merging), :mod:`rgbd_rs.shapes` (views, voxel profiles and curvature maps of a
+3-D shape, and the classifier). Beside them: :mod:`rgbd_rs.camera` (camera models),
+:mod:`rgbd_rs.geometry` (depth/disparity, reprojection, normals), :mod:`rgbd_rs.surface`,
+:mod:`rgbd_rs.render`, :mod:`rgbd_rs.meshes`, :mod:`rgbd_rs.io`, :mod:`rgbd_rs.viz`,
+:mod:`rgbd_rs.metrics`, :mod:`rgbd_rs.nn` (the networks) and :mod:`rgbd_rs.data` (dataset
+readers). The command line is ``rgbd`` (``rgbd --help``). Errors derive from
 :class:`RgbdError` (a ``ValueError``).
 """
 

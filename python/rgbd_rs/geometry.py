@@ -95,7 +95,8 @@ class Reprojection:
 
     Attributes:
         depth: ``H x W`` float32 z in the target frame, NaN where nothing landed.
-        channels: ``H x W x C`` carried values of the winning source pixels (or None).
+        channels: ``H x W x C`` carried values of the winning source pixels (``H x W`` for
+            ``H_src x W_src`` channels; None when none were given).
         source_index: ``H x W`` int64 row-major index of the winning source pixel, -1 if none.
     """
 

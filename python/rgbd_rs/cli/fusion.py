@@ -154,12 +154,14 @@ def register(commands: Commands) -> None:
     fz.add_argument(
         "--tof-confidence",
         type=Path,
-        help="ToF confidence map (.npy, [0, 1]) on the output camera's grid (its width x height)",
+        help="ToF confidence map (.npy, [0, 1]) on the output camera's grid (its width x "
+        "height); give --stereo-confidence with it",
     )
     fz.add_argument(
         "--stereo-confidence",
         type=Path,
-        help="stereo confidence map (.npy, [0, 1]) on the output camera's grid",
+        help="stereo confidence map (.npy, [0, 1]) on the output camera's grid; give "
+        "--tof-confidence with it",
     )
     fz.add_argument(
         "--max-disparity",
@@ -493,7 +495,17 @@ def run_fuse(args: argparse.Namespace) -> int:
         how = "too few ToF disparities: the largest range the width allows"
     else:
         how = "from the ToF disparities"
-    print(f"SGM search range: 0-{out.max_disparity} px ({how})")
+    from rgbd_rs.fusion.stereo import _whole_steps
+
+    searched = _whole_steps(out.max_disparity)  # fuse searches whole 16-px steps (_match)
+    if out.stereo_matcher == "census":
+        searched = min(searched, out.disparity.shape[1] - 1)
+    steps = (
+        ""
+        if searched == out.max_disparity
+        else f": {out.max_disparity} px, searched in whole 16-px steps"
+    )
+    print(f"SGM search range: 0-{searched} px ({how}{steps})")
 
     def valid(m: npt.NDArray[np.float32]) -> str:
         return f"{np.isfinite(m).mean():.1%}"

@@ -42,7 +42,12 @@ def register(commands: Commands) -> None:
     st.add_argument("--left", type=Path, required=True, help="left image (PNG)")
     st.add_argument("--right", type=Path, required=True, help="right image (PNG)")
     rng = st.add_mutually_exclusive_group(required=True)
-    rng.add_argument("--max-disparity", type=integer(1), help="search range in px (inclusive)")
+    rng.add_argument(
+        "--max-disparity",
+        type=integer(1),
+        help="search range in px (inclusive; OpenCV searches whole 16-px steps from 0, so its top "
+        "is the next multiple of 16 minus 1)",
+    )
     rng.add_argument(
         "--calib",
         type=Path,
@@ -222,9 +227,10 @@ def run_stereo(args: argparse.Namespace) -> int:
         if checked
         else " (no left-right check: --lr-tolerance 1 leaves NaN where the views disagree)"
     )
-    print(
-        f"{args.method} SGM on the {args.reference} view, 0..{dmax} px: {cover:.1%} matched{note}"
-    )
+    from rgbd_rs.fusion.stereo import _searched_top
+
+    top = _searched_top(args.method, 0, dmax)  # OpenCV: whole 16-px steps, so 0..63 for 64
+    print(f"{args.method} SGM on the {args.reference} view, 0..{top} px: {cover:.1%} matched{note}")
     print(f"wrote {out}/disparity.npz, disparity.png, preview.png")
     return 0
 

@@ -177,8 +177,8 @@ def save_camera(path: str | Path, camera: PinholeCamera) -> Path:
 
 def load_camera(path: str | Path) -> PinholeCamera:
     """Read one camera from JSON: a ``CAM`` object (module docstring) at the top level, e.g.
-    ``{"fx": 518.86, "fy": 519.47, "cx": 325.58, "cy": 253.74, "width": 640, "height": 480}``
-    (``examples/nyu_camera.json``). A rig file (``rgbd fuse --calib``) is read too: its
+    ``{"fx": 518.86, "fy": 519.47, "cx": 324.58, "cy": 252.74, "width": 640, "height": 480}``
+    (``examples/nyu_camera.json``, rounded). A rig file (``rgbd fuse --calib``) is read too: its
     reference stereo camera is returned."""
     d = read_json(path)
     with _reported(path):

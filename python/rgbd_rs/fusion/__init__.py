@@ -2,7 +2,8 @@
 
 1. :func:`tof_to_reference` — reproject + upsample ToF onto the reference camera
    (:func:`segment_mean_shift`, :func:`upsample_depth`);
-2. :func:`sgm` — OpenCV SGBM as in the thesis;
+2. :func:`census_match` — our census SGM (what :func:`fuse` runs), or :func:`sgm`, which also
+   runs OpenCV's SGBM as in the thesis (``method="opencv"``);
 3. the confidence ConvNet (:func:`compute_clues` + :class:`rgbd_rs.nn.ConfidenceEstimator`, the
    default), :func:`tof_confidence`, :func:`stereo_confidence` — deterministic ones, or your own;
 4. :func:`lc_fuse` — confidence-weighted locally consistent fusion; :func:`lc_refine` — plain LC.
