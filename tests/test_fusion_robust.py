@@ -188,6 +188,19 @@ def test_search_range_predicted_from_the_sparse_tof(
         _predict_search_range(disp[0])
 
 
+@pytest.mark.parametrize("spacing", [2, 5, 7, 12])
+def test_predicted_range_from_samples_far_apart(spacing: int) -> None:
+    # A ToF of a quarter of the camera's pixels per axis (512 x 424 on 4K) leaves its samples
+    # 4-8 px apart: the 3 x 3 spread once left dots the median filter removed, and the guess
+    # fell back to the widest range (1279 px at 4K: a cost volume refused).
+    dense = np.full((540, 960), np.nan, np.float32)
+    dense[60:500, 100:900] = np.linspace(20.0, 40.0, 800, dtype=np.float32)
+    sparse = np.full_like(dense, np.nan)
+    sparse[::spacing, ::spacing] = dense[::spacing, ::spacing]
+    assert abs(_predict_search_range(sparse) - search_range(dense)) <= 1
+    assert _predict_search_range(np.full_like(dense, np.nan)) == search_range(dense * np.nan)
+
+
 @pytest.mark.parametrize("guess", [16, 120])
 def test_fuse_reruns_sgm_when_the_predicted_range_misses(
     scene: SynthSample, fused: FusionResult, guess: int, monkeypatch: pytest.MonkeyPatch
