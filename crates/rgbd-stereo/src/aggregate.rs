@@ -216,7 +216,7 @@ struct Sweep {
 pub(crate) fn aggregate(p: &Problem<'_>, params: &SgmParams, kernel: Kernel) -> Result<Vec<u16>> {
     let (w, h, nd) = (p.w, p.h, p.nd);
     let row_len = p.layout.row_len();
-    let mut raw = crate::volume::untouched(h * row_len);
+    let mut raw = crate::volume::untouched(h * row_len)?;
     let uses = |i: usize| params.paths.uses(i);
     let (from_left, from_right) = (uses(0), uses(1));
     // The horizontal paths: every row on its own, in parallel, each row zeroed first (this

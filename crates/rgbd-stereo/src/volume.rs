@@ -7,14 +7,25 @@
 
 use std::mem::{ManuallyDrop, MaybeUninit};
 
-/// A buffer of `n` u16 not yet written (see the module docs).
-pub(crate) fn untouched(n: usize) -> Vec<MaybeUninit<u16>> {
-    let mut v = Vec::with_capacity(n);
-    // SAFETY: `MaybeUninit` needs no initialisation and the capacity is `n`.
+use rgbd_error::{Result, RgbdError};
+
+/// A buffer of `n` u16 not yet written (see the module docs), or
+/// [`RgbdError::OutOfMemory`] when the allocator refuses it (a process under an address-space
+/// limit, `ulimit -v`, aborted here: the volume is the matcher's one large buffer).
+pub(crate) fn untouched(n: usize) -> Result<Vec<MaybeUninit<u16>>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| RgbdError::OutOfMemory {
+        what: "max_disparity",
+        bytes: (n as u64).saturating_mul(2),
+        detail: "the matcher's cost volume (2 bytes per pixel and disparity searched); free \
+                     memory, or search fewer disparities or a smaller image"
+            .to_string(),
+    })?;
+    // SAFETY: `MaybeUninit` needs no initialisation and the capacity is at least `n`.
     unsafe { v.set_len(n) };
     #[cfg(target_os = "linux")]
     advise_huge_pages(&v);
-    v
+    Ok(v)
 }
 
 /// Zeroes `row` and returns it as initialised u16.

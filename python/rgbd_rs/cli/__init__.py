@@ -111,8 +111,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return fail(str(exc))
     except OSError as exc:
         return fail(os_message(exc))
-    except MemoryError:
-        return fail("out of memory (try smaller images or fewer scenes)")
+    except MemoryError as exc:  # the native core's say what it could not reserve, and for what
+        said = str(exc)
+        known = "memory" in said or "allocate" in said
+        return fail(said if known else "out of memory (try smaller images or fewer scenes)")
     except _Terminated:
         print("rgbd: terminated (SIGTERM)", file=sys.stderr)
         return 128 + signal.SIGTERM

@@ -1,0 +1,60 @@
+"""The matcher's cost volume refused by the allocator (a process under an address-space limit,
+``ulimit -v``, as cluster schedulers set) is a MemoryError naming what it was for, and ``rgbd``
+says so in one line: the process aborted (SIGABRT, a Rust backtrace) before."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+from rgbd_rs.io import write_png
+
+# A child that limits its own address space to what it holds plus 400 MB, then runs CALL
+# (which needs a ~1 GB cost volume: 1000 x 1000 pixels x 501 disparities x 2 bytes).
+_CHILD = textwrap.dedent(
+    """
+    import resource, sys
+    import numpy as np
+    import rgbd_rs.fusion, rgbd_rs.cli
+    a = np.random.default_rng(0).integers(0, 256, (1000, 1000), dtype=np.uint8)
+    rgbd_rs.fusion.census_match(a[:40, :60], a[:40, :60], max_disparity=8)  # threads started
+    held = int(next(l for l in open("/proc/self/status") if l.startswith("VmSize")).split()[1])
+    limit = held * 1024 + 400_000_000
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    {call}
+    """
+)
+
+
+def _child(call: str) -> subprocess.CompletedProcess[str]:
+    code = _CHILD.format(call=call)
+    env = {"RAYON_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"}
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env
+    )
+
+
+def test_census_volume_out_of_memory_is_a_memory_error() -> None:
+    run = _child(
+        "try:\n"
+        "    rgbd_rs.fusion.census_match(a, a, reference='left', max_disparity=500)\n"
+        "except MemoryError as exc:\n"
+        "    print('MemoryError:', exc)"
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.startswith("MemoryError: max_disparity: out of memory: could not reserve")
+    assert "cost volume" in run.stdout
+
+
+def test_cli_says_what_it_could_not_reserve(tmp_path: Path) -> None:
+    img = np.random.default_rng(0).integers(0, 256, (1000, 1000), dtype=np.uint8)
+    write_png(tmp_path / "l.png", img)
+    argv = ["stereo", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "l.png"),
+            "--max-disparity", "500", "--out", str(tmp_path / "o")]  # fmt: skip
+    run = _child(f"sys.exit(rgbd_rs.cli.main({argv!r}))")
+    assert run.returncode == 2, run.stderr[-2000:]
+    assert run.stderr.startswith("rgbd: error: max_disparity: out of memory: could not reserve")
