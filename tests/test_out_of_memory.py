@@ -10,6 +10,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rgbd_rs.io import write_png
 
@@ -58,3 +59,35 @@ def test_cli_says_what_it_could_not_reserve(tmp_path: Path) -> None:
     run = _child(f"sys.exit(rgbd_rs.cli.main({argv!r}))")
     assert run.returncode == 2, run.stderr[-2000:]
     assert run.stderr.startswith("rgbd: error: max_disparity: out of memory: could not reserve")
+
+
+def test_opencv_volume_out_of_memory_is_a_memory_error() -> None:
+    # OpenCV's "Insufficient memory" cv2.error traceback, in our words.
+    run = _child(
+        "try:\n"
+        "    rgbd_rs.fusion.sgm(a, a, reference='left', max_disparity=480, method='opencv')\n"
+        "except MemoryError as exc:\n"
+        "    print('MemoryError:', exc)"
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.startswith(
+        "MemoryError: max_disparity: out of memory: OpenCV SGBM could not allocate"
+    ), run.stdout
+
+
+def test_opencv_refuses_a_volume_census_refuses() -> None:
+    # 3000 x 2000 x 400 disparities: 2.4e9 elements, refused before OpenCV allocates ~9 GB.
+    from rgbd_rs._rgbd_rs import MAX_ELEMENTS
+    from rgbd_rs.errors import InvalidArgumentError
+    from rgbd_rs.fusion import census_match, sgm
+
+    img = np.zeros((2000, 3000), np.uint8)
+    assert MAX_ELEMENTS < 2000 * 3000 * 400
+    for call in (
+        lambda: sgm(img, img, max_disparity=400, method="opencv"),
+        lambda: census_match(img, img, max_disparity=399),
+    ):
+        with pytest.raises(
+            InvalidArgumentError, match=r"^max_disparity: got 399|^max_disparity: got 400"
+        ):
+            call()

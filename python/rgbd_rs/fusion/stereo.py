@@ -295,6 +295,13 @@ def _sgm(
             f"wide (OpenCV SGBM searches in steps of {DISPARITY_STEP} and needs a "
             f"{bs // 2 + 1} px margin)"
         )
+    h, w = lft.shape[:2]
+    searched = _num_disparities(lo, hi)
+    if h * w * searched > _rgbd_rs.MAX_ELEMENTS:  # as census_match: SGBM-HH holds ~4 B each
+        raise InvalidArgumentError(
+            f"max_disparity: got {hi}, expected a search whose cost volume ({w} x {h} x "
+            f"{searched}) holds at most {_rgbd_rs.MAX_ELEMENTS} elements"
+        )
     return _sgbm_disparity(lft, rgt, ref, lo, hi, bs)
 
 
@@ -325,13 +332,23 @@ def _sgbm_disparity(
     """:func:`sgm`'s OpenCV path on checked inputs: the right reference matches the mirrored,
     swapped pair; outputs at ``d <= lo`` are NaN (see :func:`sgm`)."""
     matcher = _sgbm_matcher(lo, hi, bs, mode)
-    if ref == "left":
-        raw = matcher.compute(lft, rgt)
-    else:
-        raw = matcher.compute(
-            np.ascontiguousarray(rgt[:, ::-1]), np.ascontiguousarray(lft[:, ::-1])
-        )
-        raw = raw[:, ::-1]
+    try:
+        if ref == "left":
+            raw = matcher.compute(lft, rgt)
+        else:
+            raw = matcher.compute(
+                np.ascontiguousarray(rgt[:, ::-1]), np.ascontiguousarray(lft[:, ::-1])
+            )
+            raw = raw[:, ::-1]
+    except cv2.error as exc:  # OpenCV's allocation refused: a MemoryError in our words
+        if "Insufficient memory" not in str(exc):
+            raise
+        size = f"{lft.shape[1]} x {lft.shape[0]} x {_num_disparities(lo, hi)}"
+        raise MemoryError(
+            f"max_disparity: out of memory: OpenCV SGBM could not allocate its cost volume "
+            f"({size}, about 4 bytes each); free memory, or search fewer disparities or a "
+            "smaller image"
+        ) from None
     disp = raw.astype(np.float32) / 16.0
     disp[raw <= lo * 16] = np.nan
     return np.ascontiguousarray(disp)
