@@ -10,6 +10,7 @@ import errno
 import hashlib
 import io
 import json
+import math
 import os
 import shutil
 import stat
@@ -26,7 +27,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from rgbd_rs import _validate
+from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 
 from ._reasons import reason
@@ -195,10 +196,35 @@ def read_npz(path: str | Path, keys: Sequence[str] | None = None) -> dict[str, n
         raise RgbdError(f"{path}: not a readable npz archive ({reason(exc)})") from exc
 
 
+def _npy_shape(path: Path) -> tuple[int, ...] | None:
+    """The shape a regular ``.npy`` file's header declares, read without its data; None when
+    there is none to read (the full read says why)."""
+    if not path.is_file():  # a FIFO or device would block or stream
+        return None
+    try:
+        with path.open("rb") as f:
+            version = np.lib.format.read_magic(f)
+            if version == (1, 0):
+                shape = np.lib.format.read_array_header_1_0(f)[0]
+            elif version == (2, 0):
+                shape = np.lib.format.read_array_header_2_0(f)[0]
+            else:
+                return None
+    except (OSError, ValueError, EOFError):
+        return None
+    return tuple(int(n) for n in shape)
+
+
 def read_npy(path: str | Path) -> np.ndarray:
     """Read one array from an ``.npy`` file (no pickles); a missing, empty, truncated or
     non-``.npy`` file raises RgbdError naming it."""
     path = _path(path)
+    declared = _npy_shape(path)
+    if declared is not None and math.prod(declared) > MAX_NPY_ELEMENTS:
+        raise RgbdError(
+            f"{path}: the .npy header says shape {declared} ({math.prod(declared)} elements), "
+            f"expected at most {MAX_NPY_ELEMENTS} elements"
+        )
     data = _read_bytes(path)
     if not data.startswith(NPY_MAGIC):
         what = "an npz archive" if data.startswith(b"PK") else "no .npy header"
@@ -238,8 +264,14 @@ def write_png(path: str | Path, image: npt.ArrayLike, rgb: bool = True) -> Path:
     return _atomic_bytes(out, buf.tobytes())
 
 
-#: The most pixels :func:`read_png` decodes (OpenCV's own limit, CV_IO_MAX_IMAGE_PIXELS).
-MAX_PNG_PIXELS = 2**30
+#: The most pixels :func:`read_png` decodes, checked from the file's header: the most any
+#: function of the library takes (``MAX_PIXELS``, 2^28; OpenCV's own limit is 2^30, and a
+#: 1.2 MB PNG of 20000 x 20000 pixels took 3.5 GB and 27 s to decode before it was refused).
+MAX_PNG_PIXELS: int = _rgbd_rs.MAX_PIXELS
+#: The most elements :func:`read_npy` reads, checked from the file's header (a 12 GB cloud of
+#: 10^9 points was read whole before anything looked at it): the most any function of the
+#: library takes (``MAX_ELEMENTS``, 2^31).
+MAX_NPY_ELEMENTS: int = _rgbd_rs.MAX_ELEMENTS
 
 #: An ``.npy`` file's first 6 bytes.
 NPY_MAGIC = b"\x93NUMPY"

@@ -1,0 +1,66 @@
+"""Files whose header declares more than the library processes are refused from the header,
+before their data is read or decoded (a 1.2 MB PNG of 20000 x 20000 pixels took 3.5 GB and 27 s
+to decode before ``rgbd stereo`` refused it; a 12 GB cloud was read whole)."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rgbd_rs._rgbd_rs import MAX_ELEMENTS, MAX_PIXELS
+from rgbd_rs.cli import main
+from rgbd_rs.errors import RgbdError
+from rgbd_rs.io import MAX_NPY_ELEMENTS, MAX_PNG_PIXELS, read_npy, read_png
+
+
+def _png_claiming(path: Path, width: int, height: int) -> Path:
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        crc = zlib.crc32(kind + data) & 0xFFFFFFFF
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    data = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
+    path.write_bytes(data + chunk(b"IDAT", zlib.compress(b"\0" * 10)) + chunk(b"IEND", b""))
+    return path
+
+
+def _npy_claiming(path: Path, shape: tuple[int, ...]) -> Path:
+    with path.open("wb") as f:
+        np.lib.format.write_array_header_1_0(
+            f, {"descr": "<f4", "fortran_order": False, "shape": shape}
+        )
+        f.write(b"\0" * 64)
+    return path
+
+
+def test_limits_are_what_the_library_processes() -> None:
+    assert MAX_PNG_PIXELS == MAX_PIXELS and MAX_NPY_ELEMENTS == MAX_ELEMENTS
+
+
+def test_a_png_beyond_the_pixel_limit_is_refused_from_its_header(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    png = _png_claiming(tmp_path / "bomb.png", 20000, 20000)  # 4e8: over 2^28, under 2^30
+    with pytest.raises(RgbdError, match=r"the PNG header says 20000x20000 pixels, expected"):
+        read_png(png)
+    argv = ["stereo", "--left", str(png), "--right", str(png), "--max-disparity", "64"]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    assert "the PNG header says 20000x20000 pixels" in capsys.readouterr().err
+
+
+def test_an_npy_beyond_the_element_limit_is_refused_from_its_header(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    big = _npy_claiming(tmp_path / "cloud.npy", (1_000_000_000, 3))
+    with pytest.raises(RgbdError, match=r"header says shape \(1000000000, 3\) \(3000000000 elem"):
+        read_npy(big)
+    assert main(["classify", str(big)]) == 2
+    assert "header says shape (1000000000, 3)" in capsys.readouterr().err
+    # Within the limit, a short file is still the truncated file it is.
+    small = _npy_claiming(tmp_path / "short.npy", (1000, 3))
+    with pytest.raises(RgbdError, match=r"not a readable \.npy array"):
+        read_npy(small)
