@@ -39,16 +39,17 @@ def _child(call: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-def test_census_volume_out_of_memory_is_a_memory_error() -> None:
-    run = _child(
-        "try:\n"
-        "    rgbd_rs.fusion.census_match(a, a, reference='left', max_disparity=500)\n"
-        "except MemoryError as exc:\n"
-        "    print('MemoryError:', exc)"
-    )
+def _memory_error(call: str) -> str:
+    """What the child's MemoryError of ``call`` says ('' when it raised none)."""
+    run = _child(f"try:\n    {call}\nexcept MemoryError as exc:\n    print(exc)")
     assert run.returncode == 0, run.stderr[-2000:]
-    assert run.stdout.startswith("MemoryError: max_disparity: out of memory: could not reserve")
-    assert "cost volume" in run.stdout
+    return run.stdout
+
+
+def test_census_volume_out_of_memory_is_a_memory_error() -> None:
+    said = _memory_error("rgbd_rs.fusion.census_match(a, a, reference='left', max_disparity=500)")
+    assert said.startswith("max_disparity: out of memory: could not reserve")
+    assert "cost volume" in said
 
 
 def test_cli_says_what_it_could_not_reserve(tmp_path: Path) -> None:
@@ -63,16 +64,8 @@ def test_cli_says_what_it_could_not_reserve(tmp_path: Path) -> None:
 
 def test_opencv_volume_out_of_memory_is_a_memory_error() -> None:
     # OpenCV's "Insufficient memory" cv2.error traceback, in our words.
-    run = _child(
-        "try:\n"
-        "    rgbd_rs.fusion.sgm(a, a, reference='left', max_disparity=480, method='opencv')\n"
-        "except MemoryError as exc:\n"
-        "    print('MemoryError:', exc)"
-    )
-    assert run.returncode == 0, run.stderr[-2000:]
-    assert run.stdout.startswith(
-        "MemoryError: max_disparity: out of memory: OpenCV SGBM could not allocate"
-    ), run.stdout
+    said = _memory_error("rgbd_rs.fusion.sgm(a, a, max_disparity=480, method='opencv')")
+    assert said.startswith("max_disparity: out of memory: OpenCV SGBM could not allocate"), said
 
 
 def test_opencv_refuses_a_volume_census_refuses() -> None:
