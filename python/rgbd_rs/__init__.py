@@ -11,6 +11,7 @@ readers). The command line is ``rgbd`` (``rgbd --help``). Errors derive from
 :class:`RgbdError` (a ``ValueError``).
 """
 
+from rgbd_rs._fork import install as _install_fork_hook
 from rgbd_rs.camera import Distortion, PinholeCamera, Pose, StereoRig, ToFStereoRig
 from rgbd_rs.errors import InvalidArgumentError, RgbdError, ShapeMismatchError
 from rgbd_rs.geometry import (
@@ -21,6 +22,8 @@ from rgbd_rs.geometry import (
     normals_from_points,
     reproject_depth,
 )
+
+_install_fork_hook()
 
 __version__ = "0.1.0"
 

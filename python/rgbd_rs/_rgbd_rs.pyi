@@ -47,6 +47,7 @@ __all__ = [
     "SgmConfig",
     "ShapeMismatchError",
     "UpsampleConfig",
+    "after_fork_in_child",
     "agreement",
     "bridge_band_across_dropouts",
     "carry_tof_to_border",
@@ -123,6 +124,7 @@ SOURCE_LC_UNMEASURED: int
 
 def num_threads() -> int: ...
 def interrupt_running() -> None: ...
+def after_fork_in_child() -> None: ...
 def use_side_pool(on: bool) -> None: ...
 def project_points(
     points: npt.NDArray[np.float64], cam: _CameraArgs, pose_args: _PoseArgs

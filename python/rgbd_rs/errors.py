@@ -7,4 +7,11 @@ The classes are defined by the native module so Rust and Python raise the very s
 
 from rgbd_rs._rgbd_rs import InvalidArgumentError, RgbdError, ShapeMismatchError
 
+# The native module names them "_rgbd_rs.X", which pickle cannot import: an error raised in a
+# process pool's worker reached the parent as a PicklingError, its type and message lost. Here
+# they live under this module's name (tracebacks show rgbd_rs.errors.InvalidArgumentError).
+for _cls in (RgbdError, InvalidArgumentError, ShapeMismatchError):
+    _cls.__module__ = __name__
+del _cls
+
 __all__ = ["InvalidArgumentError", "RgbdError", "ShapeMismatchError"]

@@ -43,6 +43,15 @@ pub fn interrupt_running() {
     }
 }
 
+/// Forgets the calls the process was running and any pending request: for a forked child, whose
+/// copy of the counter still counts the calls the parent's other threads were in at the fork
+/// (those threads do not exist in the child, so the count never fell to 0 and one Ctrl-C there
+/// stopped every later call). Only sound in a fresh fork, where no kernel runs.
+pub fn reset_after_fork() {
+    RUNNING.store(0, Ordering::SeqCst);
+    PENDING.store(false, Ordering::SeqCst);
+}
+
 /// Marks a kernel call as running until dropped (see [`running`]).
 #[must_use = "the call counts as running only while the guard lives"]
 pub struct Running(());
@@ -81,5 +90,14 @@ mod tests {
         assert_eq!(check_interrupt(), Err(RgbdError::Interrupted));
         drop(guard);
         assert!(check_interrupt().is_ok());
+        // A fork's inherited count (a call of another thread at the fork) is forgotten.
+        let inherited = running();
+        interrupt_running();
+        std::mem::forget(inherited);
+        reset_after_fork();
+        assert!(check_interrupt().is_ok());
+        let guard = running();
+        drop(guard);
+        assert_eq!(RUNNING.load(Ordering::SeqCst), 0);
     }
 }

@@ -10,7 +10,9 @@ mod limits;
 
 use std::fmt::Display;
 
-pub use interrupt::{check_interrupt, interrupt_running, request_interrupt, running, Running};
+pub use interrupt::{
+    check_interrupt, interrupt_running, request_interrupt, reset_after_fork, running, Running,
+};
 pub use limits::{checked_len, image_len, MAX_ELEMENTS, MAX_PIXELS, MAX_SIDE};
 
 /// Errors raised by the core kernels. Every argument-related variant names the argument, what

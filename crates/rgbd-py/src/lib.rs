@@ -42,6 +42,13 @@ fn interrupt_running() {
     rgbd_error::interrupt_running();
 }
 
+/// Forgets, in a forked child, the native calls the parent was running at the fork (called by
+/// `rgbd_rs._fork` through `os.register_at_fork`; see `rgbd_error::reset_after_fork`).
+#[pyfunction]
+fn after_fork_in_child() {
+    rgbd_error::reset_after_fork();
+}
+
 /// `RAYON_NUM_THREADS` when set to a positive count.
 fn requested_threads() -> Option<usize> {
     std::env::var("RAYON_NUM_THREADS")
@@ -50,17 +57,18 @@ fn requested_threads() -> Option<usize> {
         .filter(|&n: &usize| n > 0)
 }
 
+/// The global pool's threads: `RAYON_NUM_THREADS`, else the cores (rayon's own rule; a count
+/// above the cores was reported as the cores while the pool ran that many).
 pub(crate) fn rayon_threads() -> usize {
-    std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(requested_threads().unwrap_or(usize::MAX))
+    rayon::current_num_threads()
 }
 
 /// Threads of a forked child's pool: one, as torch gives its DataLoader workers, since a fork is
 /// usually one of several workers sharing the cores (N workers of a full-size pool each would
 /// run N x cores threads); `RAYON_NUM_THREADS` overrides it.
 pub(crate) fn fork_child_threads() -> usize {
-    requested_threads().map_or(1, |_| rayon_threads())
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    requested_threads().map_or(1, |n| n.min(cores))
 }
 
 #[pymodule]
@@ -78,6 +86,7 @@ fn _rgbd_rs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_function(wrap_pyfunction!(py_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(interrupt_running, m)?)?;
+    m.add_function(wrap_pyfunction!(after_fork_in_child, m)?)?;
     m.add_function(wrap_pyfunction!(errors::use_side_pool, m)?)?;
     m.add_function(wrap_pyfunction!(geom::project_points, m)?)?;
     m.add_function(wrap_pyfunction!(geom::land_points, m)?)?;
