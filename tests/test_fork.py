@@ -1,8 +1,8 @@
-"""A forked child (multiprocessing's default start method on Linux) after the parent used the
-library: torch gets one thread there (its pool does not survive a fork: the child hung for good
-in its first forward pass), the native core forgets the calls the parent's other threads were in
-(one Ctrl-C in the child then stopped every later call), and errors cross processes by pickle
-with their type and message (a PicklingError lost both)."""
+"""A forked child (multiprocessing's default start method on Linux before Python 3.14) after the
+parent used the library: torch gets one thread there (its pool does not survive a fork: the
+child hung for good in its first forward pass), the native core forgets the calls the parent's
+other threads were in (one Ctrl-C in the child then stopped every later call), and errors cross
+processes by pickle with their type and message (a PicklingError lost both)."""
 
 from __future__ import annotations
 
@@ -114,7 +114,8 @@ def test_num_threads_is_the_pools_size_beyond_the_cores() -> None:
     # cores.
     import os
 
-    wanted = len(os.sched_getaffinity(0)) + 3
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    wanted = (cores or 1) + 3
     run = subprocess.run(
         [sys.executable, "-c", "from rgbd_rs import _rgbd_rs; print(_rgbd_rs.num_threads())"],
         capture_output=True,

@@ -199,6 +199,11 @@ def test_predicted_range_from_samples_far_apart(spacing: int) -> None:
     sparse[::spacing, ::spacing] = dense[::spacing, ::spacing]
     assert abs(_predict_search_range(sparse) - search_range(dense)) <= 1
     assert _predict_search_range(np.full_like(dense, np.nan)) == search_range(dense * np.nan)
+    # A ToF that sees a corner under MIN_RANGE_COVERAGE of the map bounds nothing, however
+    # wide its samples are spread (a 33-px spread once read it as enough): the widest range.
+    corner = np.full((720, 1280), np.nan, np.float32)
+    corner[:90:2, :90:2] = 30.0
+    assert _predict_search_range(corner) == search_range(corner * np.nan)
 
 
 @pytest.mark.parametrize("guess", [16, 120])

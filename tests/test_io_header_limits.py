@@ -14,7 +14,7 @@ import pytest
 from rgbd_rs._rgbd_rs import MAX_ELEMENTS, MAX_PIXELS
 from rgbd_rs.cli import main
 from rgbd_rs.errors import RgbdError
-from rgbd_rs.io import MAX_NPY_ELEMENTS, MAX_PNG_PIXELS, read_npy, read_png
+from rgbd_rs.io import MAX_NPY_BYTES, MAX_NPY_ELEMENTS, MAX_PNG_PIXELS, read_npy, read_png
 
 
 def _png_claiming(path: Path, width: int, height: int) -> Path:
@@ -60,7 +60,27 @@ def test_an_npy_beyond_the_element_limit_is_refused_from_its_header(
         read_npy(big)
     assert main(["classify", str(big)]) == 2
     assert "header says shape (1000000000, 3)" in capsys.readouterr().err
+    # A version 3.0 header is read too.
+    v3 = tmp_path / "v3.npy"
+    with v3.open("wb") as f:
+        np.lib.format.write_array_header_2_0(
+            f, {"descr": "<f4", "fortran_order": False, "shape": (1_000_000_000, 3)}
+        )
+    data = bytearray(v3.read_bytes())
+    data[6] = 3  # version 3.0: 2.0's layout
+    v3.write_bytes(bytes(data))
+    with pytest.raises(RgbdError, match=r"header says shape \(1000000000, 3\)"):
+        read_npy(v3)
     # Within the limit, a short file is still the truncated file it is.
     small = _npy_claiming(tmp_path / "short.npy", (1000, 3))
     with pytest.raises(RgbdError, match=r"not a readable \.npy array"):
         read_npy(small)
+
+
+def test_an_npy_file_beyond_the_byte_limit_is_refused_unread(tmp_path: Path) -> None:
+    # Whatever its header says (a structured dtype, data beyond it): the file's size decides.
+    big = _npy_claiming(tmp_path / "padded.npy", (10, 3))
+    with big.open("r+b") as f:
+        f.truncate(MAX_NPY_BYTES + 1)  # sparse: no disk used
+    with pytest.raises(RgbdError, match=rf"a file of {MAX_NPY_BYTES + 1} bytes, expected at most"):
+        read_npy(big)

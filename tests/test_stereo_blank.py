@@ -67,7 +67,7 @@ def test_cli_warns(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
         warnings.simplefilter("always")
         assert main([*argv, "--max-disparity", "32", "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err
-    assert "right: 100% of the image has no texture" in err
+    assert "--right: 100% of the image has no texture" in err
     assert "check the camera's exposure and lens" in err
 
 
@@ -83,3 +83,20 @@ def test_a_narrow_textured_band_gives_no_slope() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no "rows disagree" warning
         census_match(img, img, reference="left", max_disparity=32)
+
+
+def test_opencv_reads_colour_texture_of_one_grey_level() -> None:
+    # Colours that all convert to one grey level: OpenCV's SGBM matches them (in colour), ours
+    # sees a blank image.
+    rng = np.random.default_rng(2)
+    g = rng.integers(0, 2, (120, 200))
+    img = np.zeros((120, 200, 3), np.uint8)
+    img[g == 0] = (255, 0, 0)  # RGB: grey 0.299 * 255 = 76
+    img[g == 1] = (0, 130, 0)  # grey 0.587 * 130 = 76
+    grey = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    assert grey.min() == grey.max()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sgm(img, img, reference="left", max_disparity=32, method="opencv")
+    with pytest.warns(RuntimeWarning, match=r"^left: 100% of the image has no texture"):
+        sgm(img, img, reference="left", max_disparity=32, method="census")

@@ -1,5 +1,5 @@
-"""What a forked child (multiprocessing's default start method on Linux, a scheduler's worker
-pool) must undo of its parent's state before it calls the library.
+"""What a forked child (multiprocessing's default start method on Linux before Python 3.14, a
+scheduler's worker pool) must undo of its parent's state before it calls the library.
 
 - torch's intra-op thread pool does not survive a fork: a child whose parent had run a network
   (``fuse()``, ``segment()``, ``classify()``) hung for good in its first forward pass (plain torch
@@ -12,6 +12,7 @@ pool) must undo of its parent's state before it calls the library.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -23,8 +24,10 @@ _installed = False
 def _in_child() -> None:
     _rgbd_rs.after_fork_in_child()
     torch = sys.modules.get("torch")  # only when the parent used it: never imported here
-    if torch is not None:
-        torch.set_num_threads(1)
+    set_threads = getattr(torch, "set_num_threads", None)  # a stub or half-imported module
+    if callable(set_threads):
+        with contextlib.suppress(Exception):  # a hook must not fail every child's start
+            set_threads(1)
 
 
 def install() -> None:

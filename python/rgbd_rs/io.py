@@ -206,7 +206,7 @@ def _npy_shape(path: Path) -> tuple[int, ...] | None:
             version = np.lib.format.read_magic(f)
             if version == (1, 0):
                 shape = np.lib.format.read_array_header_1_0(f)[0]
-            elif version == (2, 0):
+            elif version in ((2, 0), (3, 0)):  # 3.0: 2.0's layout, a UTF-8 header
                 shape = np.lib.format.read_array_header_2_0(f)[0]
             else:
                 return None
@@ -219,6 +219,9 @@ def read_npy(path: str | Path) -> np.ndarray:
     """Read one array from an ``.npy`` file (no pickles); a missing, empty, truncated or
     non-``.npy`` file raises RgbdError naming it."""
     path = _path(path)
+    size = path.stat().st_size if path.is_file() else 0
+    if size > MAX_NPY_BYTES:
+        raise RgbdError(f"{path}: a file of {size} bytes, expected at most {MAX_NPY_BYTES}")
     declared = _npy_shape(path)
     if declared is not None and math.prod(declared) > MAX_NPY_ELEMENTS:
         raise RgbdError(
@@ -272,6 +275,10 @@ MAX_PNG_PIXELS: int = _rgbd_rs.MAX_PIXELS
 #: 10^9 points was read whole before anything looked at it): the most any function of the
 #: library takes (``MAX_ELEMENTS``, 2^31).
 MAX_NPY_ELEMENTS: int = _rgbd_rs.MAX_ELEMENTS
+#: The largest ``.npy`` file :func:`read_npy` reads, checked before reading it: MAX_NPY_ELEMENTS
+#: float32 values and a header (whatever its header says: a structured dtype, a version 3.0
+#: header or data beyond what it declares).
+MAX_NPY_BYTES: int = 4 * MAX_NPY_ELEMENTS + (1 << 20)
 
 #: An ``.npy`` file's first 6 bytes.
 NPY_MAGIC = b"\x93NUMPY"

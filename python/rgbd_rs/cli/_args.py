@@ -172,7 +172,7 @@ def flagged(
                 return call()
             finally:
                 seen = list(caught)
-    except RgbdError as exc:
+    except (RgbdError, MemoryError) as exc:  # the native core's MemoryError names its argument
         text = str(exc) if amend is None else amend(str(exc))
         msg = worded(text)
         if msg is None:

@@ -219,7 +219,7 @@ def run_stereo(args: argparse.Namespace) -> int:
     save_png(out / "preview.png", colorize_with_bar(disp, lo, max(hi, lo + 1.0), "px", title=title))
     _warn_if_swapped(left, right, args.reference, dmax, args.method, disp)
     _warn_if_cut(args, disp, dmax)
-    _warn_if_blank(left, right)
+    _warn_if_blank(args.method, left, right)
     cover = float(np.isfinite(disp).mean())
     checked = args.method == "opencv" or args.lr_tolerance is not None
     note = (
@@ -256,16 +256,17 @@ def _warn_if_cut(args: argparse.Namespace, disp: Any, dmax: int) -> None:
         warnings.warn(note, RuntimeWarning, 2)
 
 
-def _warn_if_blank(left: Any, right: Any) -> None:
-    """Warn when most of a view has no texture to match (:mod:`rgbd_rs.fusion._blank`)."""
+def _warn_if_blank(method: str, left: Any, right: Any) -> None:
+    """Warn when most of a view has no texture to match (:mod:`rgbd_rs.fusion._blank`), naming
+    its flag."""
     import warnings
 
     from rgbd_rs.fusion._blank import blank_note
-    from rgbd_rs.fusion._inputs import grey8
+    from rgbd_rs.fusion.stereo import _as_matched
 
-    note = blank_note(grey8("left", left), grey8("right", right))
+    note = blank_note(*_as_matched(method, left, right))
     if note is not None:
-        warnings.warn(note, RuntimeWarning, 2)
+        warnings.warn(f"--{note}", RuntimeWarning, 2)
 
 
 def _warn_if_swapped(

@@ -27,18 +27,21 @@ BLANK_WINDOW = 5
 BLANK_SHARE = 0.5
 
 
-def blank_share(grey: npt.NDArray[np.uint8]) -> float:
-    """Share of ``grey``'s pixels whose :data:`BLANK_WINDOW`-px window (clipped at the image
-    border) holds a single grey level."""
+def blank_share(image: npt.NDArray[np.uint8]) -> float:
+    """Share of ``image``'s pixels whose :data:`BLANK_WINDOW`-px window (clipped at the image
+    border) holds a single level (in every channel of a colour image: OpenCV's SGBM matches
+    colour, so a texture of colours of one grey level is one it can match)."""
     kernel = np.ones((BLANK_WINDOW, BLANK_WINDOW), np.uint8)
-    top = cv2.dilate(grey, kernel, borderType=cv2.BORDER_REPLICATE)
-    low = cv2.erode(grey, kernel, borderType=cv2.BORDER_REPLICATE)
-    return float((top == low).mean())
+    top = cv2.dilate(image, kernel, borderType=cv2.BORDER_REPLICATE)
+    low = cv2.erode(image, kernel, borderType=cv2.BORDER_REPLICATE)
+    flat = top == low
+    return float((flat.all(axis=2) if flat.ndim == 3 else flat).mean())
 
 
 def blank_note(left: npt.NDArray[np.uint8], right: npt.NDArray[np.uint8]) -> str | None:
-    """A warning's text naming the view (``left`` / ``right`` uint8 grey) of which more than
-    :data:`BLANK_SHARE` has no texture, else None."""
+    """A warning's text naming the view (``left`` / ``right`` uint8, as the matcher reads them:
+    grey for the census matcher, colour for OpenCV's) of which more than :data:`BLANK_SHARE`
+    has no texture, else None."""
     shares = {"left": blank_share(left), "right": blank_share(right)}
     name = max(shares, key=lambda k: shares[k])
     share = shares[name]

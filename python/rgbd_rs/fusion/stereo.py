@@ -138,14 +138,21 @@ def _predict_search_range(sparse_disparity: npt.ArrayLike, width: int | None = N
     )
     with np.errstate(invalid="ignore"):
         filled = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
+    none = np.full(d.shape, np.nan, np.float32)
     if not filled.any():
-        return search_range(d, width)
+        return search_range(none, width)
     for side in PREDICT_DILATIONS:
-        spread = cv2.dilate(filled, np.ones((side, side), np.uint8))
-        top, share = _range_and_coverage(np.where(spread > 0, spread, np.nan), width)
-        if share >= MIN_RANGE_COVERAGE:
-            break
-    return top
+        kernel = np.ones((side, side), np.uint8)
+        spread = cv2.dilate(filled, kernel)
+        # The coverage of the samples' own footprint (the spread eroded back): a wide spread of
+        # a ToF that sees a small corner must not read as enough samples.
+        closed = cv2.erode(spread, kernel)
+        if (
+            _range_and_coverage(np.where(closed > 0, closed, np.nan), width)[1]
+            >= MIN_RANGE_COVERAGE
+        ):
+            return search_range(np.where(spread > 0, spread, np.nan), width)
+    return search_range(none, width)
 
 
 def _same_search(a: int, b: int, min_disparity: int = 0) -> bool:
@@ -220,10 +227,19 @@ def sgm(
     note = range_cut_note(disparity, top, "max_disparity")
     if note is not None:
         warnings.warn(note, RuntimeWarning, stacklevel=2)
-    blank = blank_note(grey8("left", left), grey8("right", right))
+    blank = blank_note(*_as_matched(method, left, right))
     if blank is not None:
         warnings.warn(blank, RuntimeWarning, stacklevel=2)
     return disparity
+
+
+def _as_matched(
+    method: str, left: npt.ArrayLike, right: npt.ArrayLike
+) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8]]:
+    """The pair as ``method`` matches it: grey for ours, colour for OpenCV's SGBM."""
+    if method == "census":
+        return grey8("left", left), grey8("right", right)
+    return rgb8("left", left), rgb8("right", right)
 
 
 def _searched_top(method: str, min_disparity: int, max_disparity: int) -> int:
