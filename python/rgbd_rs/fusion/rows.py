@@ -211,15 +211,16 @@ def _row_offsets(
 def _fit(u: np.ndarray, v: np.ndarray, dy: np.ndarray, w: int, h: int) -> RowAlignment | None:
     """The trimmed least-squares plane, or None when too few pixels agree with it."""
     a = np.stack([np.ones_like(dy), (u - w / 2) / w, (v - h / 2) / h], axis=1)
-    # A slope the samples cannot tell from noise stays 0 (MIN_FIT_SPREAD).
-    a[:, 1:] *= a[:, 1:].std(axis=0) >= MIN_FIT_SPREAD
     keep = np.ones(len(dy), bool)
     spread = 0.0
     coef = np.zeros(3)
     for _ in range(3):
         if keep.sum() < MIN_SAMPLES:
             return None
-        coef = np.linalg.lstsq(a[keep], dy[keep], rcond=None)[0]
+        # A slope the samples kept cannot tell from noise stays 0 (MIN_FIT_SPREAD).
+        fit = a[keep]
+        fit = fit * np.r_[True, fit[:, 1:].std(axis=0) >= MIN_FIT_SPREAD]
+        coef = np.linalg.lstsq(fit, dy[keep], rcond=None)[0]
         res = np.abs(dy - a @ coef)
         spread = float(np.median(res[keep]) * 1.4826)
         keep = res <= max(0.3, 3 * spread)
