@@ -62,6 +62,10 @@ KNOWN: dict[str, str] = {
     "the far camera (the demo, the benches)",
     "rgbd_rs.nn.shapes.pack": "the packed input layout ShapeNet and its datasets share",
     "rgbd_rs.nn.shapes.unpack": "inverse of pack",
+    # Defined natively, named here (their __module__) so that they pickle.
+    "rgbd_rs.errors.RgbdError": "the error classes (rgbd_rs.errors.__all__, rgbd_rs.__all__)",
+    "rgbd_rs.errors.InvalidArgumentError": "an error class (rgbd_rs.errors.__all__)",
+    "rgbd_rs.errors.ShapeMismatchError": "an error class (rgbd_rs.errors.__all__)",
 }
 
 
