@@ -495,11 +495,9 @@ def run_fuse(args: argparse.Namespace) -> int:
         how = "too few ToF disparities: the largest range the width allows"
     else:
         how = "from the ToF disparities"
-    from rgbd_rs.fusion.stereo import _whole_steps
+    from rgbd_rs.fusion.fuse import _fuse_top
 
-    searched = _whole_steps(out.max_disparity)  # fuse searches whole 16-px steps (_match)
-    if out.stereo_matcher == "census":
-        searched = min(searched, out.disparity.shape[1] - 1)
+    searched = _fuse_top(out.stereo_matcher, out.max_disparity, out.disparity.shape[1])
     steps = (
         ""
         if searched == out.max_disparity

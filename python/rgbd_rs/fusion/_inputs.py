@@ -344,3 +344,14 @@ def disagreement_warning(tof_disparity: F32, stereo_disparity: F32) -> str | Non
         "the rig (tof_to_reference: its translation's unit, its direction, the reference camera "
         "it is relative to)"
     )
+
+
+def check_cost_volume(max_disparity: int, width: int, height: int, disparities: int) -> None:
+    """Refuses a search of ``disparities`` disparities on ``width x height`` pixels whose cost
+    volume holds more than ``MAX_ELEMENTS`` elements (both matchers: census_match stores 2 bytes
+    each, OpenCV's SGBM-HH about 4), naming ``max_disparity``."""
+    if width * height * disparities > _rgbd_rs.MAX_ELEMENTS:
+        raise InvalidArgumentError(
+            f"max_disparity: got {max_disparity}, expected a search whose cost volume ({width} x "
+            f"{height} x {disparities}) holds at most {_rgbd_rs.MAX_ELEMENTS} elements"
+        )

@@ -30,7 +30,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs._array_eq import array_eq
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
-from rgbd_rs.fusion._inputs import F32, grey8, pair8
+from rgbd_rs.fusion._inputs import F32, check_cost_volume, grey8, pair8
 from rgbd_rs.fusion.rows import (
     ALIGN_THRESHOLD,
     MAX_CORRECTIONS,
@@ -187,11 +187,7 @@ def census_match(
         raise InvalidArgumentError(
             f"max_disparity: got {hi}, expected less than the image width {w}"
         )
-    if h * w * (hi - lo + 1) > _rgbd_rs.MAX_ELEMENTS:
-        raise InvalidArgumentError(
-            f"max_disparity: got {hi}, expected a search whose cost volume ({w} x {h} x "
-            f"{hi - lo + 1}) holds at most {_rgbd_rs.MAX_ELEMENTS} elements"
-        )
+    check_cost_volume(hi, w, h, hi - lo + 1)
     lft = grey8("left", raw)
     rgt = grey8("right", raw_r)
     if params is None:

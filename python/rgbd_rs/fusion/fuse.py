@@ -184,7 +184,7 @@ def _match(
     ``align_rows=False``: the census matcher matches the pair as given (the swap check's
     exchanged pair, whose poor first match must not be read for rows)."""
     if matcher == "census":
-        top = min(_whole_steps(max_disparity), width - 1)
+        top = _fuse_top(matcher, max_disparity, width)
         params = FUSION_CENSUS if align_rows else FUSION_CENSUS.replace(align_rows=False)
         return _sgm(
             left,
@@ -195,6 +195,13 @@ def _match(
             params=params,
         )
     return _sgm(left, right, reference=reference, max_disparity=max_disparity)
+
+
+def _fuse_top(matcher: str, max_disparity: int, width: int) -> int:
+    """The largest disparity :func:`_match` searches for ``max_disparity``: whole 16-px steps
+    (:func:`_whole_steps`), within the image for the census matcher."""
+    top = _whole_steps(max_disparity)
+    return min(top, width - 1) if matcher == "census" else top
 
 
 def fuse(

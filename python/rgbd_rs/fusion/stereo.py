@@ -24,7 +24,7 @@ import numpy.typing as npt
 from rgbd_rs import _rgbd_rs, _validate
 from rgbd_rs.errors import InvalidArgumentError, ShapeMismatchError
 from rgbd_rs.fusion._blank import blank_note
-from rgbd_rs.fusion._inputs import F32, grey8, rgb8
+from rgbd_rs.fusion._inputs import F32, check_cost_volume, grey8, rgb8
 from rgbd_rs.fusion._range_cut import range_cut_note
 from rgbd_rs.fusion.census import CensusParams, census_match
 
@@ -311,13 +311,7 @@ def _sgm(
             f"wide (OpenCV SGBM searches in steps of {DISPARITY_STEP} and needs a "
             f"{bs // 2 + 1} px margin)"
         )
-    h, w = lft.shape[:2]
-    searched = _num_disparities(lo, hi)
-    if h * w * searched > _rgbd_rs.MAX_ELEMENTS:  # as census_match: SGBM-HH holds ~4 B each
-        raise InvalidArgumentError(
-            f"max_disparity: got {hi}, expected a search whose cost volume ({w} x {h} x "
-            f"{searched}) holds at most {_rgbd_rs.MAX_ELEMENTS} elements"
-        )
+    check_cost_volume(hi, lft.shape[1], lft.shape[0], _num_disparities(lo, hi))
     return _sgbm_disparity(lft, rgt, ref, lo, hi, bs)
 
 
