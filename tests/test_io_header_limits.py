@@ -4,8 +4,6 @@ to decode before ``rgbd stereo`` refused it; a 12 GB cloud was read whole)."""
 
 from __future__ import annotations
 
-import struct
-import zlib
 from pathlib import Path
 
 import numpy as np
@@ -15,17 +13,7 @@ from rgbd_rs._rgbd_rs import MAX_ELEMENTS, MAX_PIXELS
 from rgbd_rs.cli import main
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.io import MAX_NPY_BYTES, MAX_NPY_ELEMENTS, MAX_PNG_PIXELS, read_npy, read_png
-
-
-def _png_claiming(path: Path, width: int, height: int) -> Path:
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        crc = zlib.crc32(kind + data) & 0xFFFFFFFF
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
-
-    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
-    data = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
-    path.write_bytes(data + chunk(b"IDAT", zlib.compress(b"\0" * 10)) + chunk(b"IEND", b""))
-    return path
+from test_bad_input_round3 import _png_header
 
 
 def _npy_claiming(path: Path, shape: tuple[int, ...]) -> Path:
@@ -44,7 +32,7 @@ def test_limits_are_what_the_library_processes() -> None:
 def test_a_png_beyond_the_pixel_limit_is_refused_from_its_header(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    png = _png_claiming(tmp_path / "bomb.png", 20000, 20000)  # 4e8: over 2^28, under 2^30
+    png = _png_header(tmp_path, 20000, 20000)  # 4e8: over 2^28, under 2^30
     with pytest.raises(RgbdError, match=r"the PNG header says 20000x20000 pixels, expected"):
         read_png(png)
     argv = ["stereo", "--left", str(png), "--right", str(png), "--max-disparity", "64"]
