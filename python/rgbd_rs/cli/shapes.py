@@ -218,6 +218,15 @@ def _cache(commands: Commands) -> None:
         "--scale-copies)",
     )
     p.add_argument(
+        "--copy-drop",
+        type=real(0.0, 0.95, low_open=False),
+        default=0.0,
+        metavar="MAX",
+        help="also remove from each copy of a point cloud a fraction of its points drawn from "
+        "U(0, MAX) (0, off; PointNet++'s 0.875; meshes keep every vertex; only with "
+        "--scale-copies)",
+    )
+    p.add_argument(
         "--shard", type=shard, default=(0, 1), metavar="i/n", help="compute shard i of n (i/n)"
     )
     p.add_argument(
@@ -241,6 +250,7 @@ def run_cache(args: argparse.Namespace) -> int:
         ),
         ("--copy-turn", bool(args.copy_turn), f"{args.copy_turn:g}"),
         ("--copy-jitter", bool(args.copy_jitter), f"{args.copy_jitter:g}"),
+        ("--copy-drop", bool(args.copy_drop), f"{args.copy_drop:g}"),
     )
     for flag, given, shown in copy_options:
         if given and not args.scale_copies:
@@ -252,7 +262,12 @@ def run_cache(args: argparse.Namespace) -> int:
 
         rng = SCALE_RANGE if args.scale_range is None else tuple(args.scale_range)
         src = flagged(
-            {"scale_range": "--scale-range", "turn": "--copy-turn", "jitter": "--copy-jitter"},
+            {
+                "scale_range": "--scale-range",
+                "turn": "--copy-turn",
+                "jitter": "--copy-jitter",
+                "drop": "--copy-drop",
+            },
             lambda: ScaledCopies(
                 src,
                 args.scale_copies,
@@ -260,6 +275,7 @@ def run_cache(args: argparse.Namespace) -> int:
                 seed=args.scale_seed,
                 turn=args.copy_turn,
                 jitter=args.copy_jitter,
+                drop=args.copy_drop,
             ),
         )
     extra = {} if args.representations is None else {"representations": args.representations}

@@ -16,7 +16,11 @@ default) each copy is also turned about the up axis z by an angle drawn from U(-
 and its points (a mesh's vertices) moved by Gaussian noise of ``jitter`` times the shape's radius
 (clipped at 5 sigma), the point-cloud classifiers' other augmentations; they come from a second
 stream, ``default_rng([seed, copy, shape, 1])``, so the scale factors stay those of a cache
-without them.
+without them. ``drop`` (off by default) removes from each copy of a point cloud a fraction of its
+points drawn from U(0, drop), each point leaving with that probability (PointNet++'s random input
+dropout; at least one point stays), from a third stream, ``default_rng([seed, copy, shape, 2])``,
+so the kept points are moved exactly as in a cache without it. A mesh's copies keep every vertex
+(its triangles need them).
 """
 
 from __future__ import annotations
@@ -45,6 +49,8 @@ SCALE_LIMITS = (1e-3, 1e3)
 #: Largest turn about z (degrees) and point jitter (a fraction of the shape's radius).
 MAX_TURN = 180.0
 MAX_JITTER = 0.5
+#: Largest ``drop``: the expected fraction of a copy's points removed is at most half of it.
+MAX_DROP = 0.95
 #: Jitter is clipped at this many standard deviations (PointNet's 0.05 for sigma 0.01).
 JITTER_CLIP = 5.0
 
@@ -82,6 +88,7 @@ class ScaledCopies(ShapeSource):
         seed: int = 0,
         turn: float = 0.0,
         jitter: float = 0.0,
+        drop: float = 0.0,
     ) -> None:
         if not isinstance(source, ShapeSource):
             raise InvalidArgumentError(
@@ -105,6 +112,9 @@ class ScaledCopies(ShapeSource):
             raise InvalidArgumentError(
                 f"jitter: got {jitter!r}, expected 0 <= jitter <= {MAX_JITTER:g}"
             )
+        self.drop = _validate.real("drop", drop, nonnegative=True)
+        if self.drop > MAX_DROP:
+            raise InvalidArgumentError(f"drop: got {drop!r}, expected 0 <= drop <= {MAX_DROP:g}")
         clash = [n for n in source.names if COPY_SEP in n]
         if clash:
             raise InvalidArgumentError(
@@ -137,6 +147,8 @@ class ScaledCopies(ShapeSource):
             record["copy_turn"] = self.turn
         if self.jitter:
             record["copy_jitter"] = self.jitter
+        if self.drop:
+            record["copy_drop"] = self.drop
         return record
 
     def _content_digest(self, h: Any) -> None:
@@ -193,10 +205,24 @@ class ScaledCopies(ShapeSource):
                 p = p + sigma * noise
         return p.astype(np.float32)
 
+    def kept(self, index: int, count: int) -> npt.NDArray[np.bool_]:
+        """Which of the ``count`` points of row ``index`` its copy keeps (all of them for an
+        original or with ``drop`` 0)."""
+        c, k = self._origin(self._index(index))
+        n = _validate.integer("count", count, minimum=0)
+        if c == 0 or not self.drop or n == 0:
+            return np.ones(n, dtype=bool)
+        rng = np.random.default_rng([self.seed, c, k, 2])
+        ratio = rng.uniform(0.0, self.drop)
+        keep = rng.random(n) >= ratio
+        if not keep.any():
+            keep[int(rng.integers(n))] = True
+        return keep
+
     def load(self, index: int) -> Shape:
         """Row ``index``: an original shape as its source gives it, or a copy of a training shape
         with its axes multiplied by :meth:`scale`, turned by :meth:`turn_angle` and jittered (a
-        Mesh's vertices or a cloud's points)."""
+        Mesh's vertices or a cloud's points), and for a cloud only its :meth:`kept` points."""
         i = self._index(index)
         c, k = self._origin(i)
         shape = self.base.load(k)
@@ -204,4 +230,5 @@ class ScaledCopies(ShapeSource):
             return shape
         if isinstance(shape, Mesh):
             return Mesh(self._move(shape.vertices, c, k), shape.triangles)
-        return self._move(shape, c, k)
+        moved = self._move(shape, c, k)
+        return moved[self.kept(i, len(moved))] if self.drop else moved
