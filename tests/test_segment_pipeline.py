@@ -39,6 +39,17 @@ def test_stages_and_shapes(frame, result) -> None:  # type: ignore[no-untyped-de
     np.testing.assert_array_equal(result.fits.labels(), result.labels)
 
 
+def test_the_result_pickles_whole(result) -> None:  # type: ignore[no-untyped-def]
+    """A process pool's worker hands a segment() result back: its fits too."""
+    import pickle
+
+    back = pickle.loads(pickle.dumps(result))
+    assert back == result
+    np.testing.assert_array_equal(back.fits.labels(), result.labels)
+    live = np.unique(result.labels[result.labels >= 0])[:5]
+    assert [back.fits.fit_error(i) for i in live] == [result.fits.fit_error(i) for i in live]
+
+
 def test_merging_moves_toward_the_ground_truth(frame, result) -> None:  # type: ignore[no-untyped-def]
     from rgbd_rs.data import region_ground_truth
 

@@ -21,7 +21,9 @@ Example::
 
 from __future__ import annotations
 
+import threading
 from dataclasses import FrozenInstanceError, dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -280,6 +282,16 @@ def _restore_fit(
     )
 
 
+def _rebuild_segment_fits(
+    points: F32, labels: I32, options: dict[str, Any], merges: tuple[tuple[int, int], ...]
+) -> SegmentFits:
+    """Unpickles a :class:`SegmentFits`: the same fits built again, the same merges made."""
+    fits = SegmentFits(points, labels, **options)
+    for i, j in merges:
+        fits.merge(i, j)
+    return fits
+
+
 #: Largest smoothing weight: past ~1e12 the fit is already the regulariser's limit (the same
 #: surface to 1e-4 at 1e8 and 1e12), and past ~1e18 the normal equations lose their pivots.
 MAX_LAMBDA = 1e12
@@ -417,7 +429,8 @@ class SegmentFits:
 
     ``labels`` is ``H x W`` integer, ``-1`` (any negative) for unlabelled pixels; any labels
     ``>= 0`` and ``< 2**31`` (compacted internally, so sparse ids cost nothing) name the
-    segments, and the methods take those labels. One object may be shared between threads. Each
+    segments, and the methods take those labels. One object may be shared between threads, and
+    pickled (as its inputs and merges: unpickling fits the segments again and replays them). Each
     segment keeps its normal equations; :meth:`union_error` sums two systems and solves once
     (no pass over pixels), :meth:`merge` makes that union permanent.
 
@@ -509,6 +522,48 @@ class SegmentFits:
         )
         self.shape: tuple[int, int] = (p.shape[0], p.shape[1])
         self._surfaces = surfaces
+        # What a pickle rebuilds the fits from (the native fits do not pickle): the inputs,
+        # copied where they are still the caller's array, and the merges in order.
+        if isinstance(points, np.ndarray) and np.shares_memory(p, points):
+            p = p.copy()
+        options = {
+            "spacing": s,
+            "degree": d,
+            "lam": lam_,
+            "criterion": crit,
+            "test_spacing": ts,
+            "noise_scale": ns,
+            "noise_power": npow,
+            "tolerance": tol,
+            "surfaces": surfaces,
+            "test_window": win,
+        }
+        self._recipe: tuple[F32, I32, dict[str, object]] = (p, lab32, options)
+        self._merges: list[tuple[int, int]] = []
+        self._merge_lock = threading.Lock()
+
+    def __reduce__(self) -> tuple[object, ...]:
+        """Pickles as the inputs and the merges so far: unpickling fits the segments again
+        (as long as building them took) and replays the merges, to the same fits."""
+        points, labels, options = self._recipe
+        with self._merge_lock:
+            merges = tuple(self._merges)
+            if len(merges) != self._native.merges:
+                raise RgbdError(
+                    f"fits: got fits merged {self._native.merges} times, {len(merges)} of them "
+                    "recorded (a merge_regions() stopped part way, e.g. by Ctrl-C), expected "
+                    "fits whose merges all finished: build SegmentFits again to pickle them"
+                )
+        return (_rebuild_segment_fits, (points, labels, options, merges))
+
+    def _merged_natively(self, kept: npt.ArrayLike, absorbed: npt.ArrayLike) -> None:
+        """Records the merges :func:`rgbd_rs.segmentation.merge_regions` made in the native
+        fits (``absorbed[k]`` joined ``kept[k]``), for pickling."""
+        with self._merge_lock:
+            self._merges.extend(
+                (int(a), int(b))
+                for a, b in zip(np.asarray(kept), np.asarray(absorbed), strict=True)
+            )
 
     @property
     def n_labels(self) -> int:
@@ -566,7 +621,11 @@ class SegmentFits:
 
     def merge(self, i: int, j: int) -> float:
         """Merge live segment ``j`` into ``i``; returns the merged segment's error."""
-        return self._native.merge(_label("i", i), _label("j", j))
+        a, b = _label("i", i), _label("j", j)
+        with self._merge_lock:  # the merges recorded in the order they were made
+            error = self._native.merge(a, b)
+            self._merges.append((a, b))
+        return error
 
     def find(self, label: int) -> int:
         """The live segment (its label) an original label belongs to now."""

@@ -285,6 +285,12 @@ impl PySegmentFits {
         self.ids.clone()
     }
 
+    /// Merges applied so far (by `merge` and by `merge_regions`).
+    #[getter]
+    fn merges(&self) -> usize {
+        self.read().merges()
+    }
+
     /// 'seam', 'gcv' or 'mse'.
     #[getter]
     fn criterion(&self) -> &'static str {

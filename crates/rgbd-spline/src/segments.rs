@@ -245,6 +245,11 @@ impl SegmentFits {
         self.parent.len()
     }
 
+    /// Merges applied so far.
+    pub fn merges(&self) -> usize {
+        self.generation
+    }
+
     /// The distinct labels the fits were built with, sorted.
     pub fn label_ids(&self) -> &[i32] {
         &self.ids

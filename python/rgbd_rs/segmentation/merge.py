@@ -332,6 +332,7 @@ def merge_regions(
     out, kept, absorbed, score, errors, semantic = _rgbd_rs.merge_regions(
         fits._native, pairs, p, t, pool == "mean"
     )
+    fits._merged_natively(kept, absorbed)
     history = tuple(
         MergeStep(int(k), int(a), float(s), float(e[0]), float(e[1]), float(e[2]))
         for k, a, s, e in zip(kept, absorbed, score, errors, strict=True)
