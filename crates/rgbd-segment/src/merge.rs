@@ -157,6 +157,10 @@ pub fn majority_of_votes<T: PartialOrd + Copy + Default>(votes: &[T], classes: u
         .collect()
 }
 
+/// Parts the PDF sums of [`Descriptors::new`] are split into (fixed, so the sums do not depend
+/// on the thread count).
+const DESCRIPTOR_PARTS: usize = 16;
+
 impl Descriptors {
     /// Sums the `H x W x classes` PDFs `pdfs` over the segments of `slots` (`-1` = none).
     pub fn new(slots: &[i32], n: usize, pdfs: &[f32], classes: usize) -> Result<Self> {
@@ -164,7 +168,8 @@ impl Descriptors {
             return Err(invalid("pdfs", "0 classes", "at least one class"));
         }
         rgbd_error::check_len("pdfs", pdfs, slots.len() * classes, "H x W x classes")?;
-        let chunk = 4096;
+        // A fixed number of parts, summed in order: the same sums (bits) whatever the threads.
+        let chunk = slots.len().div_ceil(DESCRIPTOR_PARTS).max(4096);
         let zero = || {
             (
                 vec![0.0f64; n * classes],
@@ -172,10 +177,11 @@ impl Descriptors {
                 vec![0u32; n * classes],
             )
         };
-        let (sums, counts, votes) = slots
+        let parts: Vec<_> = slots
             .par_chunks(chunk)
             .zip(pdfs.par_chunks(chunk * classes))
-            .fold(zero, |(mut sums, mut counts, mut votes), (ls, ps)| {
+            .map(|(ls, ps)| {
+                let (mut sums, mut counts, mut votes) = zero();
                 let mut best = [0usize; PDF_GROUP];
                 for (ls, ps) in ls.chunks(PDF_GROUP).zip(ps.chunks(PDF_GROUP * classes)) {
                     argmax_group(ps, classes, &mut best);
@@ -190,12 +196,13 @@ impl Descriptors {
                 }
                 (sums, counts, votes)
             })
-            .reduce(zero, |(mut s1, mut c1, mut v1), (s2, c2, v2)| {
-                s1.iter_mut().zip(&s2).for_each(|(a, b)| *a += b);
-                c1.iter_mut().zip(&c2).for_each(|(a, b)| *a += b);
-                v1.iter_mut().zip(&v2).for_each(|(a, b)| *a += b);
-                (s1, c1, v1)
-            });
+            .collect();
+        let (mut sums, mut counts, mut votes) = zero();
+        for (s2, c2, v2) in &parts {
+            sums.iter_mut().zip(s2).for_each(|(a, b)| *a += b);
+            counts.iter_mut().zip(c2).for_each(|(a, b)| *a += b);
+            votes.iter_mut().zip(v2).for_each(|(a, b)| *a += b);
+        }
         Ok(Self {
             sums,
             counts,
@@ -614,6 +621,36 @@ fn merge_loop<M: FitModel>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The PDF sums are added in a fixed order: the same bits in a pool of 1 or 4 threads.
+    #[test]
+    fn descriptors_are_the_same_bits_for_any_thread_count() {
+        let (pixels, n, classes) = (300 * 400, 37usize, 13usize);
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as u32
+        };
+        let slots: Vec<i32> = (0..pixels).map(|_| (next() % 40) as i32 - 3).collect();
+        // Scores of many magnitudes (down to 1e-40): their f64 sums depend on the order.
+        let pdfs: Vec<f32> = (0..pixels * classes)
+            .map(|_| (next() as f32 / 16_777_216.0).powi(6))
+            .collect();
+        let sums = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let d = pool.install(|| Descriptors::new(&slots, n, &pdfs, classes).unwrap());
+            d.sums.iter().map(|v| v.to_bits()).collect::<Vec<u64>>()
+        };
+        let one = sums(1);
+        for _ in 0..5 {
+            assert_eq!(sums(4), one);
+        }
+    }
 
     /// Segments on a line, each with a "surface" id: unions of one surface fit (error 1),
     /// mixed unions do not (error 10).

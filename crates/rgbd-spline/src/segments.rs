@@ -678,7 +678,8 @@ impl TestFits {
         let noise = spec.noise;
         // One pass per row: the stabilised depth and its sum (for the offset).
         let mut g = vec![f64::NAN; width * height];
-        let (sum, n) = g
+        // Rows in parallel, their sums added in row order: the same offset whatever the threads.
+        let rows: Vec<(f64, usize)> = g
             .par_chunks_mut(width)
             .zip(values.par_chunks(width * channels))
             .zip(labels.par_chunks(width))
@@ -696,7 +697,8 @@ impl TestFits {
                 }
                 (sum, n)
             })
-            .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+            .collect();
+        let (sum, n) = rows.iter().fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
         let full = Region::full(width, height);
         let offset = vec![if n > 0 { sum / n as f64 } else { 0.0 }];
         let normals = accumulate(
@@ -731,7 +733,55 @@ impl TestFits {
 
 #[cfg(test)]
 mod tests {
-    use super::distinct_labels;
+    use super::{distinct_labels, Criterion, KnotGrid, SegmentFits};
+
+    /// The seam test's offset is a sum over rows: the same bits in a pool of 1 or 4 threads.
+    #[test]
+    fn seam_fits_are_the_same_bits_for_any_thread_count() {
+        let (w, h) = (160usize, 480usize);
+        let mut state = 12345u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut points = Vec::with_capacity(w * h * 3);
+        for v in 0..h {
+            for u in 0..w {
+                // depths from 0.5 to 8 m: stabilised values of many magnitudes, whose sum
+                // depends on the order they are added in
+                let z = 4.25 + 7.5 * noise() + 0.001 * u as f64;
+                points.extend([
+                    (u as f64 - 100.0) * z / 300.0,
+                    (v as f64 - 80.0) * z / 300.0,
+                    z,
+                ]);
+            }
+        }
+        let labels: Vec<i32> = (0..w * h)
+            .map(|i| ((i / w) / 96 * 4 + (i % w) / 40) as i32)
+            .collect();
+        let grid = KnotGrid::new(w, h, 16.0, 3).unwrap();
+        let errors = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let fits =
+                    SegmentFits::new(&points, w, h, 3, &labels, &grid, 1e-3, Criterion::Seam)
+                        .unwrap();
+                (0..20)
+                    .map(|i| fits.fit_error(i).unwrap().to_bits())
+                    .collect::<Vec<u64>>()
+            })
+        };
+        let one = errors(1);
+        for _ in 0..5 {
+            assert_eq!(errors(4), one);
+        }
+    }
 
     #[test]
     fn distinct_labels_match_a_sort() {
