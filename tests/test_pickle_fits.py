@@ -116,3 +116,17 @@ def test_merges_it_did_not_see_are_refused() -> None:
     fits._native.merge(0, 1)
     with pytest.raises(RgbdError, match=r"fits: got fits merged 1 times, 0 of them recorded"):
         pickle.dumps(fits)
+
+
+class Mine(SegmentFits):
+    """A subclass: it unpickles as itself."""
+
+
+def test_a_subclass_and_a_buffer_that_is_not_an_array() -> None:
+    points, labels = _scene(6)
+    assert type(pickle.loads(pickle.dumps(Mine(points, labels, spacing=8)))) is Mine
+    buf = memoryview(points)  # the caller's buffer, not an ndarray: copied too
+    fits = SegmentFits(buf, labels, spacing=8)
+    want = pickle.loads(pickle.dumps(fits))
+    points[:] = 0.0
+    _same(want, pickle.loads(pickle.dumps(fits)), _scene(6)[0])

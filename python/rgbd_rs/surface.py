@@ -22,6 +22,7 @@ Example::
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import FrozenInstanceError, dataclass
 from typing import Any
 
@@ -283,10 +284,14 @@ def _restore_fit(
 
 
 def _rebuild_segment_fits(
-    points: F32, labels: I32, options: dict[str, Any], merges: tuple[tuple[int, int], ...]
+    cls: type[SegmentFits],
+    points: F32,
+    labels: I32,
+    options: dict[str, Any],
+    merges: tuple[tuple[int, int], ...],
 ) -> SegmentFits:
     """Unpickles a :class:`SegmentFits`: the same fits built again, the same merges made."""
-    fits = SegmentFits(points, labels, **options)
+    fits = cls(points, labels, **options)
     for i, j in merges:
         fits.merge(i, j)
     return fits
@@ -524,7 +529,7 @@ class SegmentFits:
         self._surfaces = surfaces
         # What a pickle rebuilds the fits from (the native fits do not pickle): the inputs,
         # copied where they are still the caller's array, and the merges in order.
-        if isinstance(points, np.ndarray) and np.shares_memory(p, points):
+        if np.shares_memory(p, np.asarray(points)):  # the caller's buffer (any array type)
             p = p.copy()
         options = {
             "spacing": s,
@@ -554,16 +559,18 @@ class SegmentFits:
                     "recorded (a merge_regions() stopped part way, e.g. by Ctrl-C), expected "
                     "fits whose merges all finished: build SegmentFits again to pickle them"
                 )
-        return (_rebuild_segment_fits, (points, labels, options, merges))
+        return (_rebuild_segment_fits, (type(self), points, labels, options, merges))
 
-    def _merged_natively(self, kept: npt.ArrayLike, absorbed: npt.ArrayLike) -> None:
-        """Records the merges :func:`rgbd_rs.segmentation.merge_regions` made in the native
-        fits (``absorbed[k]`` joined ``kept[k]``), for pickling."""
+    def _merge_natively(self, merge: Callable[[Any], tuple[Any, ...]]) -> tuple[Any, ...]:
+        """Runs ``merge(native fits)`` (the native loop of
+        :func:`rgbd_rs.segmentation.merge_regions`, which returns ``(labels, kept, absorbed,
+        ...)``: ``absorbed[k]`` joined ``kept[k]``) and records its merges, for pickling; no
+        other merge or pickle runs in between."""
         with self._merge_lock:
-            self._merges.extend(
-                (int(a), int(b))
-                for a, b in zip(np.asarray(kept), np.asarray(absorbed), strict=True)
-            )
+            out = merge(self._native)
+            kept, absorbed = np.asarray(out[1]), np.asarray(out[2])
+            self._merges.extend((int(a), int(b)) for a, b in zip(kept, absorbed, strict=True))
+        return out
 
     @property
     def n_labels(self) -> int:

@@ -287,8 +287,9 @@ impl PySegmentFits {
 
     /// Merges applied so far (by `merge` and by `merge_regions`).
     #[getter]
-    fn merges(&self) -> usize {
-        self.read().merges()
+    fn merges(&self, py: Python<'_>) -> PyResult<usize> {
+        // Without the GIL (as every query): a merge on another thread may hold the write lock.
+        self.query(py, |s| Ok(s.merges()))
     }
 
     /// 'seam', 'gcv' or 'mse'.

@@ -329,10 +329,9 @@ def merge_regions(
     )
     # semantic: each final segment's class, from the votes or PDF sums of the native
     # descriptors' pass (None without PDFs).
-    out, kept, absorbed, score, errors, semantic = _rgbd_rs.merge_regions(
-        fits._native, pairs, p, t, pool == "mean"
+    out, kept, absorbed, score, errors, semantic = fits._merge_natively(
+        lambda native: _rgbd_rs.merge_regions(native, pairs, p, t, pool == "mean")
     )
-    fits._merged_natively(kept, absorbed)
     history = tuple(
         MergeStep(int(k), int(a), float(s), float(e[0]), float(e[1]), float(e[2]))
         for k, a, s, e in zip(kept, absorbed, score, errors, strict=True)
