@@ -435,7 +435,8 @@ class SegmentFits:
     ``labels`` is ``H x W`` integer, ``-1`` (any negative) for unlabelled pixels; any labels
     ``>= 0`` and ``< 2**31`` (compacted internally, so sparse ids cost nothing) name the
     segments, and the methods take those labels. One object may be shared between threads, and
-    pickled (as its inputs and merges: unpickling fits the segments again and replays them). Each
+    pickled (as its inputs, which it keeps, 16 bytes a pixel, and its merges: unpickling fits the
+    segments again and replays them). Each
     segment keeps its normal equations; :meth:`union_error` sums two systems and solves once
     (no pass over pixels), :meth:`merge` makes that union permanent.
 
