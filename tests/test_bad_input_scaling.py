@@ -49,6 +49,12 @@ CASES: list[Case] = [
     Case("ScaledCopies.load", lambda: ScaledCopies(_Src(), 1).load(9), ARG, r"^index"),
     Case("ScaledCopies.scale", lambda: ScaledCopies(_Src(), 1).scale(-1), ARG, r"^index"),
     Case("ScaledCopies.turn_angle", lambda: ScaledCopies(_Src(), 1).turn_angle(9), ARG, r"^index"),
+    Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, drop=0.96), ARG, r"^drop: got 0.96", "d+"),
+    Case("ScaledCopies", lambda: ScaledCopies(_Src(), 1, drop=np.nan), ARG, r"^drop", "dn"),
+    Case(
+        "ScaledCopies.kept", lambda: ScaledCopies(_Src(), 1, drop=0.5).kept(9, 10), ARG, r"^index"
+    ),
+    Case("ScaledCopies.kept", lambda: ScaledCopies(_Src(), 1).kept(2, -1), ARG, r"^count", "c-"),
 ]
 
 
