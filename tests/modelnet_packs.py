@@ -1,4 +1,5 @@
-"""Small point packs cut from the shared ModelNet10 pack, for the shape tests."""
+"""Small shape sources for the shape tests: point packs cut from the shared ModelNet10 pack, and
+two boxes as a mesh source."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rgbd_rs.shapes.dataset import PointCloudSet
+from rgbd_rs.meshes import Mesh, box
+from rgbd_rs.shapes.dataset import PointCloudSet, ShapeSource
 
 
 def modelnet10_subset(
@@ -32,3 +34,20 @@ def modelnet10_subset(
         name=np.array([src.names[i] for i in pick]),
     )
     return path
+
+
+class Boxes(ShapeSource):
+    """Two boxes with sides ``sides``, one training and one test shape: a mesh source."""
+
+    kind = "mesh"
+
+    def __init__(self, sides: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> None:
+        self.path = Path("boxes")
+        self.classes = ("box",)
+        self.labels = np.zeros(2, np.int64)
+        self.splits = np.array([0, 1], np.uint8)
+        self.names = ("a", "b")
+        self.sides = sides
+
+    def load(self, index: int) -> Mesh:
+        return box(self.sides)

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 import rgbd_rs.shapes.dataset as D
-from modelnet_packs import modelnet10_subset
+from modelnet_packs import Boxes, modelnet10_subset
 from rgbd_rs.errors import RgbdError
-from rgbd_rs.meshes import Mesh, box
-from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, ShapeSource, build_cache
+from rgbd_rs.meshes import Mesh
+from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, build_cache
 from rgbd_rs.shapes.scaling import MAX_DROP, ScaledCopies
 
 NORM = "lcn" if D._lcn() is not None else "standardize"
@@ -61,19 +61,8 @@ def test_at_least_one_point_stays_and_the_limit(pack: Path) -> None:
 
 
 def test_mesh_copies_keep_every_vertex() -> None:
-    class _Boxes(ShapeSource):
-        kind = "mesh"
-        path = Path("boxes")
-        classes = ("box",)
-        labels = np.zeros(2, np.int64)
-        splits = np.array([0, 1], np.uint8)
-        names = ("a", "b")
-
-        def load(self, index: int) -> Mesh:
-            return box((1.0, 2.0, 3.0))
-
-    m = ScaledCopies(_Boxes(), 1, drop=0.9).load(2)
-    want = ScaledCopies(_Boxes(), 1).load(2)
+    m = ScaledCopies(Boxes((1.0, 2.0, 3.0)), 1, drop=0.9).load(2)
+    want = ScaledCopies(Boxes((1.0, 2.0, 3.0)), 1).load(2)
     assert isinstance(m, Mesh) and isinstance(want, Mesh)
     np.testing.assert_array_equal(m.vertices, want.vertices)
     np.testing.assert_array_equal(m.triangles, want.triangles)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import rgbd_rs.shapes.dataset as D
-from modelnet_packs import modelnet10_subset
+from modelnet_packs import Boxes, modelnet10_subset
 from rgbd_rs.errors import RgbdError
 from rgbd_rs.meshes import Mesh, box
 from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, ShapeSource, build_cache
@@ -94,18 +94,7 @@ def test_jitter_is_relative_to_the_shape_and_clipped(pack: Path) -> None:
 
 
 def test_mesh_copies_move_vertices_and_keep_triangles() -> None:
-    class _Boxes(ShapeSource):
-        kind = "mesh"
-        path = Path("boxes")
-        classes = ("box",)
-        labels = np.zeros(2, np.int64)
-        splits = np.array([0, 1], np.uint8)
-        names = ("a", "b")
-
-        def load(self, index: int) -> Mesh:
-            return box((1.0, 2.0, 3.0))
-
-    src = ScaledCopies(_Boxes(), 1, turn=45.0, jitter=0.01)
+    src = ScaledCopies(Boxes((1.0, 2.0, 3.0)), 1, turn=45.0, jitter=0.01)
     m = src.load(2)
     assert isinstance(m, Mesh)
     orig = box((1.0, 2.0, 3.0))

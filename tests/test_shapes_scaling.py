@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import rgbd_rs.shapes.dataset as D
-from modelnet_packs import modelnet10_subset
+from modelnet_packs import Boxes, modelnet10_subset
 from rgbd_rs.errors import RgbdError
-from rgbd_rs.meshes import Mesh, box
-from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, ShapeSource, build_cache
+from rgbd_rs.meshes import Mesh
+from rgbd_rs.shapes.dataset import InputSpec, PointCloudSet, build_cache
 from rgbd_rs.shapes.scaling import SCALE_RANGE, ScaledCopies, original_name, original_rows
 from rgbd_rs.shapes.train import _split_by_shape
 
@@ -53,22 +53,8 @@ def test_copies_of_training_shapes_only(pack: Path) -> None:
     assert not np.allclose(other.scale(len(base)), src.scale(len(base)))
 
 
-class _Boxes(ShapeSource):
-    kind = "mesh"
-
-    def __init__(self) -> None:
-        self.path = Path("boxes")
-        self.classes = ("box",)
-        self.labels = np.zeros(2, np.int64)
-        self.splits = np.array([0, 1], np.uint8)
-        self.names = ("a", "b")
-
-    def load(self, index: int) -> Mesh:
-        return box((1.0, 1.0, 1.0))
-
-
 def test_meshes_are_scaled_too() -> None:
-    src = ScaledCopies(_Boxes(), 1, scale_range=(0.5, 2.0))
+    src = ScaledCopies(Boxes(), 1, scale_range=(0.5, 2.0))
     assert len(src) == 3 and src.names[2] == "a#s1"
     m = src.load(2)
     assert isinstance(m, Mesh)
@@ -130,7 +116,7 @@ def test_copies_follow_their_original_by_row_not_by_name(pack: Path, tmp_path: P
 
 
 def test_too_few_originals_to_validate(tmp_path: Path) -> None:
-    cache = build_cache(ScaledCopies(_Boxes(), 3), tmp_path / "b", spec=VOLUME, quiet=True)
+    cache = build_cache(ScaledCopies(Boxes(), 3), tmp_path / "b", spec=VOLUME, quiet=True)
     with pytest.raises(RgbdError, match=r"1 original training shape\(s\) \(\+3 scaled copies\)"):
         _split_by_shape(cache, cache.dataset("train"), 0.1, 0)
 
