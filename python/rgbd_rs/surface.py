@@ -436,9 +436,9 @@ class SegmentFits:
     ``>= 0`` and ``< 2**31`` (compacted internally, so sparse ids cost nothing) name the
     segments, and the methods take those labels. One object may be shared between threads, and
     pickled (as its inputs, which it keeps, 16 bytes a pixel, and its merges: unpickling fits the
-    segments again and replays them). Each
-    segment keeps its normal equations; :meth:`union_error` sums two systems and solves once
-    (no pass over pixels), :meth:`merge` makes that union permanent.
+    segments again and replays them). Each segment keeps its normal equations; :meth:`union_error`
+    sums two systems and solves once (no pass over pixels), :meth:`merge` makes that union
+    permanent.
 
     ``criterion`` picks what :meth:`fit_error` reports:
 
@@ -530,7 +530,7 @@ class SegmentFits:
         self._surfaces = surfaces
         # What a pickle rebuilds the fits from (the native fits do not pickle): the inputs,
         # copied where they are still the caller's array, and the merges in order.
-        if np.shares_memory(p, np.asarray(points)):  # the caller's buffer (any array type)
+        if np.may_share_memory(p, np.asarray(points)):  # the caller's buffer (any array type)
             p = p.copy()
         options = {
             "spacing": s,

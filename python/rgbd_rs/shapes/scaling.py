@@ -209,7 +209,10 @@ class ScaledCopies(ShapeSource):
         """Which of the ``count`` points of row ``index`` its copy keeps (all of them for an
         original or with ``drop`` 0)."""
         c, k = self._origin(self._index(index))
-        n = _validate.integer("count", count, minimum=0)
+        return self._keep(c, k, _validate.integer("count", count, minimum=0))
+
+    def _keep(self, c: int, k: int, n: int) -> npt.NDArray[np.bool_]:
+        """:meth:`kept` of copy round ``c`` of original ``k`` with ``n`` points."""
         if c == 0 or not self.drop or n == 0:
             return np.ones(n, dtype=bool)
         rng = np.random.default_rng([self.seed, c, k, 2])
@@ -231,4 +234,4 @@ class ScaledCopies(ShapeSource):
         if isinstance(shape, Mesh):
             return Mesh(self._move(shape.vertices, c, k), shape.triangles)
         moved = self._move(shape, c, k)
-        return moved[self.kept(i, len(moved))] if self.drop else moved
+        return moved[self._keep(c, k, len(moved))] if self.drop else moved
